@@ -1,0 +1,1 @@
+"""Readers and writers: pose JSON and CSV, calibration TOML."""
