@@ -1,0 +1,3 @@
+from posecam.cli import main
+
+main()

@@ -1,0 +1,70 @@
+"""Rotated square regions of interest: build them from two body points, crop them, map back."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+# BlazePose's ROI: centred on the hip centre, side 2 * |scale point - hip centre| * 1.25,
+# rotated so that the hip -> scale-point direction points up in the crop.
+ROI_SCALE = 1.25
+
+
+@dataclass(frozen=True)
+class Roi:
+    """A square of side `size` px centred on (cx, cy), rotated by `angle` rad (clockwise in the image)."""
+
+    cx: float
+    cy: float
+    size: float
+    angle: float = 0.0
+
+    @classmethod
+    def from_alignment_points(cls, centre: np.ndarray, scale_point: np.ndarray) -> "Roi":
+        d = scale_point - centre
+        angle = np.pi / 2 - np.arctan2(-d[1], d[0])
+        angle = (angle + np.pi) % (2 * np.pi) - np.pi
+        size = 2.0 * float(np.hypot(*d)) * ROI_SCALE
+        return cls(float(centre[0]), float(centre[1]), size, float(angle))
+
+    @classmethod
+    def around_points(cls, points: np.ndarray, margin: float = ROI_SCALE) -> "Roi":
+        """Upright square around the bounding box of (N, 2) points."""
+        lo, hi = points.min(axis=0), points.max(axis=0)
+        c = (lo + hi) / 2
+        return cls(float(c[0]), float(c[1]), float((hi - lo).max() * margin))
+
+    def crop_matrix(self, out_size: int) -> np.ndarray:
+        """2x3 affine matrix taking image pixels to crop pixels (0..out_size)."""
+        s = out_size / self.size
+        c, n = np.cos(self.angle), np.sin(self.angle)
+        # crop = s * R(-angle) (image - centre) + out_size / 2
+        m = s * np.array([[c, n], [-n, c]])
+        t = out_size / 2 - m @ np.array([self.cx, self.cy])
+        return np.hstack([m, t[:, None]])
+
+    def crop(self, image: np.ndarray, out_size: int) -> np.ndarray:
+        return cv2.warpAffine(image, self.crop_matrix(out_size), (out_size, out_size),
+                              flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+
+    def to_image(self, points: np.ndarray, out_size: int) -> np.ndarray:
+        """(..., 2) crop pixels -> image pixels."""
+        m = self.crop_matrix(out_size)
+        inv = np.linalg.inv(np.vstack([m, [0, 0, 1]]))[:2]
+        return points @ inv[:, :2].T + inv[:, 2]
+
+    def rotate_to_image(self, vectors: np.ndarray) -> np.ndarray:
+        """(..., 3) vectors in the crop's axes -> the image's axes (x, y rotated by `angle`)."""
+        c, n = np.cos(self.angle), np.sin(self.angle)
+        x, y = vectors[..., 0], vectors[..., 1]
+        return np.stack([c * x - n * y, n * x + c * y, vectors[..., 2]], axis=-1)
+
+    @property
+    def box(self) -> np.ndarray:
+        """Axis-aligned bounds (x0, y0, x1, y1) of the rotated square."""
+        h = self.size / 2
+        corners = self.rotate_to_image(np.array([[-h, -h, 0], [h, -h, 0], [h, h, 0], [-h, h, 0]]))[:, :2]
+        corners += [self.cx, self.cy]
+        return np.concatenate([corners.min(axis=0), corners.max(axis=0)])
