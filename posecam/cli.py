@@ -11,8 +11,6 @@ import sys
 import click
 
 from posecam import __version__
-from posecam.commands.export import export_command
-from posecam.commands.fuse import fuse_command
 from posecam.commands.predict import predict_command
 from posecam.errors import PosecamError
 
@@ -38,5 +36,3 @@ def main() -> None:
 
 
 main.add_command(predict_command, "predict")
-main.add_command(fuse_command, "fuse")
-main.add_command(export_command, "export")

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import sys
 from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,11 +37,13 @@ class Media:
             for i, p in enumerate(_sequence_files(self.path)):
                 yield i, i / SEQUENCE_FPS, read_image(p)
         else:
-            cap = cv2.VideoCapture(str(self.path))
+            with _native_stderr_silenced():
+                cap = cv2.VideoCapture(str(self.path))
             try:
                 index = 0
                 while True:
-                    ok, bgr = cap.read()
+                    with _native_stderr_silenced():
+                        ok, bgr = cap.read()
                     if not ok:
                         break
                     yield index, index / self.fps, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
@@ -47,9 +52,25 @@ class Media:
                 cap.release()
 
 
+@contextmanager
+def _native_stderr_silenced() -> Iterator[None]:
+    """Mute what libjpeg/FFmpeg print to the process's stderr; posecam reports errors itself."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    try:
+        os.dup2(devnull, 2)
+        yield
+    finally:
+        os.dup2(saved, 2)
+        os.close(devnull)
+        os.close(saved)
+
+
 def read_image(path: Path) -> np.ndarray:
     """RGB uint8 image (EXIF orientation applied) or InputError."""
-    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    with _native_stderr_silenced():
+        bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
     if bgr is None:
         raise InputError(f"{path} is not a readable image")
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
@@ -73,9 +94,10 @@ def open_media(path: str | Path) -> Media:
     if path.suffix.lower() in IMAGE_SUFFIXES:
         h, w = read_image(path).shape[:2]
         return Media(path, "image", w, h, None, 1)
-    cap = cv2.VideoCapture(str(path))
-    try:
+    with _native_stderr_silenced():
+        cap = cv2.VideoCapture(str(path))
         ok, frame = cap.read() if cap.isOpened() else (False, None)
+    try:
         if not ok:
             raise InputError(f"{path} is neither a readable image nor a readable video")
         fps = cap.get(cv2.CAP_PROP_FPS)

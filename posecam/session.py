@@ -19,7 +19,7 @@ BUNDLED = {
     "heavy": "blazepose_heavy.onnx",
     "detector": "blazepose_detector.onnx",
 }
-REBUILD_HINT = "pip install '.[export]' && python -m export.build_models --heavy"
+REBUILD_HINT = "pip install '.[export]' && python -m export.build_models heavy"
 
 
 def resolve_model(name_or_path: str) -> Path:
