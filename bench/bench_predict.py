@@ -1,0 +1,157 @@
+"""Benchmark `posecam predict` on the Pose2Sim demo, against MediaPipe's own pose solution.
+
+    python bench/bench_predict.py [--runs 5]
+
+1. Speed and memory: frames per second and peak resident memory of `posecam predict` on the
+   100-frame 1080x1920 cam01 clip, and of MediaPipe 0.10.21's Python pose solution (same
+   BlazePose network family, `model_complexity=1` = the full model) on the same clip. MediaPipe
+   runs in a throwaway virtual environment (.cache/mediapipe-venv, made on first use); each run
+   is a fresh process, alternating the two, and medians are printed.
+2. Accuracy: for each of the 4 demo cameras, with the lab calibration's intrinsics, the mean
+   distance between posecam's root (pelvis) and the pelvis triangulated from all 4 views
+   through the lab's Qualisys calibration (the videos' frame offsets are set as measured).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+MP_VENV = REPO / ".cache" / "mediapipe-venv"
+CAMERAS = ("cam01", "cam02", "cam03", "cam04")
+OFFSETS = {"cam01": 0, "cam02": -1, "cam03": 4, "cam04": 0}   # frames, vs cam01 (shared/ASSETS.md)
+
+
+def child_posecam(video: str, model: str) -> dict:
+    """Run `posecam predict VIDEO -o out.json` in this process; report time and peak memory."""
+    from posecam.cli import main
+
+    with tempfile.TemporaryDirectory() as tmp:
+        start = time.perf_counter()
+        main(["predict", video, "--model", model, "-o", f"{tmp}/out.json"], standalone_mode=False)
+        seconds = time.perf_counter() - start
+        frames = len(json.loads(Path(f"{tmp}/out.json").read_text())["inputs"][0]["frames"])
+    return {"frames": frames, "seconds": seconds, "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+
+
+def child_mediapipe(video: str) -> dict:
+    """MediaPipe's pose solution over the same video (video mode: it tracks between frames)."""
+    import cv2
+    import mediapipe as mp
+
+    start = time.perf_counter()
+    pose = mp.solutions.pose.Pose(static_image_mode=False, model_complexity=1)
+    cap = cv2.VideoCapture(video)
+    frames = 0
+    while True:
+        ok, bgr = cap.read()
+        if not ok:
+            break
+        pose.process(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+        frames += 1
+    seconds = time.perf_counter() - start
+    return {"frames": frames, "seconds": seconds, "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
+
+
+def ensure_mediapipe_venv() -> Path:
+    python = MP_VENV / "bin" / "python"
+    if not python.exists():
+        print("making the throwaway MediaPipe environment (once) ...", flush=True)
+        subprocess.run([sys.executable, "-m", "venv", str(MP_VENV)], check=True)
+        subprocess.run([str(python), "-m", "pip", "install", "-q", "mediapipe==0.10.21"], check=True)
+    return python
+
+
+def run_child(python: str, mode: str, *args: str) -> dict:
+    out = subprocess.run([python, __file__, "--child", mode, *args], capture_output=True, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def speed(video: Path, runs: int, model: str) -> None:
+    mp_python = str(ensure_mediapipe_venv())
+    results: dict[str, list[dict]] = {"posecam": [], "mediapipe": []}
+    for _ in range(runs):
+        results["posecam"].append(run_child(sys.executable, "posecam", str(video), model))
+        results["mediapipe"].append(run_child(mp_python, "mediapipe", str(video)))
+    print(f"\nSpeed on {video.name} (1080x1920, 100 frames), {runs} runs each, medians:")
+    print(f"{'':28s}{'fps':>8s}{'s/run':>8s}{'peak MB':>9s}")
+    for name, label in (("posecam", f"posecam predict ({model})"), ("mediapipe", "MediaPipe 0.10.21 (full)")):
+        rs = results[name]
+        fps = statistics.median(r["frames"] / r["seconds"] for r in rs)
+        print(f"{label:28s}{fps:8.1f}{statistics.median(r['seconds'] for r in rs):8.2f}"
+              f"{statistics.median(r['peak_mb'] for r in rs):9.0f}")
+
+
+def _first_person(frames: list, attr: str, shape: tuple[int, ...]):
+    """One array over frames of the first person's `attr`, NaN where nobody was found."""
+    import numpy as np
+
+    return np.stack([getattr(f.people[0], attr) if f.people else np.full(shape, np.nan) for f in frames])
+
+
+def accuracy(videos: dict[str, Path], calib_path: Path, model: str) -> None:
+    import cv2
+    import numpy as np
+
+    from posecam import EstimatorOptions, IntrinsicsOptions, PoseEstimator
+    from posecam.io.calibration import read_qualisys
+    from posecam.triangulate import reprojection_errors, triangulate
+
+    widths = {c: int(cv2.VideoCapture(str(v)).get(cv2.CAP_PROP_FRAME_WIDTH)) for c, v in videos.items()}
+    cams = read_qualisys(calib_path, image_widths=widths)
+    n = 100 - max(OFFSETS.values()) + min(OFFSETS.values())
+    uv, conf, roots = [], [], []
+    for cam in cams:
+        k = cam.intrinsics
+        opts = EstimatorOptions(model=model, max_people=1, intrinsics=IntrinsicsOptions(k.fx, k.fy, k.cx, k.cy))
+        rec = PoseEstimator(opts).predict_file(videos[cam.name])
+        start = OFFSETS[cam.name] - min(OFFSETS.values())
+        frames = rec.frames[start:start + n]
+        uv.append(_first_person(frames, "keypoints_2d", (17, 2)))
+        conf.append(_first_person(frames, "confidence", (17,)))
+        roots.append(_first_person(frames, "keypoints_3d", (17, 3))[:, 0])
+    uv, conf = np.stack(uv), np.stack(conf)
+    world = triangulate(cams, uv, conf)
+    reproj = reprojection_errors(cams, world, uv, conf)
+    print(f"\nAccuracy on the 4 demo cameras ({n} synchronised frames, model {model}, lab intrinsics):")
+    print(f"  triangulation from all 4 views reprojects with a median error of {np.nanmedian(reproj):.1f} px")
+    print(f"{'camera':10s}{'mean root error (mm)':>22s}{'median (mm)':>13s}{'root depth (m)':>16s}")
+    errors = []
+    for cam, root in zip(cams, roots):
+        truth = cam.to_camera(world[:, 0])
+        e = np.linalg.norm(root - truth, axis=-1)
+        errors.append(np.nanmean(e))
+        print(f"{cam.name:10s}{np.nanmean(e):22.0f}{np.nanmedian(e):13.0f}{np.nanmedian(truth[:, 2]) / 1000:16.2f}")
+    print(f"{'all':10s}{np.mean(errors):22.0f}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--runs", type=int, default=5)
+    ap.add_argument("--model", default="full")
+    ap.add_argument("--child", help=argparse.SUPPRESS)
+    ap.add_argument("args", nargs="*", help=argparse.SUPPRESS)
+    a = ap.parse_args()
+    if a.child == "posecam":
+        print(json.dumps(child_posecam(*a.args)))
+        return
+    if a.child == "mediapipe":
+        print(json.dumps(child_mediapipe(*a.args)))
+        return
+    from export.assets import pose2sim_demo_path
+
+    videos = {c: pose2sim_demo_path(f"videos/{c}.mp4") for c in CAMERAS}
+    speed(videos["cam01"], a.runs, a.model)
+    accuracy(videos, pose2sim_demo_path("calibration/Calib.qca.txt"), a.model)
+
+
+if __name__ == "__main__":
+    main()
