@@ -39,12 +39,15 @@ def ssd_anchors(size: int, strides: list[int], per_cell: list[int]) -> np.ndarra
     return np.concatenate(centres)
 
 
+def _area(boxes: np.ndarray) -> np.ndarray:
+    return np.prod(boxes[..., 2:] - boxes[..., :2], axis=-1)
+
+
 def _iou(box: np.ndarray, boxes: np.ndarray) -> np.ndarray:
     lo = np.maximum(box[:2], boxes[:, :2])
     hi = np.minimum(box[2:], boxes[:, 2:])
     inter = np.prod(np.clip(hi - lo, 0, None), axis=1)
-    area = lambda b: np.prod(b[..., 2:] - b[..., :2], axis=-1)  # noqa: E731
-    return inter / np.maximum(area(box) + area(boxes) - inter, 1e-9)
+    return inter / np.maximum(_area(box) + _area(boxes) - inter, 1e-9)
 
 
 def weighted_nms(scores: np.ndarray, boxes: np.ndarray, points: np.ndarray, iou: float) -> list[int]:
@@ -104,8 +107,9 @@ class PersonDetector:
         boxes = np.concatenate([centre - half, centre + half], axis=1)
         points = raw[:, 4:12].reshape(-1, 4, 2) / self.scale + anchors[:, None, :]
         kept = weighted_nms(scores, boxes, points, self.nms_iou)[:max_people]
-        to_px = lambda p: p * self.size * scale - pad  # noqa: E731  letterbox unit square -> image pixels
+        unit_to_px = self.size * scale  # letterbox unit square -> image pixels, less the padding
         return [
-            Detection(float(scores[i]), to_px(boxes[i].reshape(2, 2)).ravel(), to_px(points[i]))
+            Detection(float(scores[i]), (boxes[i].reshape(2, 2) * unit_to_px - pad).ravel(),
+                      points[i] * unit_to_px - pad)
             for i in kept
         ]
