@@ -11,6 +11,7 @@ import sys
 import click
 
 from posecam import __version__
+from posecam.commands.fuse import fuse_command
 from posecam.commands.predict import predict_command
 from posecam.errors import PosecamError
 
@@ -36,3 +37,4 @@ def main() -> None:
 
 
 main.add_command(predict_command, "predict")
+main.add_command(fuse_command, "fuse")

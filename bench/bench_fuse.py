@@ -1,0 +1,111 @@
+"""Multi-view benchmark on the Pose2Sim demo (4 real portrait cameras, 100 frames, 60 fps).
+
+Prints the estimated rig (no calibration given) against the lab's Qualisys calibration, the
+estimated frame offsets, and how far single views and fused poses lie from the triangulation
+with the lab calibration.  Usage: python bench/bench_fuse.py [--cache DIR] (pose JSONs).
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from export.assets import pose2sim_demo_path
+from posecam import PoseEstimator, read_poses, write_poses
+from posecam.fusion import FuseOptions, fuse_recordings, main_track
+from posecam.io.calibration import Rig, read_qualisys
+from posecam.sync import shift
+from posecam.triangulate import triangulate
+
+NAMES = ("cam01", "cam02", "cam03", "cam04")
+LAB_OFFSETS = [0, -1, 4, 0]
+
+
+def load(cache: Path):
+    recs = []
+    for name in NAMES:
+        path = cache / f"{name}.json"
+        if not path.exists():
+            write_poses(path, [PoseEstimator().predict_file(pose2sim_demo_path(f"videos/{name}.mp4"))])
+        recs.append(read_poses(path)[0])
+    return recs
+
+
+def similarity(src: np.ndarray, dst: np.ndarray):
+    """Umeyama: s, R, t with dst ~ s R src + t."""
+    ms, md = src.mean(0), dst.mean(0)
+    u, d, vt = np.linalg.svd((dst - md).T @ (src - ms))
+    e = np.diag([1, 1, np.sign(np.linalg.det(u @ vt))])
+    r = u @ e @ vt
+    s = np.trace(np.diag(d) @ e) / ((src - ms) ** 2).sum()
+    return s, r, md - s * r @ ms
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--cache", type=Path, default=Path("/tmp/posecam_bench_fuse"))
+    args = ap.parse_args()
+    args.cache.mkdir(parents=True, exist_ok=True)
+    recs = load(args.cache)
+    qca = read_qualisys(pose2sim_demo_path("calibration/Calib.qca.txt"))     # sorted: cam01..cam04
+    qca = read_qualisys(pose2sim_demo_path("calibration/Calib.qca.txt"),
+                        image_widths={c.name: r.width for c, r in zip(qca, recs)})
+    for c, name in zip(qca, NAMES):
+        c.name = name
+    lab = qca
+
+    t0 = time.perf_counter()
+    est = fuse_recordings(recs, FuseOptions(offsets=LAB_OFFSETS))
+    t_est = time.perf_counter() - t0
+    cams = est.rig.cameras
+    print(f"== uncalibrated rig (offsets {LAB_OFFSETS}), {t_est:.1f} s")
+    rot_err = []
+    for a, b in itertools.combinations(range(4), 2):
+        d = (cams[b].rotation @ cams[a].rotation.T) @ (lab[b].rotation @ lab[a].rotation.T).T
+        rot_err.append(np.degrees(np.linalg.norm(cv2.Rodrigues(d)[0])))
+        print(f"  relative rotation {NAMES[a]}-{NAMES[b]}: {rot_err[-1]:.2f} deg")
+    f_err = [100 * (c.intrinsics.fx / l.intrinsics.fx - 1) for c, l in zip(cams, lab)]
+    for n, c, l, e in zip(NAMES, cams, lab, f_err):
+        print(f"  focal {n}: {c.intrinsics.fx:.0f} px vs lab {l.intrinsics.fx:.0f} px ({e:+.1f} %)")
+    ce, cl = np.stack([c.centre for c in cams]), np.stack([c.centre for c in lab])
+    s, r, t = similarity(ce, cl)
+    c_err = np.linalg.norm(s * ce @ r.T + t - cl, axis=1)
+    print(f"  camera centres after similarity alignment: {', '.join(f'{e:.0f}' for e in c_err)} mm "
+          f"(metric scale factor to lab: {s:.3f})")
+    print(f"  MEDIAN relative rotation error {np.median(rot_err):.2f} deg, "
+          f"median |focal error| {np.median(np.abs(f_err)):.1f} %, median centre error {np.median(c_err):.0f} mm")
+
+    auto = fuse_recordings(recs, FuseOptions(sync=True))
+    print(f"== --sync auto, uncalibrated: offsets {auto.offsets} (lab-calibration best: {LAB_OFFSETS})")
+    auto_lab = fuse_recordings(recs, FuseOptions(calibration=Rig(lab), sync=True))
+    print(f"== --sync auto, lab calibration: offsets {auto_lab.offsets}")
+
+    n = len(recs[0].frames)
+    tracks = [main_track(r) for r in recs]
+    uv = np.stack([shift(t[0], o, n) for t, o in zip(tracks, LAB_OFFSETS)])
+    conf = np.stack([shift(t[2], o, n, 0.0) for t, o in zip(tracks, LAB_OFFSETS)])
+    ref_pts = triangulate(lab, uv, conf)                                 # lab triangulation, world mm
+    print("== distance to the lab triangulation (median over joints and frames, mm; world frame)")
+    rig = Rig(lab)
+    for method in ("average", "triangulate"):
+        res = fuse_recordings(recs, FuseOptions(calibration=rig, offsets=LAB_OFFSETS, method=method))
+        fused = np.stack([f.people[0].keypoints_3d if f.people else np.full((17, 3), np.nan)
+                          for f in res.recording.frames])
+        print(f"  fused ({method}): {np.nanmedian(np.linalg.norm(fused - ref_pts, axis=-1)):.0f}")
+    from posecam.fusion import camera_space
+    for v, (rec, o) in enumerate(zip(recs, LAB_OFFSETS)):
+        pts = np.full((n, 17, 3), np.nan)
+        for i in range(n):
+            if 0 <= i + o < n and rec.frames[i + o].people:
+                pts[i] = camera_space(lab[v], rec, rec.frames[i + o].people[0])
+        print(f"  single view {NAMES[v]} (its pose rebuilt with the lab intrinsics): "
+              f"{np.nanmedian(np.linalg.norm(pts - ref_pts, axis=-1)):.0f}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,105 @@
+"""`posecam fuse`: several static cameras of one scene -> fused 3D poses (and a calibration)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+from rich.console import Console
+from rich.table import Table
+
+from posecam.commands.predict import run_predictions
+from posecam.errors import InputError
+from posecam.estimate import EstimatorOptions, PoseEstimator
+from posecam.fusion import FuseOptions, FusionResult, fuse_recordings
+from posecam.intrinsics import IntrinsicsOptions
+from posecam.io.calibration import Rig, read_toml, write_toml
+from posecam.io.poses import read_poses, write_poses
+from posecam.media import open_media
+
+err = Console(stderr=True)
+
+
+def load_views(inputs: list[str], model: str, calibration: Rig | None) -> list:
+    """Recordings from pose JSON files as they are, and from videos/sequences by predicting them
+    (with the calibration's intrinsics when given, else posecam's default)."""
+    recordings, media = [], []
+    for path in inputs:
+        if Path(path).suffix.lower() == ".json":
+            recordings.append(read_poses(path))
+        else:
+            open_media(path)            # fail on a bad input before predicting the good ones
+            media.append(path)
+            recordings.append(None)
+    for i, path in enumerate(inputs):
+        if recordings[i] is None:
+            cam = calibration_file_camera(calibration, path)
+            opts = EstimatorOptions(model=model, intrinsics=IntrinsicsOptions(**cam))
+            recordings[i] = run_predictions(PoseEstimator(opts), [path])
+    return [r for group in recordings for r in group]
+
+
+def calibration_file_camera(calibration, path: str) -> dict:
+    if calibration is None:
+        return {}
+    return {"file": calibration[0], "camera": next(
+        (c.name for c in calibration[1].cameras if Path(path).stem in c.name), None)}
+
+
+def print_report(result: FusionResult) -> None:
+    table = Table(title=f"posecam fuse: cameras ({result.recording.frame_of_reference})")
+    for col in ("camera", "offset", "reproj. px", "joints used", "fx", "fy", "cx", "cy", "centre (m)"):
+        table.add_column(col, justify="left" if col == "camera" else "right", no_wrap=True)
+    for rep, cam in zip(result.cameras, result.rig.cameras):
+        table.add_row(rep.name, str(rep.offset), f"{rep.reprojection_px:.1f}", str(rep.joints_used),
+                      *(f"{v:.1f}" for v in rep.intrinsics), " ".join(f"{v / 1000:.2f}" for v in cam.centre))
+    Console().print(table)
+
+
+@click.command()
+@click.argument("inputs", nargs=-1, required=True)
+@click.option("-o", "--output", type=click.Path(), help="Write fused poses to FILE.json or FILE.csv.")
+@click.option("--calibration", type=click.Path(), help="Known cameras: an anipose/Pose2Sim calibration TOML.")
+@click.option("--save-calibration", type=click.Path(), help="Write the cameras to FILE.toml (anipose/Pose2Sim).")
+@click.option("--method", type=click.Choice(["average", "triangulate"]), default="average", show_default=True,
+              help="Average the monocular poses, or triangulate the 2D keypoints.")
+@click.option("--sync", type=click.Choice(["none", "auto"]), default="none", show_default=True,
+              help="auto: estimate each video's frame offset against the first.")
+@click.option("--offsets", help="Frame offsets, one per view, e.g. 0,-1,4,0: view c's frame i+o "
+                                "shows the same instant as the first view's frame i.")
+@click.option("--max-offset", type=click.IntRange(0), default=10, show_default=True)
+@click.option("--model", default="full", show_default=True, help="Pose model for video inputs.")
+@click.option("--viz", type=click.Path(), help="FILE.png: the fused pose projected into every view.")
+def fuse_command(inputs, output, calibration, save_calibration, method, sync, offsets, max_offset, model, viz) -> None:
+    """Fuse INPUTS (2+ videos, image folders or `posecam predict` JSON files) of one scene."""
+    for path in (output, save_calibration, viz):
+        if path and not Path(path).parent.is_dir() and str(Path(path).parent):
+            raise InputError(f"cannot write {path}: folder {Path(path).parent} does not exist")
+    if output and Path(output).suffix.lower() not in (".json", ".csv"):
+        raise InputError(f"output must end in .json or .csv, got {output}")
+    if save_calibration and Path(save_calibration).suffix.lower() != ".toml":
+        raise InputError(f"--save-calibration must end in .toml, got {save_calibration}")
+    if offsets and sync == "auto":
+        raise InputError("give either --offsets or --sync auto")
+    try:
+        offset_list = [int(v) for v in offsets.split(",")] if offsets else None
+    except ValueError:
+        raise InputError(f"--offsets must be integers separated by commas, got {offsets!r}") from None
+    rig = Rig(read_toml(calibration), None) if calibration else None
+    recordings = load_views(list(inputs), model, (calibration, rig) if rig else None)
+    opts = FuseOptions(calibration=rig, method=method, offsets=offset_list, sync=sync == "auto",
+                       max_offset=max_offset)
+    with err.status("fusing") as status:
+        result = fuse_recordings(recordings, opts, progress=lambda msg: status.update(msg))
+    print_report(result)
+    if output:
+        write_poses(output, [result.recording])
+        err.print(f"wrote {output}", highlight=False)
+    if save_calibration:
+        write_toml(save_calibration, result.rig.cameras,
+                   {"frame": result.recording.frame_of_reference, "offsets": ",".join(map(str, result.offsets))})
+        err.print(f"wrote {save_calibration}", highlight=False)
+    if viz:
+        from posecam.fusion_viz import write_grid
+        write_grid(viz, result, recordings)
+        err.print(f"wrote {viz}", highlight=False)

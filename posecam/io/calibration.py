@@ -1,0 +1,226 @@
+"""Camera rigs: one calibrated camera, a set of them, and the files they live in.
+
+Files: the anipose/Pose2Sim TOML (one table per camera: name, size [w, h], matrix 3x3,
+distortions [4 or 5], rotation as a world->camera Rodrigues vector, translation in metres,
+plus a [metadata] table) and the Qualisys .qca.txt XML that Pose2Sim converts.
+In memory, translations are in millimetres like every posecam pose.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import tomllib
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from posecam.camera import Intrinsics
+from posecam.errors import InputError
+from posecam.io.atomic import write_text
+
+
+@dataclass
+class CameraCalibration:
+    """One camera: x_cam = R @ x_world + t (mm), then the pinhole model with distortion."""
+
+    name: str
+    size: tuple[int, int]                  # image width, height in pixels
+    intrinsics: Intrinsics
+    rotation: np.ndarray = field(default_factory=lambda: np.eye(3))     # R, 3x3, world -> camera
+    translation: np.ndarray = field(default_factory=lambda: np.zeros(3))  # t, mm
+    distortion: np.ndarray = field(default_factory=lambda: np.zeros(4))  # k1, k2, p1, p2[, k3]
+
+    @property
+    def centre(self) -> np.ndarray:
+        """The camera centre in world coordinates, mm."""
+        return -self.rotation.T @ self.translation
+
+    def to_camera(self, points: np.ndarray) -> np.ndarray:
+        """(..., 3) world points -> camera coordinates."""
+        return points @ self.rotation.T + self.translation
+
+    def to_world(self, points: np.ndarray) -> np.ndarray:
+        """(..., 3) camera points -> world coordinates."""
+        return (points - self.translation) @ self.rotation
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """(..., 3) world points -> (..., 2) distorted pixels."""
+        p = self.to_camera(points)
+        x, y = p[..., 0] / p[..., 2], p[..., 1] / p[..., 2]
+        k1, k2, p1, p2, k3 = np.pad(self.distortion, (0, 5 - len(self.distortion)))
+        r2 = x * x + y * y
+        radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
+        yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+        k = self.intrinsics
+        return np.stack([k.fx * xd + k.cx, k.fy * yd + k.cy], axis=-1)
+
+    def normalise(self, uv: np.ndarray) -> np.ndarray:
+        """(..., 2) pixels -> (..., 2) undistorted normalised image coordinates (x/z, y/z)."""
+        k = self.intrinsics
+        if not np.any(self.distortion):
+            return np.stack([(uv[..., 0] - k.cx) / k.fx, (uv[..., 1] - k.cy) / k.fy], axis=-1)
+        flat = np.ascontiguousarray(uv.reshape(-1, 1, 2), dtype=np.float64)
+        out = cv2.undistortPoints(flat, k.matrix, self.distortion.astype(np.float64))
+        return out.reshape(uv.shape)
+
+
+@dataclass
+class Rig:
+    """Cameras in one frame of reference: a reference camera's (R = I, t = 0) or the world."""
+
+    cameras: list[CameraCalibration]
+    reference: str | None = None           # None: a world frame from a calibration file
+
+    @property
+    def frame_of_reference(self) -> str:
+        return f"reference camera {self.reference}" if self.reference else "world"
+
+    @property
+    def names(self) -> list[str]:
+        return [c.name for c in self.cameras]
+
+    def camera(self, name: str) -> CameraCalibration:
+        for c in self.cameras:
+            if c.name == name:
+                return c
+        raise InputError(f"the calibration has no camera named {name!r} (it has {', '.join(self.names)})")
+
+
+def _vector(table: dict, key: str, n: tuple[int, ...], where: str) -> np.ndarray:
+    try:
+        a = np.asarray(table[key], dtype=float)
+    except KeyError:
+        raise InputError(f"{where}: missing '{key}'") from None
+    except (TypeError, ValueError):
+        raise InputError(f"{where}: '{key}' must hold numbers") from None
+    if a.shape not in n or not np.all(np.isfinite(a)):
+        raise InputError(f"{where}: '{key}' must be finite numbers of shape {' or '.join(map(str, n))}, got {a.shape}")
+    return a
+
+
+def read_toml(path: str | os.PathLike) -> list[CameraCalibration]:
+    """Cameras of an anipose/Pose2Sim calibration TOML, in file order (translation -> mm)."""
+    path = Path(path)
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(f"calibration file {path} does not exist") from None
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        raise InputError(f"{path} is not a calibration TOML ({exc})") from None
+    cams = []
+    for key, table in doc.items():
+        if key == "metadata" or not isinstance(table, dict) or "matrix" not in table:
+            continue
+        where = f"{path} [{key}]"
+        size = _vector(table, "size", ((2,),), where)
+        k = Intrinsics.from_matrix(_vector(table, "matrix", ((3, 3),), where), source=f"file:{path.name}")
+        rvec = _vector(table, "rotation", ((3,), (3, 3)), where)
+        rotation = rvec if rvec.shape == (3, 3) else cv2.Rodrigues(rvec)[0]
+        dist = _vector(table, "distortions", ((4,), (5,)), where) if "distortions" in table else np.zeros(4)
+        cams.append(CameraCalibration(
+            name=str(table.get("name", key)),
+            size=(int(round(size[0])), int(round(size[1]))),
+            intrinsics=k,
+            rotation=rotation,
+            translation=_vector(table, "translation", ((3,),), where) * 1000.0,
+            distortion=dist,
+        ))
+    if not cams:
+        raise InputError(f"{path} holds no camera (tables with name, size, matrix, rotation, translation)")
+    return cams
+
+
+def _toml_key(name: str) -> str:
+    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else json.dumps(name)
+
+
+def _toml_list(values) -> str:
+    return "[ " + ", ".join(repr(float(v)) for v in values) + "]"
+
+
+def write_toml(path: str | os.PathLike, cameras: list[CameraCalibration], metadata: dict | None = None) -> None:
+    """Write cameras as an anipose/Pose2Sim calibration TOML (translation in metres), atomically."""
+    lines = []
+    for c in cameras:
+        rvec = cv2.Rodrigues(np.asarray(c.rotation, dtype=np.float64))[0].ravel()
+        k = c.intrinsics.matrix
+        lines += [
+            f"[{_toml_key(c.name)}]",
+            f"name = {json.dumps(c.name)}",
+            f"size = {_toml_list(c.size)}",
+            "matrix = [ " + ", ".join(_toml_list(row) for row in k) + "]",
+            f"distortions = {_toml_list(c.distortion)}",
+            f"rotation = {_toml_list(rvec)}",
+            f"translation = {_toml_list(np.asarray(c.translation) / 1000.0)}",
+            "fisheye = false",
+            "",
+        ]
+    lines.append("[metadata]")
+    for key, value in {"adjusted": False, "error": 0.0, **(metadata or {})}.items():
+        lines.append(f"{_toml_key(key)} = {_toml_value(value)}")
+    write_text(path, "\n".join(lines) + "\n")
+
+
+def _toml_value(value: bool | int | float | str) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    return json.dumps(str(value))
+
+
+# Qualisys cameras look along -z with y up; posecam cameras look along +z with y down.
+_QUALISYS_TO_CV = np.diag([1.0, -1.0, -1.0])
+
+
+def read_qualisys(path: str | os.PathLike, image_widths: dict[str, int] | None = None) -> list[CameraCalibration]:
+    """Cameras of a Qualisys .qca.txt calibration (read as Pose2Sim does), sorted by name.
+
+    Per camera: the rotation r11..r33 is stored by column and the position x, y, z (mm) is the
+    camera centre, so world->camera R = Rq.T and t = -R @ position, both then pre-multiplied by
+    diag(1, -1, -1); intrinsics are in 1/64 pixel: f = focal/64, c = center/64 - fov_video offset.
+    `image_widths` (camera name -> width of its video) marks videos narrower or wider than the
+    calibrated field of view, taken as centred crops: the principal point shifts by half the
+    difference and the size follows.
+    """
+    path = Path(path)
+    try:
+        root = ET.parse(path).getroot()
+    except FileNotFoundError:
+        raise InputError(f"calibration file {path} does not exist") from None
+    except (OSError, ET.ParseError) as exc:
+        raise InputError(f"{path} is not a Qualisys calibration ({exc})") from None
+    cams = []
+    for cam in root.findall("cameras/camera"):
+        try:
+            name = cam.attrib["serial"]
+            fov = {k: float(v) for k, v in cam.find("fov_video").attrib.items()}
+            tr = {k: float(v) for k, v in cam.find("transform").attrib.items()}
+            intr = {k: float(v) for k, v in cam.find("intrinsic").attrib.items()}
+            rq = np.array([tr[f"r{i}{j}"] for i in (1, 2, 3) for j in (1, 2, 3)]).reshape(3, 3).T
+            position = np.array([tr["x"], tr["y"], tr["z"]])
+            width = fov["right"] - fov["left"] + 1
+            height = fov["bottom"] - fov["top"] + 1
+            cx = intr["centerPointU"] / 64 - fov["left"]
+            cy = intr["centerPointV"] / 64 - fov["top"]
+            fx, fy = intr["focalLengthU"] / 64, intr["focalLengthV"] / 64
+            dist = np.array([intr["radialDistortion1"], intr["radialDistortion2"],
+                             intr["tangentalDistortion1"], intr["tangentalDistortion2"]])
+        except (AttributeError, KeyError, ValueError) as exc:
+            raise InputError(f"{path}: camera entry is incomplete or malformed ({exc!r})") from None
+        if image_widths and name in image_widths:
+            cx += (image_widths[name] - width) / 2
+            width = image_widths[name]
+        r = _QUALISYS_TO_CV @ rq.T
+        t = _QUALISYS_TO_CV @ (-rq.T @ position)
+        cams.append(CameraCalibration(name, (int(width), int(height)),
+                                      Intrinsics(fx, fy, cx, cy, source=f"file:{path.name}"), r, t, dist))
+    if not cams:
+        raise InputError(f"{path} holds no camera")
+    return sorted(cams, key=lambda c: [int(s) if s.isdigit() else s for s in re.split(r"(\d+)", c.name)])

@@ -1,0 +1,161 @@
+"""Synthetic multi-camera recordings: a walking, waving 17-joint skeleton seen by known cameras.
+
+Each view's monocular poses are made the way `posecam predict` makes them: 2D keypoints
+with pixel noise, a metric root-relative pose with tens of mm of noise, placed by solving the
+root translation with the *default* intrinsics (not the true ones), plus per-frame root-depth
+noise. World frame: z up, mm.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from posecam.camera import Intrinsics, solve_root_translation
+from posecam.io.calibration import CameraCalibration
+from posecam.results import Frame, Person, Recording
+from posecam.skeleton import H36M_JOINTS
+
+
+def _rot(axis: str, angle: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotations about a world axis."""
+    c, s = np.cos(angle), np.sin(angle)
+    o, i = np.zeros_like(angle), np.ones_like(angle)
+    m = {"x": [[i, o, o], [o, c, -s], [o, s, c]],
+         "y": [[c, o, s], [o, i, o], [-s, o, c]],
+         "z": [[c, -s, o], [s, c, o], [o, o, i]]}[axis]
+    return np.moveaxis(np.array(m), (0, 1), (-2, -1))
+
+
+def skeleton_motion(n_frames: int, seed: int = 0, centre=(0.0, 0.0)) -> np.ndarray:
+    """(F, 17, 3) world joints (mm, z up) of a person walking a loop, swinging arms and legs,
+    turning, bending and now and then raising an arm sideways."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n_frames) / 30.0
+    phase = 2 * np.pi * 0.9 * t + rng.uniform(0, 2 * np.pi)
+    yaw = 0.6 * t + rng.uniform(0, 2 * np.pi)                      # slowly turning body
+    root = np.stack([centre[0] + 700 * np.cos(0.35 * t), centre[1] + 500 * np.sin(0.5 * t),
+                     950 + 30 * np.sin(2 * phase)], axis=-1)
+    lean = 0.15 * np.sin(0.7 * t)                                   # bending forward and back
+
+    def limb(start, swing, side, bend, lengths):
+        """Two segments hanging from `start`, swung about x (forward) and y (sideways)."""
+        r1 = _rot("x", swing) @ _rot("y", side)
+        a = start + np.einsum("fij,j->fi", r1, [0, 0, -lengths[0]])
+        r2 = r1 @ _rot("x", bend)
+        b = a + np.einsum("fij,j->fi", r2, [0, 0, -lengths[1]])
+        return a, b
+
+    zero = np.zeros(n_frames)
+    o = zero[:, None] * np.zeros(3)
+    up = _rot("x", -lean)
+    pelvis = o.copy()
+    spine = np.einsum("fij,j->fi", up, [0, 0, 230])
+    thorax = np.einsum("fij,j->fi", up, [0, 0, 480])
+    neck_dir = np.einsum("fij,j->fi", up, [0, 0, 1])
+    nose = thorax + 160 * neck_dir + np.array([0, 90, 0])
+    head = thorax + 250 * neck_dir
+    r_hip, l_hip = o + [-110, 0, 0], o + [110, 0, 0]
+    swing = 0.45 * np.sin(phase)
+    r_knee, r_ankle = limb(r_hip, swing, zero, -0.5 * (1 + np.sin(phase + 1.2)), (440, 430))
+    l_knee, l_ankle = limb(l_hip, -swing, zero, -0.5 * (1 + np.sin(phase + 1.2 + np.pi)), (440, 430))
+    r_sh = thorax + np.einsum("fij,j->fi", up, [-170, 0, -20])
+    l_sh = thorax + np.einsum("fij,j->fi", up, [170, 0, -20])
+    raise_arm = 1.3 * np.clip(np.sin(0.8 * t), 0, None)           # abduction, to the side
+    r_el, r_wr = limb(r_sh, -0.5 * swing, -0.2 - raise_arm, 0.4 + 0.3 * np.sin(phase), (290, 260))
+    l_el, l_wr = limb(l_sh, 0.5 * swing, 0.2 + 0.5 * raise_arm, 0.4 - 0.3 * np.sin(phase), (290, 260))
+    body = np.stack([pelvis, r_hip, r_knee, r_ankle, l_hip, l_knee, l_ankle, spine, thorax,
+                     nose, head, l_sh, l_el, l_wr, r_sh, r_el, r_wr], axis=1)    # H36M order
+    body = np.einsum("fij,fkj->fki", _rot("z", yaw), body)
+    return body + root[:, None]
+
+
+def look_at(centre: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """World->camera R, t for a camera at `centre` looking at `target` (z up in the world)."""
+    z = target - centre
+    z = z / np.linalg.norm(z)
+    x = np.cross(z, [0.0, 0.0, 1.0])
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    r = np.stack([x, y, z])
+    return r, -r @ centre
+
+
+@dataclass
+class CameraSpec:
+    name: str
+    size: tuple[int, int]
+    focal: float
+    azimuth_deg: float
+    distance: float = 4000.0
+    height: float = 1500.0
+
+
+DEFAULT_SPECS = (
+    CameraSpec("front", (1920, 1080), 1500.0, 0.0, 4200.0, 1600.0),
+    CameraSpec("right", (1080, 1920), 1700.0, 80.0, 3800.0, 1200.0),
+    CameraSpec("back", (1280, 720), 800.0, 175.0, 4600.0, 2100.0),
+    CameraSpec("left", (1080, 1920), 1250.0, 260.0, 3500.0, 900.0),
+)
+
+
+def make_rig(specs=DEFAULT_SPECS, seed: int = 1) -> list[CameraCalibration]:
+    rng = np.random.default_rng(seed)
+    cams = []
+    for s in specs:
+        a = np.radians(s.azimuth_deg)
+        centre = np.array([s.distance * np.cos(a), s.distance * np.sin(a), s.height])
+        r, t = look_at(centre, np.array([0.0, 0.0, 1000.0]) + rng.normal(0, 150, 3))
+        w, h = s.size
+        k = Intrinsics(s.focal, s.focal * rng.uniform(0.99, 1.01),
+                       w / 2 + rng.normal(0, 0.01 * w), h / 2 + rng.normal(0, 0.01 * h))
+        cams.append(CameraCalibration(s.name, s.size, k, r, t))
+    return cams
+
+
+def monocular_views(cams: list[CameraCalibration], world: np.ndarray, seed: int = 2,
+                    pixel_noise: float = 2.0, joint_noise: float = 25.0, depth_noise: float = 50.0,
+                    outlier_rate: float = 0.02, offsets: list[int] | None = None) -> list[Recording]:
+    """What `posecam predict` would write for each camera, with default intrinsics.
+
+    offsets[c] = o means camera c's frame i + o shows the instant of the world's frame i
+    (its recording starts o frames earlier); frames that fall outside are dropped.
+    """
+    rng = np.random.default_rng(seed)
+    recs = []
+    n = len(world)
+    for ci, cam in enumerate(cams):
+        o = offsets[ci] if offsets else 0
+        k0 = Intrinsics.default(*cam.size)
+        rec = Recording(cam.name, cam.size[0], cam.size[1], k0, H36M_JOINTS, model="synthetic", fps=30.0)
+        for i in range(n + max(o, 0)):
+            src = i - o
+            if not 0 <= src < n:
+                rec.frames.append(Frame(i, i / 30.0, []))
+                continue
+            pc = cam.to_camera(world[src])
+            uv = cam.project(world[src]) + rng.normal(0, pixel_noise, (len(pc), 2))
+            conf = rng.uniform(0.55, 1.0, len(pc))
+            low = rng.random(len(pc)) < 0.08
+            conf[low] = rng.uniform(0.05, 0.45, low.sum())
+            uv[low] += rng.normal(0, 40, (low.sum(), 2))          # unconfident joints are bad
+            bad = rng.random(len(pc)) < outlier_rate
+            uv[bad] += rng.normal(0, 60, (bad.sum(), 2))           # confident outliers
+            rel = pc - pc[0] + rng.normal(0, joint_noise, pc.shape)
+            t = solve_root_translation(rel, uv, conf, k0)
+            t *= 1 + rng.normal(0, depth_noise) / t[2]             # per-frame root depth noise
+            xyz = rel + t
+            box = np.concatenate([uv.min(axis=0), uv.max(axis=0)])
+            rec.frames.append(Frame(i, i / 30.0, [Person(0, 0.9, box, uv, xyz, conf)]))
+        recs.append(rec)
+    return recs
+
+
+def relative_rotation_error_deg(r_est_a, r_est_b, r_true_a, r_true_b) -> float:
+    """Angle between estimated and true rotation from camera a to camera b."""
+    rel_est = r_est_b @ r_est_a.T
+    rel_true = r_true_b @ r_true_a.T
+    d = rel_est @ rel_true.T
+    return float(np.degrees(np.linalg.norm(cv2.Rodrigues(d)[0])))

@@ -1,0 +1,52 @@
+"""`posecam fuse` end to end on synthetic pose files, and its bad-input behaviour."""
+
+import json
+
+from conftest import DATA, run_posecam
+from posecam.io.calibration import write_toml
+from posecam.io.poses import write_poses
+from synth_rig import make_rig, monocular_views, skeleton_motion
+
+
+def _inputs(tmp_path, n_frames=60, offsets=None):
+    cams = make_rig()
+    paths = []
+    for rec in monocular_views(cams, skeleton_motion(n_frames), offsets=offsets):
+        p = tmp_path / f"{rec.source}.json"
+        write_poses(p, [rec])
+        paths.append(p)
+    return cams, paths
+
+
+def test_fuse_with_known_calibration(tmp_path):
+    cams, paths = _inputs(tmp_path, offsets=[0, 2, -1, 0])
+    calib = tmp_path / "calib.toml"
+    write_toml(calib, cams)
+    out = tmp_path / "fused.json"
+    r = run_posecam("fuse", *paths, "--calibration", calib, "--sync", "auto", "--method", "triangulate", "-o", out)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(out.read_text())
+    assert doc["inputs"][0]["source"] == "fused" and doc["inputs"][0]["frame"] == "world"
+    assert "| 2" in r.stdout.replace("│", "|") or " 2 " in r.stdout
+
+
+def test_fewer_than_two_views(tmp_path):
+    _, paths = _inputs(tmp_path, 20)
+    r = run_posecam("fuse", paths[0], "-o", tmp_path / "x.json")
+    assert r.returncode == 2 and "posecam: error: fusion needs two views" in r.stderr
+    assert not (tmp_path / "x.json").exists()
+
+
+def test_unreadable_video_and_calibration_mismatch(tmp_path):
+    bad = tmp_path / "broken.mp4"
+    bad.write_bytes(b"not a video")
+    r = run_posecam("fuse", DATA / "balance_cam01_30f.mp4", bad)
+    assert r.returncode == 2 and "broken.mp4" in r.stderr
+    cams, paths = _inputs(tmp_path, 20)
+    for c in cams:
+        c.name = "other_" + c.name.upper()
+    calib = tmp_path / "calib.toml"
+    write_toml(calib, cams)
+    r = run_posecam("fuse", *paths, "--calibration", calib, "-o", tmp_path / "y.json")
+    assert r.returncode == 2 and "do not match" in r.stderr
+    assert not (tmp_path / "y.json").exists()
