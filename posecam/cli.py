@@ -11,8 +11,9 @@ import sys
 import click
 
 from posecam import __version__
-from posecam.commands.fuse import fuse_command
+from posecam.commands.export import export_command
 from posecam.commands.predict import predict_command
+from posecam.commands.fuse import fuse_command
 from posecam.errors import PosecamError
 
 
@@ -37,4 +38,5 @@ def main() -> None:
 
 
 main.add_command(predict_command, "predict")
+main.add_command(export_command, "export")
 main.add_command(fuse_command, "fuse")
