@@ -48,11 +48,13 @@ def calibration_file_camera(calibration, path: str) -> dict:
 
 def print_report(result: FusionResult) -> None:
     table = Table(title=f"posecam fuse: cameras ({result.recording.frame_of_reference})")
-    for col in ("camera", "offset", "reproj. px", "joints used", "fx", "fy", "cx", "cy", "centre (m)"):
+    for col in ("camera", "offset", "error px", "joints", "f px", "cx, cy", "centre m"):
         table.add_column(col, justify="left" if col == "camera" else "right", no_wrap=True)
     for rep, cam in zip(result.cameras, result.rig.cameras):
+        fx, fy, cx, cy = rep.intrinsics
+        focal = f"{fx:.0f}" if abs(fx - fy) < 0.5 else f"{fx:.0f}/{fy:.0f}"
         table.add_row(rep.name, str(rep.offset), f"{rep.reprojection_px:.1f}", str(rep.joints_used),
-                      *(f"{v:.1f}" for v in rep.intrinsics), " ".join(f"{v / 1000:.2f}" for v in cam.centre))
+                      focal, f"{cx:.0f}, {cy:.0f}", " ".join(f"{v / 1000:.1f}" for v in cam.centre))
     Console().print(table)
 
 
