@@ -143,6 +143,14 @@ def _check(recordings: list[Recording], opts: FuseOptions) -> None:
         raise InputError("the views were predicted with different skeletons; predict them with the same --skeleton")
     if opts.offsets is not None and len(opts.offsets) != len(recordings):
         raise InputError(f"--offsets needs one value per view ({len(recordings)}), got {len(opts.offsets)}")
+    lengths = [len(r.frames) for r in recordings]
+    slack = opts.max_offset + max((abs(o) for o in opts.offsets or [0]), default=0)
+    if max(lengths) - min(lengths) > slack:
+        raise InputError(f"the views have different lengths ({', '.join(map(str, lengths))} frames): fuse needs "
+                         "recordings of the same take; trim them to it")
+    rates = [r.fps for r in recordings if r.fps]
+    if rates and max(rates) > 1.01 * min(rates):
+        raise InputError(f"the views have different frame rates ({', '.join(f'{f:g}' for f in rates)} fps)")
     for name, r in zip(view_names(recordings), recordings):
         if not any(f.people for f in r.frames):
             raise FusionError(f"no person found in view {name}")

@@ -50,3 +50,14 @@ def test_unreadable_video_and_calibration_mismatch(tmp_path):
     r = run_posecam("fuse", *paths, "--calibration", calib, "-o", tmp_path / "y.json")
     assert r.returncode == 2 and "do not match" in r.stderr
     assert not (tmp_path / "y.json").exists()
+
+
+def test_views_of_different_lengths(tmp_path):
+    _, paths = _inputs(tmp_path, 60)
+    short = tmp_path / "short"
+    short.mkdir()
+    _, short_paths = _inputs(short, 20)
+    r = run_posecam("fuse", paths[0], short_paths[1], "-o", tmp_path / "x.json")
+    assert r.returncode == 2 and "different lengths (60, 20 frames)" in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "x.json").exists()
