@@ -89,15 +89,20 @@ def main_track(rec: Recording) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return uv, xyz, conf
 
 
+def calibration_camera(rig: Rig, name: str) -> CameraCalibration:
+    """The calibration's camera for an input name: the same name, or the one name containing it."""
+    found = [c for c in rig.cameras if c.name == name] or [c for c in rig.cameras if name in c.name]
+    if len(found) != 1:
+        raise InputError(f"the calibration's cameras ({', '.join(rig.names)}) do not match input {name!r}")
+    return found[0]
+
+
 def match_calibration(rig: Rig, names: list[str], recordings: list[Recording]) -> list[CameraCalibration]:
-    """The calibration's camera for each input, by name (equal, or containing the input's
-    name); videos a few pixels narrower or wider than calibrated are taken as centred crops."""
+    """The calibration's camera for each input (see calibration_camera); videos a few pixels
+    narrower or wider than calibrated are taken as centred crops."""
     cams = []
     for name, rec in zip(names, recordings):
-        found = [c for c in rig.cameras if c.name == name] or [c for c in rig.cameras if name in c.name]
-        if len(found) != 1:
-            raise InputError(f"the calibration's cameras ({', '.join(rig.names)}) do not match input {name!r}")
-        c = found[0]
+        c = calibration_camera(rig, name)
         dw, dh = rec.width - c.size[0], rec.height - c.size[1]
         if abs(dw) > 0.02 * c.size[0] or abs(dh) > 0.02 * c.size[1]:
             raise InputError(f"camera {c.name} is calibrated for {c.size[0]}x{c.size[1]} images, "

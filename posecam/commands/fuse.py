@@ -11,7 +11,7 @@ from rich.table import Table
 from posecam.commands.predict import run_predictions
 from posecam.errors import InputError
 from posecam.estimate import EstimatorOptions, PoseEstimator
-from posecam.fusion import FuseOptions, FusionResult, fuse_recordings
+from posecam.fusion import FuseOptions, FusionResult, calibration_camera, fuse_recordings
 from posecam.intrinsics import IntrinsicsOptions
 from posecam.io.calibration import Rig, read_toml, write_toml
 from posecam.io.poses import read_poses, write_poses
@@ -20,30 +20,30 @@ from posecam.media import open_media
 err = Console(stderr=True)
 
 
-def load_views(inputs: list[str], model: str, calibration: Rig | None) -> list:
+def load_views(inputs: list[str], model: str, calibration: tuple[str, Rig] | None) -> list:
     """Recordings from pose JSON files as they are, and from videos/sequences by predicting them
-    (with the calibration's intrinsics when given, else posecam's default)."""
-    recordings, media = [], []
+    (with the calibration's intrinsics when given, else posecam's default). Every input is
+    checked before anything is predicted."""
+    views = []                          # per input: its recordings, or the intrinsics to predict it with
     for path in inputs:
         if Path(path).suffix.lower() == ".json":
-            recordings.append(read_poses(path))
+            views.append(read_poses(path))
         else:
-            open_media(path)            # fail on a bad input before predicting the good ones
-            media.append(path)
-            recordings.append(None)
-    for i, path in enumerate(inputs):
-        if recordings[i] is None:
-            cam = calibration_file_camera(calibration, path)
-            opts = EstimatorOptions(model=model, intrinsics=IntrinsicsOptions(**cam))
-            recordings[i] = run_predictions(PoseEstimator(opts), [path])
-    return [r for group in recordings for r in group]
+            open_media(path)
+            views.append(IntrinsicsOptions(**calibration_file_camera(calibration, path)))
+    recordings = []
+    for path, view in zip(inputs, views):
+        if isinstance(view, IntrinsicsOptions):
+            view = run_predictions(PoseEstimator(EstimatorOptions(model=model, intrinsics=view)), [path])
+        recordings += view
+    return recordings
 
 
-def calibration_file_camera(calibration, path: str) -> dict:
+def calibration_file_camera(calibration: tuple[str, Rig] | None, path: str) -> dict:
+    """IntrinsicsOptions fields that take a video's intrinsics from its camera in the calibration."""
     if calibration is None:
         return {}
-    return {"file": calibration[0], "camera": next(
-        (c.name for c in calibration[1].cameras if Path(path).stem in c.name), None)}
+    return {"file": calibration[0], "camera": calibration_camera(calibration[1], Path(path).stem).name}
 
 
 def print_report(result: FusionResult) -> None:
