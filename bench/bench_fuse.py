@@ -17,7 +17,7 @@ import numpy as np
 
 from export.assets import pose2sim_demo_path
 from posecam import PoseEstimator, read_poses, write_poses
-from posecam.fusion import FuseOptions, fuse_recordings, main_track
+from posecam.fusion import FuseOptions, fix_left_right, fuse_recordings, main_track
 from posecam.bundle import bundle_adjust
 from posecam.io.calibration import CameraCalibration, Rig, read_qualisys
 from posecam.sync import shift
@@ -98,9 +98,11 @@ def main() -> None:
     print(f"  MEDIAN relative rotation error {np.median(rot_err):.2f} deg, "
           f"median |focal error| {np.median(np.abs(f_err)):.1f} %, median centre error {np.median(c_err):.0f} mm")
 
-    # The floor set by the keypoints themselves: bundle adjustment started from the lab rig.
+    # The floor set by the keypoints themselves: bundle adjustment started from the lab rig,
+    # on keypoints whose left/right swaps were undone with the lab rig (as the reference below).
     n = len(recs[0].frames)
-    tracks = [main_track(r) for r in recs]
+    fixed, swaps = fix_left_right(recs, lab, LAB_OFFSETS, 0)
+    tracks = [main_track(r) for r in fixed]
     uv = np.stack([shift(t[0], o, n) for t, o in zip(tracks, LAB_OFFSETS)])
     conf = np.stack([shift(t[2], o, n, 0.0) for t, o in zip(tracks, LAB_OFFSETS)])
     r1, t1 = lab[0].rotation, lab[0].translation
@@ -116,6 +118,7 @@ def main() -> None:
     print(f"== --sync auto, lab calibration: offsets {auto_lab.offsets}")
 
     ref_pts = triangulate(lab, uv, conf)                                 # lab triangulation, world mm
+    print(f"  (reference: left/right swaps undone in {', '.join(map(str, swaps))} frames per camera)")
     print("== distance to the lab triangulation (median over joints and frames, mm; world frame)")
     rig = Rig(lab)
     res = fuse_recordings(recs, FuseOptions(calibration=rig, offsets=LAB_OFFSETS))

@@ -23,7 +23,7 @@ from scipy.sparse import lil_matrix
 from posecam.camera import Intrinsics
 from posecam.errors import FusionError
 from posecam.io.calibration import CameraCalibration, Rig
-from posecam.skeleton import SKELETONS
+from posecam.skeleton import skeleton_of
 from posecam.triangulate import triangulate
 
 
@@ -137,7 +137,7 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     rot, trans, f, c, pts = unpack(fit.x)
     scale = 1.0
     if bones_mm is not None:
-        skel = next(s for s in SKELETONS.values() if s.joints == tuple(joints))
+        skel = skeleton_of(joints)
         full = np.full((len(frames), n_j, 3), np.nan)
         full[used] = pts
         idx = skel.bone_indices

@@ -23,8 +23,9 @@ from posecam.bundle import BundleOptions, bundle_adjust
 from posecam.consensus import ConsensusOptions, View, estimate_rig, fuse_points
 from posecam.errors import FusionError, InputError
 from posecam.io.calibration import CameraCalibration, Rig
+from posecam.left_right import find_swaps, unswap
 from posecam.results import Frame, Person, Recording
-from posecam.skeleton import SKELETONS
+from posecam.skeleton import skeleton_of
 from posecam.sync import estimate_offsets, shift
 from posecam.triangulate import MIN_CONFIDENCE, triangulate
 
@@ -55,6 +56,7 @@ class CameraReport:
     reprojection_px: float                 # median, fused joints projected into this view
     joints_used: int                       # joint observations with confidence >= min_conf
     intrinsics: tuple[float, float, float, float]
+    swaps_fixed: int = 0                   # frames whose left and right labels were exchanged back
 
 
 @dataclass
@@ -74,14 +76,17 @@ def view_names(recordings: list[Recording]) -> list[str]:
     return names
 
 
+def main_person(rec: Recording) -> int:
+    """The id of the person tracked in most frames (-1 if nobody)."""
+    ids = [p.id for f in rec.frames for p in f.people]
+    return max(set(ids), key=ids.count) if ids else -1
+
+
 def main_track(rec: Recording) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(uv, xyz, conf) arrays (F, J, ...) of the person tracked in most frames, NaN/0 elsewhere."""
-    ids = [p.id for f in rec.frames for p in f.people]
     n, j = len(rec.frames), len(rec.joints)
     uv, xyz, conf = np.full((n, j, 2), np.nan), np.full((n, j, 3), np.nan), np.zeros((n, j))
-    if not ids:
-        return uv, xyz, conf
-    best = max(set(ids), key=ids.count)
+    best = main_person(rec)
     for i, f in enumerate(rec.frames):
         for p in f.people:
             if p.id == best:
@@ -115,7 +120,7 @@ def match_calibration(rig: Rig, names: list[str], recordings: list[Recording]) -
 
 def bone_lengths_mm(xyz: np.ndarray, conf: np.ndarray, joints: tuple[str, ...], min_conf: float) -> np.ndarray:
     """(B,) median metric bone lengths of monocular poses (V, F, J, 3)."""
-    skel = next(s for s in SKELETONS.values() if s.joints == tuple(joints))
+    skel = skeleton_of(joints)
     idx = skel.bone_indices
     ok = (conf[..., idx[:, 0]] >= min_conf) & (conf[..., idx[:, 1]] >= min_conf)
     lengths = np.linalg.norm(xyz[..., idx[:, 0], :] - xyz[..., idx[:, 1], :], axis=-1)
@@ -137,6 +142,21 @@ def estimate_cameras(recordings: list[Recording], names: list[str], offsets: lis
     conf = np.stack([v.conf for v in views])
     bones = bone_lengths_mm(np.stack([v.xyz for v in views]), conf, ref.joints, opts.min_conf)
     return bundle_adjust(consensus.rig, uv, conf, bones, ref.joints, opts.bundle_options).rig
+
+
+def fix_left_right(recordings: list[Recording], cams: list[CameraCalibration], offsets: list[int],
+                   reference: int) -> tuple[list[Recording], np.ndarray]:
+    """The recordings with each view's left/right swaps of its main person undone (checked
+    against the other views), and the number of frames fixed per view."""
+    n = len(recordings[reference].frames)
+    tracks = [main_track(r) for r in recordings]
+    uv = np.stack([shift(t[0], o, n) for t, o in zip(tracks, offsets)])
+    conf = np.stack([shift(t[2], o, n, 0.0) for t, o in zip(tracks, offsets)])
+    flip = skeleton_of(recordings[reference].joints).flip_indices
+    swaps = find_swaps(cams, uv, conf, flip)                 # in the reference's frame indices
+    fixed = [unswap(r, np.nonzero(s)[0] + o, main_person(r), flip) if s.any() else r
+             for r, s, o in zip(recordings, swaps, offsets)]
+    return fixed, swaps.sum(axis=1)
 
 
 def _check(recordings: list[Recording], opts: FuseOptions) -> None:
@@ -242,6 +262,13 @@ def fuse_recordings(recordings: list[Recording], options: FuseOptions | None = N
                 rig = estimate_cameras(recordings, names, offsets, opts)
                 cams = rig.cameras
 
+    say("checking left and right")
+    recordings, swaps = fix_left_right(recordings, cams, offsets, opts.reference)
+    if swaps.any() and opts.calibration is None:
+        say("estimating the cameras without the swaps")
+        rig = estimate_cameras(recordings, names, offsets, opts)
+        cams = rig.cameras
+
     say("fusing")
     ref = recordings[opts.reference]
     frames, prev, next_id = [], [], 0
@@ -282,6 +309,6 @@ def fuse_recordings(recordings: list[Recording], options: FuseOptions | None = N
     recording = Recording("fused", ref.width, ref.height, k, ref.joints, frames, ref.model, ref.fps,
                           rig.frame_of_reference)
     reports = [CameraReport(c.name, o, float(np.median(np.concatenate(e))) if e and np.concatenate(e).size else np.nan,
-                            u, (c.intrinsics.fx, c.intrinsics.fy, c.intrinsics.cx, c.intrinsics.cy))
-               for c, o, e, u in zip(cams, offsets, errors, used)]
+                            u, (c.intrinsics.fx, c.intrinsics.fy, c.intrinsics.cx, c.intrinsics.cy), int(sw))
+               for c, o, e, u, sw in zip(cams, offsets, errors, used, swaps)]
     return FusionResult(recording, rig, offsets, reports)

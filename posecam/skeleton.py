@@ -107,6 +107,11 @@ BLAZEPOSE33 = Skeleton("blazepose33", BLAZEPOSE_LANDMARKS, BLAZEPOSE_BONES, root
 SKELETONS = {"17": H36M, "33": BLAZEPOSE33}
 
 
+def skeleton_of(joints: tuple[str, ...]) -> Skeleton:
+    """The skeleton whose joints these are (a ResNet-U's joints are the 17 of H36M)."""
+    return next(s for s in SKELETONS.values() if s.joints == tuple(joints))
+
+
 def _h36m_mixing_matrix() -> np.ndarray:
     """(17, 33) matrix whose rows average the source landmarks of each joint."""
     m = np.zeros((len(H36M_FROM_BLAZEPOSE), len(BLAZEPOSE_LANDMARKS)))

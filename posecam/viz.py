@@ -11,7 +11,7 @@ import numpy as np
 from posecam.errors import InputError, OutputError
 from posecam.io.atomic import atomic_path
 from posecam.results import Person
-from posecam.skeleton import SKELETONS
+from posecam.skeleton import skeleton_of
 
 LEFT, RIGHT, CENTRE = (66, 135, 245), (245, 130, 48), (60, 200, 90)  # RGB
 VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv"}
@@ -29,7 +29,7 @@ def draw_people(image_rgb: np.ndarray, people: list[Person], joints: tuple[str, 
                 min_confidence: float = 0.3) -> np.ndarray:
     """A copy of the image with each person's skeleton, id and root depth drawn on it."""
     out = image_rgb.copy()
-    skeleton = next(s for s in SKELETONS.values() if s.joints == tuple(joints))
+    skeleton = skeleton_of(joints)
     scale = max(out.shape[:2]) / 1000
     thick = max(1, round(3 * scale))
     for p in people:

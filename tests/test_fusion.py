@@ -4,6 +4,8 @@ import numpy as np
 
 from posecam.fusion import FuseOptions, fuse_recordings
 from posecam.io.calibration import Rig
+from posecam.left_right import unswap
+from posecam.skeleton import skeleton_of
 from synth_rig import make_rig, monocular_views, skeleton_motion
 
 
@@ -25,3 +27,16 @@ def test_sync_finds_offsets_and_fusion_beats_single_views():
         [recs[i].frames[k + o].people[0].keypoints_3d for k in range(20, 60)])) - world[20:60], axis=-1))
         for i, o in enumerate(result.offsets)]
     assert tri < avg < min(single), (tri, avg, single)
+
+
+def test_left_right_swaps_are_found_and_undone():
+    cams = make_rig()
+    world = skeleton_motion(60)
+    recs = monocular_views(cams, world)
+    flip = skeleton_of(recs[0].joints).flip_indices
+    swapped = np.arange(10, 60, 7)
+    recs[2] = unswap(recs[2], swapped, recs[2].frames[0].people[0].id, flip)   # a view labels left as right
+    result = fuse_recordings(recs, FuseOptions(calibration=Rig(cams)))
+    assert [c.swaps_fixed for c in result.cameras] == [0, 0, len(swapped), 0][:len(cams)]
+    clean = fuse_recordings(monocular_views(cams, world), FuseOptions(calibration=Rig(cams)))
+    assert _mpjpe(result, cams, world) <= _mpjpe(clean, cams, world) + 1.0

@@ -48,13 +48,13 @@ def calibration_file_camera(calibration: tuple[str, Rig] | None, path: str) -> d
 
 def print_report(result: FusionResult) -> None:
     table = Table(title=f"posecam fuse: cameras ({result.recording.frame_of_reference})")
-    for col in ("camera", "offset", "error px", "joints", "f px", "cx, cy", "centre m"):
+    for col in ("camera", "offset", "error px", "joints", "L/R", "f px", "cx, cy", "centre m"):
         table.add_column(col, justify="left" if col == "camera" else "right", no_wrap=True)
     for rep, cam in zip(result.cameras, result.rig.cameras):
         fx, fy, cx, cy = rep.intrinsics
         focal = f"{fx:.0f}" if abs(fx - fy) < 0.5 else f"{fx:.0f}/{fy:.0f}"
         table.add_row(rep.name, str(rep.offset), f"{rep.reprojection_px:.1f}", str(rep.joints_used),
-                      focal, f"{cx:.0f}, {cy:.0f}", " ".join(f"{v / 1000:.1f}" for v in cam.centre))
+                      str(rep.swaps_fixed), focal, f"{cx:.0f}, {cy:.0f}", " ".join(f"{v / 1000:.1f}" for v in cam.centre))
     Console().print(table)
 
 
