@@ -17,11 +17,12 @@ import numpy as np
 
 from export.assets import pose2sim_demo_path
 from posecam import PoseEstimator, read_poses, write_poses
-from posecam.fusion import FuseOptions, fix_left_right, fuse_recordings, main_track
-from posecam.bundle import bundle_adjust
-from posecam.io.calibration import CameraCalibration, Rig, read_qualisys
-from posecam.sync import shift
-from posecam.triangulate import triangulate
+from posecam.multiview.fuse import FuseOptions, fix_left_right, fuse_recordings, main_track
+from posecam.multiview.bundle import bundle_adjust
+from posecam.geometry.camera import CameraCalibration, Rig
+from posecam.io.calibration import read_qualisys
+from posecam.multiview.sync import shift
+from posecam.geometry.triangulate import triangulate
 
 NAMES = ("cam01", "cam02", "cam03", "cam04")
 LAB_OFFSETS = [0, -1, 4, 0]
@@ -125,7 +126,7 @@ def main() -> None:
     print(f"  fused, lab calibration: {np.nanmedian(np.linalg.norm(poses(res) - ref_pts, axis=-1)):.0f}")
     in_lab = (poses(est) - t1) @ r1             # estimated rig's frame = cam01's -> lab world, x = R1^T (x1 - t1)
     print(f"  fused, estimated rig (its frame is cam01's): {np.nanmedian(np.linalg.norm(in_lab - ref_pts, axis=-1)):.0f}")
-    from posecam.fusion import camera_space
+    from posecam.multiview.fuse import camera_space
     for v, (rec, o) in enumerate(zip(recs, LAB_OFFSETS)):
         pts = np.full((n, 17, 3), np.nan)
         for i in range(n):

@@ -103,7 +103,7 @@ def accuracy(videos: dict[str, Path], calib_path: Path, model: str) -> None:
 
     from posecam import EstimatorOptions, IntrinsicsOptions, PoseEstimator
     from posecam.io.calibration import read_qualisys
-    from posecam.triangulate import reprojection_errors, triangulate
+    from posecam.geometry.triangulate import reprojection_errors, triangulate
 
     widths = {c: int(cv2.VideoCapture(str(v)).get(cv2.CAP_PROP_FRAME_WIDTH)) for c, v in videos.items()}
     cams = read_qualisys(calib_path, image_widths=widths)

@@ -3,7 +3,7 @@
     python bench/bench_resnet_u.py [--runs 7] [--threads 2]
 
 For ResNet-50-U (the paper's, 256x256) and MobileNetV2-U (128 head channels, 256x256): export
-with `export.onnx_export`, quantise the backbone with `export.quantize` (calibrated on person
+with `export.convert.onnx_export`, quantise the backbone with `export.convert.quantize` (calibrated on person
 crops from tests/data), then time batch 1 and batch 8 with 2 onnxruntime threads (median of
 --runs runs after a warm-up) and print the int8 model's largest change vs fp32. Weights are
 random with BatchNorm statistics from the crops (timings do not depend on the values).
@@ -22,10 +22,10 @@ import torch
 
 from export import ResNetU, ResNetUConfig, load_checkpoint
 from export.crops import person_crops
-from export.onnx_export import contract_for, differences, export_onnx, run_onnx
-from export.quantize import quantize_int8
-from export.train import TrainOptions, train
-from posecam.session import to_input_tensor
+from export.convert.onnx_export import contract_for, differences, export_onnx, run_onnx
+from export.convert.quantize import quantize_int8
+from export.train.trainer import TrainOptions, train
+from posecam.inference.session import to_input_tensor
 
 DATA = Path(__file__).resolve().parent.parent / "tests" / "data"
 IMAGES = [DATA / "messi5.jpg", DATA / "basketball2.png", DATA / "balance_cam01_30f.mp4"]

@@ -7,11 +7,11 @@ from pathlib import Path
 
 import numpy as np
 
-from posecam.detect import PersonDetector
+from posecam.inference.detector import PersonDetector
 from posecam.errors import InputError
 from posecam.media import open_media
-from posecam.roi import Roi
-from posecam.session import load_model
+from posecam.inference.roi import Roi
+from posecam.inference.session import load_model
 
 
 def person_crops(paths: list[str | os.PathLike], size: int, max_crops: int = 16,

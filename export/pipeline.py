@@ -9,10 +9,10 @@ from pathlib import Path
 
 import torch
 
-from export.checkpoint import load_checkpoint
+from export.model.checkpoint import load_checkpoint
 from export.crops import person_crops
-from export.onnx_export import differences, export_onnx, heatmap_peak, run_onnx, run_torch
-from export.quantize import quantize_int8
+from export.convert.onnx_export import differences, export_onnx, heatmap_peak, run_onnx, run_torch
+from export.convert.quantize import quantize_int8
 
 FLAT_PEAK = 0.05   # mean heatmap maximum below this: flat heatmaps, the check proves little
 

@@ -3,20 +3,47 @@
     from posecam import PoseEstimator
     rec = PoseEstimator().predict_file("clip.mp4")
     rec.frames[0].people[0].keypoints_3d    # (17, 3) mm, camera at the origin
+
+The names below are imported when first used, so `import posecam` stays light.
 """
 
-__version__ = "0.1.0"
+from __future__ import annotations
 
-from posecam.camera import Intrinsics, back_project, project  # noqa: E402
-from posecam.estimate import EstimatorOptions, PoseEstimator  # noqa: E402
-from posecam.fusion import FuseOptions, FusionResult, fuse_recordings  # noqa: E402
-from posecam.intrinsics import IntrinsicsOptions  # noqa: E402
-from posecam.io.calibration import CameraCalibration, Rig, read_qualisys, read_toml, write_toml  # noqa: E402
-from posecam.io.poses import read_poses, write_poses  # noqa: E402
-from posecam.results import Frame, Person, Recording  # noqa: E402
+import importlib
 
-__all__ = [
-    "CameraCalibration", "EstimatorOptions", "Frame", "FuseOptions", "FusionResult", "Intrinsics",
-    "IntrinsicsOptions", "Person", "PoseEstimator", "Recording", "Rig", "back_project",
-    "fuse_recordings", "project", "read_poses", "read_qualisys", "read_toml", "write_poses", "write_toml",
-]
+from posecam._version import __version__
+
+_API = {
+    "CameraCalibration": "posecam.geometry.camera",
+    "Intrinsics": "posecam.geometry.camera",
+    "Rig": "posecam.geometry.camera",
+    "project": "posecam.geometry.camera",
+    "back_project": "posecam.geometry.lift",
+    "EstimatorOptions": "posecam.estimate",
+    "PoseEstimator": "posecam.estimate",
+    "FuseOptions": "posecam.multiview.fuse",
+    "FusionResult": "posecam.multiview.fuse",
+    "fuse_recordings": "posecam.multiview.fuse",
+    "IntrinsicsOptions": "posecam.io.intrinsics",
+    "read_qualisys": "posecam.io.calibration",
+    "read_toml": "posecam.io.calibration",
+    "write_toml": "posecam.io.calibration",
+    "read_poses": "posecam.io.poses",
+    "write_poses": "posecam.io.poses",
+    "Frame": "posecam.results",
+    "Person": "posecam.results",
+    "Recording": "posecam.results",
+}
+__all__ = ["__version__", *sorted(_API)]
+
+
+def __getattr__(name: str):
+    if name in _API:
+        value = getattr(importlib.import_module(_API[name]), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'posecam' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return __all__

@@ -10,7 +10,7 @@ import sys
 
 import click
 
-from posecam import __version__
+from posecam._version import __version__
 from posecam.commands.export import export_command
 from posecam.commands.predict import predict_command
 from posecam.commands.fuse import fuse_command

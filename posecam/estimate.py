@@ -2,28 +2,31 @@
 
     from posecam import PoseEstimator
     est = PoseEstimator()                       # bundled BlazePose-full model
-    frame = est.predict_image(rgb)              # numpy RGB image -> Frame
+    frame = est.predict_image(rgb)              # one RGB image -> Frame; keeps no state
+    frames = est.track(rgb_frames, k)           # the frames of one video -> Frames with stable ids
     rec = est.predict_file("clip.mp4")          # image, video or folder -> Recording
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from posecam.camera import Intrinsics
-from posecam.detect import PersonDetector
 from posecam.errors import InputError, ModelError
-from posecam.intrinsics import IntrinsicsOptions, resolve_intrinsics
+from posecam.geometry.camera import Intrinsics
+from posecam.inference.detector import PersonDetector
+from posecam.inference.pose_model import PoseCandidate, make_pose_model
+from posecam.inference.session import load_model
+from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
 from posecam.media import Media, open_media
-from posecam.pose_model import PoseCandidate, make_pose_model
 from posecam.results import Frame, Person, Recording
-from posecam.roi import Roi
-from posecam.session import load_model
 from posecam.skeleton import BLAZEPOSE_LANDMARKS, H36M_JOINTS, blazepose_to_h36m
+from posecam.tracking import Tracker
+
+SKELETONS = ("17", "33")
 
 
 @dataclass
@@ -37,25 +40,22 @@ class EstimatorOptions:
     threads: int | None = None
     intrinsics: IntrinsicsOptions = field(default_factory=IntrinsicsOptions)
 
+    def __post_init__(self) -> None:
+        if self.skeleton not in SKELETONS:
+            raise InputError(f"skeleton must be one of {', '.join(SKELETONS)}, got {self.skeleton!r}")
+        if self.max_people < 1 or self.redetect_every < 1:
+            raise InputError("max_people and redetect_every must be at least 1")
 
-@dataclass
-class _Track:
-    id: int
-    roi: Roi
 
-
-def _same_person(a: Roi, b: Roi) -> bool:
-    return np.hypot(a.cx - b.cx, a.cy - b.cy) < 0.25 * max(a.size, b.size)
+# Called after each frame of predict_file: the frame's result, its RGB image, the opened input.
+OnFrame = Callable[[Frame, np.ndarray, Media], None]
 
 
 class PoseEstimator:
-    """Detector + pose model + back-projection; tracks people across the frames of a video."""
+    """Detector + pose model + lifting to camera space."""
 
     def __init__(self, options: EstimatorOptions | None = None):
-        self.options = options or EstimatorOptions()
-        opts = self.options
-        if opts.skeleton not in ("17", "33"):
-            raise InputError(f"skeleton must be 17 or 33, got {opts.skeleton}")
+        self.options = opts = options or EstimatorOptions()
         self.detector = PersonDetector(load_model("detector", opts.threads, kind="detector"), opts.min_detection_score)
         pose = load_model(opts.model, opts.threads)
         if pose.contract.kind == "detector":
@@ -63,25 +63,16 @@ class PoseEstimator:
         self.pose_model = make_pose_model(pose)
         self.model_name = pose.contract.name
         self.joints = self._output_joints()
-        self._tracks: list[_Track] = []
-        self._next_id = 0
-        self._frames_since_detection = 0
 
     def _output_joints(self) -> tuple[str, ...]:
-        source = self.pose_model.joints
+        source = tuple(self.pose_model.joints)
         if self.options.skeleton == "33":
-            if tuple(source) != BLAZEPOSE_LANDMARKS:
+            if source != BLAZEPOSE_LANDMARKS:
                 raise InputError(f"--skeleton 33 needs a model with the 33 BlazePose landmarks; {self.model_name} has {len(source)} joints")
             return BLAZEPOSE_LANDMARKS
-        if tuple(source) == BLAZEPOSE_LANDMARKS:
-            return H36M_JOINTS
-        if tuple(source) != H36M_JOINTS:
+        if source not in (BLAZEPOSE_LANDMARKS, H36M_JOINTS):
             raise ModelError(f"model {self.model_name} outputs joints posecam cannot map to the 17-joint skeleton")
         return H36M_JOINTS
-
-    def reset(self) -> None:
-        """Forget tracked people (call between unrelated inputs)."""
-        self._tracks, self._next_id, self._frames_since_detection = [], 0, 0
 
     def _to_person(self, track_id: int, c: PoseCandidate) -> Person:
         uv, xyz, conf = c.keypoints_2d, c.keypoints_3d, c.confidence
@@ -91,52 +82,57 @@ class PoseEstimator:
         box = np.concatenate([c.keypoints_2d.min(axis=0), c.keypoints_2d.max(axis=0)])
         return Person(track_id, c.score, box, uv, xyz, conf)
 
-    def predict_image(self, image_rgb: np.ndarray, intrinsics: Intrinsics | None = None, track: bool = False) -> Frame:
-        """Poses of every person in one RGB uint8 image. With `track`, follow people from the previous call."""
-        if image_rgb.ndim != 3 or image_rgb.shape[2] != 3 or image_rgb.dtype != np.uint8:
-            raise InputError(f"expected an RGB uint8 image of shape (H, W, 3), got {image_rgb.dtype} {image_rgb.shape}")
-        h, w = image_rgb.shape[:2]
-        k = intrinsics or resolve_intrinsics(self.options.intrinsics, w, h)
-        if not track:
-            self.reset()
-        opts = self.options
-        if not self._tracks or self._frames_since_detection >= opts.redetect_every:
-            for det in self.detector(image_rgb, opts.max_people):
-                roi = det.roi
-                if len(self._tracks) < opts.max_people and not any(_same_person(roi, t.roi) for t in self._tracks):
-                    self._tracks.append(_Track(self._next_id, roi))
-                    self._next_id += 1
-            self._frames_since_detection = 0
-        self._frames_since_detection += 1
-        if not self._tracks:
+    def _step(self, image_rgb: np.ndarray, k: Intrinsics, tracker: Tracker) -> Frame:
+        """One frame: detect if the tracker asks for it, run the pose model on every track."""
+        _check_image(image_rgb)
+        if tracker.needs_detection():
+            tracker.add_detections([d.roi for d in self.detector(image_rgb, self.options.max_people)])
+        if not tracker.tracks:
             return Frame(0, 0.0, [])
-        candidates = self.pose_model(image_rgb, [t.roi for t in self._tracks], k)
-        people, kept = [], []
-        for t, c in zip(self._tracks, candidates):
-            if c.score < opts.min_presence or any(_same_person(c.next_roi, o.roi) for o in kept):
-                continue  # lost, or a duplicate of a person already kept
-            t.roi = c.next_roi
-            kept.append(t)
-            people.append(self._to_person(t.id, c))
-        self._tracks = kept
-        return Frame(0, 0.0, people)
+        ids = [t.id for t in tracker.tracks]
+        candidates = self.pose_model(image_rgb, [t.roi for t in tracker.tracks], k)
+        kept = tracker.update([c.score >= self.options.min_presence for c in candidates],
+                              [c.next_roi for c in candidates])
+        return Frame(0, 0.0, [self._to_person(ids[i], candidates[i]) for i in kept])
 
-    def iter_frames(self, media: Media, intrinsics: Intrinsics) -> Iterator[tuple[Frame, np.ndarray]]:
-        """(Frame, RGB image) for each frame of an opened input, people tracked with stable ids."""
-        self.reset()
-        for index, time, rgb in media.frames():
-            frame = self.predict_image(rgb, intrinsics, track=media.kind != "image")
-            frame.index, frame.time = index, time
-            yield frame, rgb
+    def _tracker(self) -> Tracker:
+        return Tracker(self.options.max_people, self.options.redetect_every)
 
-    def predict_file(self, path: str | Path, progress: Callable[[int, int], None] | None = None) -> Recording:
-        """Poses for every frame of an image, a video or a folder of images."""
+    def _intrinsics(self, image_rgb: np.ndarray, k: Intrinsics | None) -> Intrinsics:
+        h, w = image_rgb.shape[:2]
+        return k or resolve_intrinsics(self.options.intrinsics, w, h)
+
+    def predict_image(self, image_rgb: np.ndarray, intrinsics: Intrinsics | None = None) -> Frame:
+        """Poses of every person in one RGB uint8 image; nothing is kept between calls."""
+        return self._step(image_rgb, self._intrinsics(image_rgb, intrinsics), self._tracker())
+
+    def track(self, frames_rgb: Iterable[np.ndarray], intrinsics: Intrinsics | None = None) -> Iterator[Frame]:
+        """Poses for the frames of one video, people followed with stable ids. The tracks live
+        in this generator: each call starts a new video."""
+        tracker, k = self._tracker(), intrinsics
+        for index, rgb in enumerate(frames_rgb):
+            k = k or self._intrinsics(rgb, None)
+            frame = self._step(rgb, k, tracker)
+            frame.index = index
+            yield frame
+
+    def predict_file(self, path: str | Path, on_frame: OnFrame | None = None) -> Recording:
+        """Poses for every frame of an image, a video or a folder of images; each frame is
+        decoded once and handed to `on_frame` (progress bars, overlays) with its result."""
         media = open_media(path)
         k = resolve_intrinsics(self.options.intrinsics, media.width, media.height,
                                image_path=media.path if media.kind == "image" else None)
         rec = Recording(str(path), media.width, media.height, k, self.joints, model=self.model_name, fps=media.fps)
-        for frame, _ in self.iter_frames(media, k):
+        tracker = self._tracker()
+        for index, time, rgb in media.frames():
+            frame = self._step(rgb, k, tracker if media.kind != "image" else self._tracker())
+            frame.index, frame.time = index, time
             rec.frames.append(frame)
-            if progress:
-                progress(frame.index + 1, media.frame_count)
+            if on_frame:
+                on_frame(frame, rgb, media)
         return rec
+
+
+def _check_image(image_rgb: np.ndarray) -> None:
+    if image_rgb.ndim != 3 or image_rgb.shape[2] != 3 or image_rgb.dtype != np.uint8:
+        raise InputError(f"expected an RGB uint8 image of shape (H, W, 3), got {image_rgb.dtype} {image_rgb.shape}")

@@ -6,7 +6,7 @@ import os
 import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
@@ -28,11 +28,12 @@ class Media:
     height: int
     fps: float | None
     frame_count: int
+    image: np.ndarray | None = field(default=None, repr=False)   # a still image, decoded once
 
     def frames(self) -> Iterator[tuple[int, float, np.ndarray]]:
         """Yield (index, time in s, RGB uint8 image); memory stays flat for any length."""
         if self.kind == "image":
-            yield 0, 0.0, read_image(self.path)
+            yield 0, 0.0, self.image if self.image is not None else read_image(self.path)
         elif self.kind == "sequence":
             for i, p in enumerate(_sequence_files(self.path)):
                 yield i, i / SEQUENCE_FPS, read_image(p)
@@ -92,8 +93,9 @@ def open_media(path: str | Path) -> Media:
         h, w = read_image(files[0]).shape[:2]
         return Media(path, "sequence", w, h, SEQUENCE_FPS, len(files))
     if path.suffix.lower() in IMAGE_SUFFIXES:
-        h, w = read_image(path).shape[:2]
-        return Media(path, "image", w, h, None, 1)
+        image = read_image(path)
+        h, w = image.shape[:2]
+        return Media(path, "image", w, h, None, 1, image)
     with _native_stderr_silenced():
         cap = cv2.VideoCapture(str(path))
         ok, frame = cap.read() if cap.isOpened() else (False, None)

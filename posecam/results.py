@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from posecam.camera import Intrinsics
+from posecam.geometry.camera import Intrinsics
 
 
 @dataclass

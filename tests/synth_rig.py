@@ -13,8 +13,9 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from posecam.camera import Intrinsics, solve_root_translation
-from posecam.io.calibration import CameraCalibration
+from posecam.geometry.camera import Intrinsics
+from posecam.geometry.lift import solve_root_translation
+from posecam.geometry.camera import CameraCalibration
 from posecam.results import Frame, Person, Recording
 from posecam.skeleton import H36M_JOINTS
 

@@ -54,7 +54,7 @@ def test_wrong_model(files):
 
 
 def test_detector_is_not_a_pose_model():
-    from posecam.session import MODELS_DIR
+    from posecam.inference.session import MODELS_DIR
 
     _check(run_posecam("predict", DATA / "messi5.jpg", "--model", MODELS_DIR / "blazepose_detector.onnx"), 3, "detector")
 

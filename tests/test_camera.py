@@ -1,7 +1,8 @@
 import numpy as np
 import pytest
 
-from posecam.camera import Intrinsics, back_project, project, solve_root_translation
+from posecam.geometry.camera import Intrinsics, project
+from posecam.geometry.lift import back_project, solve_root_translation
 from posecam.errors import InputError
 
 

@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from posecam.errors import FusionError
-from posecam.fusion import FuseOptions, fuse_recordings
-from posecam.bundle import BundleOptions
+from posecam.multiview.fuse import FuseOptions, fuse_recordings
+from posecam.multiview.bundle import BundleOptions
 from synth_rig import make_rig, monocular_views, relative_rotation_error_deg, skeleton_motion
 
 

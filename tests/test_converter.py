@@ -5,8 +5,8 @@ import onnx
 import pytest
 
 from posecam.media import read_image
-from posecam.roi import Roi
-from posecam.session import load_model, to_input_tensor
+from posecam.inference.roi import Roi
+from posecam.inference.session import load_model, to_input_tensor
 
 from conftest import DATA, EXAMPLES
 
@@ -54,7 +54,7 @@ def test_detector_matches_litert_on_a_photo():
 
 
 def test_converter_rebuilds_the_bundled_model_exactly(tmp_path):
-    build = pytest.importorskip("export.build_models")
+    build = pytest.importorskip("export.convert.build_models")
     out = build.build("detector", tmp_path)
     bundled = onnx.load(build.MODELS_DIR / "blazepose_detector.onnx")
     rebuilt = onnx.load(out)

@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 import pytest
 
-from posecam.exif import focal_length_35mm
+from posecam.io.exif import focal_length_35mm
 
 
 def _exif_segment(focal35: int, endian: str) -> bytes:

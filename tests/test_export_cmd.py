@@ -22,13 +22,13 @@ torch = pytest.importorskip("torch")
 from conftest import run_posecam  # noqa: E402
 from export import ResNetU, ResNetUConfig, save_checkpoint  # noqa: E402
 from export.crops import person_crops  # noqa: E402
-from export.onnx_export import (IMAGENET_MEAN, IMAGENET_STD, differences, export_onnx, heatmap_peak,  # noqa: E402
+from export.convert.onnx_export import (IMAGENET_MEAN, IMAGENET_STD, differences, export_onnx, heatmap_peak,  # noqa: E402
                                 run_onnx, run_torch)
-from posecam.contract import InputSpec  # noqa: E402
-from posecam.camera import Intrinsics  # noqa: E402
-from posecam.pose_model import RootDepthPoseModel  # noqa: E402
-from posecam.roi import Roi  # noqa: E402
-from posecam.session import load_model, to_input_tensor  # noqa: E402
+from posecam.inference.contract import InputSpec  # noqa: E402
+from posecam.geometry.camera import Intrinsics  # noqa: E402
+from posecam.inference.pose_model import RootDepthPoseModel  # noqa: E402
+from posecam.inference.roi import Roi  # noqa: E402
+from posecam.inference.session import load_model, to_input_tensor  # noqa: E402
 
 DATA = Path(__file__).parent / "data"
 IMAGES = [DATA / "messi5.jpg", DATA / "basketball2.png", DATA / "balance_cam01_30f.mp4"]

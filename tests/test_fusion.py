@@ -2,9 +2,9 @@
 
 import numpy as np
 
-from posecam.fusion import FuseOptions, fuse_recordings
-from posecam.io.calibration import Rig
-from posecam.left_right import unswap
+from posecam.multiview.fuse import FuseOptions, fuse_recordings
+from posecam.geometry.camera import Rig
+from posecam.multiview.left_right import unswap
 from posecam.skeleton import skeleton_of
 from synth_rig import make_rig, monocular_views, skeleton_motion
 

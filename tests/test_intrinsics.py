@@ -3,7 +3,7 @@ import json
 import pytest
 
 from posecam.errors import InputError
-from posecam.intrinsics import IntrinsicsOptions, resolve_intrinsics
+from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
 
 
 def test_flags_win_and_default_principal_point_is_the_centre():

@@ -4,7 +4,7 @@ import json
 import numpy as np
 import pytest
 
-from posecam.camera import Intrinsics
+from posecam.geometry.camera import Intrinsics
 from posecam.errors import InputError
 from posecam.io.poses import CSV_HEADER, read_poses, write_poses
 from posecam.results import Frame, Person, Recording

@@ -35,8 +35,8 @@ def test_pose_projects_onto_its_2d_keypoints(estimator):
     frame = estimator.predict_image(read_image(EXAMPLES / "balance.jpg"))
     (p,) = frame.people
     k = estimator.options.intrinsics  # default options: intrinsics resolved from the image
-    from posecam.intrinsics import resolve_intrinsics
-    from posecam.camera import project
+    from posecam.io.intrinsics import resolve_intrinsics
+    from posecam.geometry.camera import project
 
     ki = resolve_intrinsics(k, 1080, 1920)
     err = np.linalg.norm(project(p.keypoints_3d, ki) - p.keypoints_2d, axis=1)
@@ -45,7 +45,7 @@ def test_pose_projects_onto_its_2d_keypoints(estimator):
 
 def test_intrinsics_change_the_depth_as_the_pinhole_model_says(estimator, tmp_path):
     img = read_image(EXAMPLES / "balance.jpg")
-    from posecam.camera import Intrinsics
+    from posecam.geometry.camera import Intrinsics
 
     near = estimator.predict_image(img, Intrinsics(1000, 1000, 540, 960)).people[0].root[2]
     far = estimator.predict_image(img, Intrinsics(2000, 2000, 540, 960)).people[0].root[2]

@@ -9,9 +9,9 @@ import pytest
 torch = pytest.importorskip("torch")
 
 from export import ResNetU, ResNetUConfig, load_checkpoint, save_checkpoint  # noqa: E402
-from export.backbones import load_imagenet_weights  # noqa: E402
-from export.dataset import read_manifest  # noqa: E402
-from export.train import TrainOptions, train  # noqa: E402
+from export.model.backbones import load_imagenet_weights  # noqa: E402
+from export.train.dataset import read_manifest  # noqa: E402
+from export.train.trainer import TrainOptions, train  # noqa: E402
 from posecam.errors import InputError, ModelError  # noqa: E402
 from posecam.skeleton import H36M_JOINTS  # noqa: E402
 

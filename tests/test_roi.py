@@ -1,6 +1,6 @@
 import numpy as np
 
-from posecam.roi import Roi
+from posecam.inference.roi import Roi
 
 
 def test_crop_and_map_back_with_rotation():

@@ -4,26 +4,28 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from typing import TYPE_CHECKING
+
 import click
-from rich.console import Console
-from rich.table import Table
 
-from posecam.commands.predict import run_predictions
+from posecam.commands.common import predict_with_progress, progress_bar
 from posecam.errors import InputError
-from posecam.estimate import EstimatorOptions, PoseEstimator
-from posecam.fusion import FuseOptions, FusionResult, calibration_camera, fuse_recordings
-from posecam.intrinsics import IntrinsicsOptions
-from posecam.io.calibration import Rig, read_toml, write_toml
-from posecam.io.poses import read_poses, write_poses
-from posecam.media import open_media
 
-err = Console(stderr=True)
+if TYPE_CHECKING:
+    from posecam.geometry.camera import Rig
+    from posecam.multiview.fuse import FusionResult
+    from posecam.results import Recording
 
 
-def load_views(inputs: list[str], model: str, calibration: tuple[str, Rig] | None) -> list:
+def load_views(inputs: list[str], model: str, calibration: tuple[str, Rig] | None) -> list[Recording]:
     """Recordings from pose JSON files as they are, and from videos/sequences by predicting them
     (with the calibration's intrinsics when given, else posecam's default). Every input is
     checked before anything is predicted."""
+    from posecam.estimate import EstimatorOptions, PoseEstimator
+    from posecam.io.intrinsics import IntrinsicsOptions
+    from posecam.io.poses import read_poses
+    from posecam.media import open_media
+
     views = []                          # per input: its recordings, or the intrinsics to predict it with
     for path in inputs:
         if Path(path).suffix.lower() == ".json":
@@ -32,21 +34,28 @@ def load_views(inputs: list[str], model: str, calibration: tuple[str, Rig] | Non
             open_media(path)
             views.append(IntrinsicsOptions(**calibration_file_camera(calibration, path)))
     recordings = []
-    for path, view in zip(inputs, views):
-        if isinstance(view, IntrinsicsOptions):
-            view = run_predictions(PoseEstimator(EstimatorOptions(model=model, intrinsics=view)), [path])
-        recordings += view
+    with progress_bar() as progress:
+        for path, view in zip(inputs, views):
+            if isinstance(view, IntrinsicsOptions):
+                estimator = PoseEstimator(EstimatorOptions(model=model, intrinsics=view))
+                view = [predict_with_progress(estimator, path, progress)]
+            recordings += view
     return recordings
 
 
 def calibration_file_camera(calibration: tuple[str, Rig] | None, path: str) -> dict:
     """IntrinsicsOptions fields that take a video's intrinsics from its camera in the calibration."""
+    from posecam.multiview.fuse import calibration_camera
+
     if calibration is None:
         return {}
     return {"file": calibration[0], "camera": calibration_camera(calibration[1], Path(path).stem).name}
 
 
 def print_report(result: FusionResult) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
     table = Table(title=f"posecam fuse: cameras ({result.recording.frame_of_reference})")
     for col in ("camera", "offset", "error px", "joints", "L/R", "f px", "cx, cy", "centre m"):
         table.add_column(col, justify="left" if col == "camera" else "right", no_wrap=True)
@@ -74,6 +83,14 @@ def print_report(result: FusionResult) -> None:
 @click.option("--viz", type=click.Path(), help="FILE.png: the fused pose projected into every view.")
 def fuse_command(inputs, output, calibration, save_calibration, method, sync, offsets, max_offset, model, viz) -> None:
     """Fuse INPUTS (2+ videos, image folders or `posecam predict` JSON files) of one scene."""
+    from rich.console import Console
+
+    from posecam.geometry.camera import Rig
+    from posecam.io.calibration import read_toml, write_toml
+    from posecam.io.poses import write_poses
+    from posecam.multiview.fuse import FuseOptions, fuse_recordings
+
+    err = Console(stderr=True, highlight=False)
     for path in (output, save_calibration, viz):
         if path and not Path(path).parent.is_dir() and str(Path(path).parent):
             raise InputError(f"cannot write {path}: folder {Path(path).parent} does not exist")
@@ -102,6 +119,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
                    {"frame": result.recording.frame_of_reference, "offsets": ",".join(map(str, result.offsets))})
         err.print(f"wrote {save_calibration}", highlight=False)
     if viz:
-        from posecam.fusion_viz import write_grid
+        from posecam.viz.fusion_grid import write_grid
+
         write_grid(viz, result, recordings)
         err.print(f"wrote {viz}", highlight=False)

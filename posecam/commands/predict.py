@@ -2,80 +2,20 @@
 
 from __future__ import annotations
 
+from contextlib import ExitStack
 from pathlib import Path
 
 import click
-import numpy as np
-from rich.console import Console
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-from rich.table import Table
 
+from posecam.commands.common import intrinsics_options, predict_with_progress, progress_bar, warn
 from posecam.errors import InputError
-from posecam.estimate import EstimatorOptions, PoseEstimator
-from posecam.intrinsics import IntrinsicsOptions, resolve_intrinsics
-from posecam.io.poses import write_poses
-from posecam.media import open_media
-from posecam.results import Recording
-from posecam.viz import VideoSink, draw_people, write_image
-
-err = Console(stderr=True)
 
 
-def intrinsics_options(f):
-    """The intrinsics flags shared by `predict` and `fuse`."""
-    for opt in reversed([
-        click.option("--fx", type=float, help="Focal length in pixels (x)."),
-        click.option("--fy", type=float, help="Focal length in pixels (y); defaults to fx."),
-        click.option("--cx", type=float, help="Principal point x in pixels; defaults to the image centre."),
-        click.option("--cy", type=float, help="Principal point y in pixels; defaults to the image centre."),
-        click.option("--intrinsics", "intrinsics_file", type=click.Path(),
-                     help="JSON with fx, fy, cx, cy (or a 3x3 matrix), or an anipose/Pose2Sim calibration TOML."),
-        click.option("--camera", help="Camera name inside a calibration TOML."),
-    ]):
-        f = opt(f)
-    return f
+def print_summary(recordings) -> None:
+    import numpy as np
+    from rich.console import Console
+    from rich.table import Table
 
-
-def _progress() -> Progress:
-    return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                    TimeRemainingColumn(), console=err, transient=True)
-
-
-def run_predictions(estimator: PoseEstimator, inputs: list[str], viz: str | None = None) -> list[Recording]:
-    """Predict every input with a progress bar; draw the first input to `viz` if asked."""
-    recordings = []
-    with _progress() as progress:
-        for path in inputs:
-            media = open_media(path)
-            k = resolve_intrinsics(estimator.options.intrinsics, media.width, media.height,
-                                   image_path=media.path if media.kind == "image" else None)
-            rec = Recording(str(path), media.width, media.height, k, estimator.joints,
-                            model=estimator.model_name, fps=media.fps)
-            task = progress.add_task(Path(path).name, total=media.frame_count)
-            sink = None
-            if viz and media.kind != "image":
-                sink = VideoSink(viz, media.fps or 30.0, media.width, media.height)
-            try:
-                for frame, rgb in estimator.iter_frames(media, k):
-                    rec.frames.append(frame)
-                    if sink:
-                        sink.write(draw_people(rgb, frame.people, rec.joints))
-                    elif viz:
-                        write_image(viz, draw_people(rgb, frame.people, rec.joints))
-                    progress.update(task, completed=frame.index + 1)
-            except BaseException:
-                if sink:
-                    sink.close(ok=False)
-                raise
-            if sink:
-                sink.close()
-            if not any(f.people for f in rec.frames):
-                err.print(f"posecam: warning: no person found in {path}", highlight=False)
-            recordings.append(rec)
-    return recordings
-
-
-def print_summary(recordings: list[Recording]) -> None:
     table = Table(title="posecam: root joint in camera coordinates (mm)")
     for col in ("input", "frames", "person", "x", "y", "z", "mean conf."):
         table.add_column(col, justify="right" if col not in ("input",) else "left")
@@ -108,17 +48,40 @@ def print_summary(recordings: list[Recording]) -> None:
 def predict_command(inputs, output, viz, model, skeleton, max_people, threads,
                     fx, fy, cx, cy, intrinsics_file, camera) -> None:
     """3D poses in camera coordinates (mm) for every person in INPUTS (images, videos, folders)."""
+    from posecam.estimate import EstimatorOptions, PoseEstimator
+    from posecam.io.intrinsics import IntrinsicsOptions
+    from posecam.io.poses import write_poses
+    from posecam.media import open_media
+    from posecam.viz.draw import draw_people
+    from posecam.viz.sinks import VideoSink, write_image
+
     if viz and len(inputs) > 1:
         raise InputError("--viz draws one input; pass a single input with --viz")
     if output and Path(output).suffix.lower() not in (".json", ".csv"):
         raise InputError(f"output must end in .json or .csv, got {output}")
     opts = EstimatorOptions(model=model, skeleton=skeleton, max_people=max_people, threads=threads,
                             intrinsics=IntrinsicsOptions(fx, fy, cx, cy, intrinsics_file, camera))
+    first = None
     for path in inputs:  # fail on a bad input before spending time on the good ones
-        open_media(path)
-    recordings = run_predictions(PoseEstimator(opts), list(inputs), viz)
+        first = first or open_media(path)
+    estimator = PoseEstimator(opts)
+    recordings = []
+    with ExitStack() as stack, progress_bar() as progress:
+        sink = None
+        if viz and first.kind != "image":
+            sink = stack.enter_context(VideoSink(viz, first.fps or 30.0, first.width, first.height))
+
+        def draw(frame, rgb, media) -> None:
+            picture = draw_people(rgb, frame.people, estimator.joints)
+            sink.write(picture) if sink else write_image(viz, picture)
+
+        for path in inputs:
+            rec = predict_with_progress(estimator, path, progress, draw if viz else None)
+            if not any(f.people for f in rec.frames):
+                warn(f"no person found in {path}")
+            recordings.append(rec)
     if output:
         write_poses(output, recordings)
-        err.print(f"wrote {output}", highlight=False)
+        click.echo(f"wrote {output}", err=True)
     else:
         print_summary(recordings)

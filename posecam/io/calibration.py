@@ -1,4 +1,4 @@
-"""Camera rigs: one calibrated camera, a set of them, and the files they live in.
+"""Calibration files: read and write the cameras of a rig (posecam.geometry.camera).
 
 Files: the anipose/Pose2Sim TOML (one table per camera: name, size [w, h], matrix 3x3,
 distortions [4 or 5], rotation as a world->camera Rodrigues vector, translation in metres,
@@ -13,83 +13,14 @@ import os
 import re
 import tomllib
 import xml.etree.ElementTree as ET
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from posecam.camera import Intrinsics
+from posecam.geometry.camera import CameraCalibration, Intrinsics
 from posecam.errors import InputError
 from posecam.io.atomic import write_text
-
-
-@dataclass
-class CameraCalibration:
-    """One camera: x_cam = R @ x_world + t (mm), then the pinhole model with distortion."""
-
-    name: str
-    size: tuple[int, int]                  # image width, height in pixels
-    intrinsics: Intrinsics
-    rotation: np.ndarray = field(default_factory=lambda: np.eye(3))     # R, 3x3, world -> camera
-    translation: np.ndarray = field(default_factory=lambda: np.zeros(3))  # t, mm
-    distortion: np.ndarray = field(default_factory=lambda: np.zeros(4))  # k1, k2, p1, p2[, k3]
-
-    @property
-    def centre(self) -> np.ndarray:
-        """The camera centre in world coordinates, mm."""
-        return -self.rotation.T @ self.translation
-
-    def to_camera(self, points: np.ndarray) -> np.ndarray:
-        """(..., 3) world points -> camera coordinates."""
-        return points @ self.rotation.T + self.translation
-
-    def to_world(self, points: np.ndarray) -> np.ndarray:
-        """(..., 3) camera points -> world coordinates."""
-        return (points - self.translation) @ self.rotation
-
-    def project(self, points: np.ndarray) -> np.ndarray:
-        """(..., 3) world points -> (..., 2) distorted pixels."""
-        p = self.to_camera(points)
-        x, y = p[..., 0] / p[..., 2], p[..., 1] / p[..., 2]
-        k1, k2, p1, p2, k3 = np.pad(self.distortion, (0, 5 - len(self.distortion)))
-        r2 = x * x + y * y
-        radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
-        xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
-        yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
-        k = self.intrinsics
-        return np.stack([k.fx * xd + k.cx, k.fy * yd + k.cy], axis=-1)
-
-    def normalise(self, uv: np.ndarray) -> np.ndarray:
-        """(..., 2) pixels -> (..., 2) undistorted normalised image coordinates (x/z, y/z)."""
-        k = self.intrinsics
-        if not np.any(self.distortion):
-            return np.stack([(uv[..., 0] - k.cx) / k.fx, (uv[..., 1] - k.cy) / k.fy], axis=-1)
-        flat = np.ascontiguousarray(uv.reshape(-1, 1, 2), dtype=np.float64)
-        out = cv2.undistortPoints(flat, k.matrix, self.distortion.astype(np.float64))
-        return out.reshape(uv.shape)
-
-
-@dataclass
-class Rig:
-    """Cameras in one frame of reference: a reference camera's (R = I, t = 0) or the world."""
-
-    cameras: list[CameraCalibration]
-    reference: str | None = None           # None: a world frame from a calibration file
-
-    @property
-    def frame_of_reference(self) -> str:
-        return f"reference camera {self.reference}" if self.reference else "world"
-
-    @property
-    def names(self) -> list[str]:
-        return [c.name for c in self.cameras]
-
-    def camera(self, name: str) -> CameraCalibration:
-        for c in self.cameras:
-            if c.name == name:
-                return c
-        raise InputError(f"the calibration has no camera named {name!r} (it has {', '.join(self.names)})")
 
 
 def _vector(table: dict, key: str, n: tuple[int, ...], where: str) -> np.ndarray:

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from posecam import __version__
-from posecam.camera import Intrinsics
+from posecam._version import __version__
+from posecam.geometry.camera import Intrinsics
 from posecam.errors import InputError
 from posecam.io.atomic import write_text
 from posecam.results import Frame, Person, Recording

@@ -1,0 +1,1 @@
+"""Training ResNet-U: the manifest dataset, augmentations, losses and the training loop."""

@@ -1,0 +1,3 @@
+from export.train.trainer import main
+
+main()

@@ -1,0 +1,61 @@
+"""What `predict` and `fuse` share: the intrinsics flags, the progress bar, predicting inputs."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import click
+
+if TYPE_CHECKING:
+    from rich.progress import Progress
+
+    from posecam.estimate import PoseEstimator
+    from posecam.media import Media
+    from posecam.results import Frame, Recording
+
+
+def intrinsics_options(f: Callable) -> Callable:
+    """The intrinsics flags shared by `predict` and `fuse`."""
+    for opt in reversed([
+        click.option("--fx", type=float, help="Focal length in pixels (x)."),
+        click.option("--fy", type=float, help="Focal length in pixels (y); defaults to fx."),
+        click.option("--cx", type=float, help="Principal point x in pixels; defaults to the image centre."),
+        click.option("--cy", type=float, help="Principal point y in pixels; defaults to the image centre."),
+        click.option("--intrinsics", "intrinsics_file", type=click.Path(),
+                     help="JSON with fx, fy, cx, cy (or a 3x3 matrix), or an anipose/Pose2Sim calibration TOML."),
+        click.option("--camera", help="Camera name inside a calibration TOML."),
+    ]):
+        f = opt(f)
+    return f
+
+
+def progress_bar() -> Progress:
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+    return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                    TimeRemainingColumn(), console=Console(stderr=True), transient=True)
+
+
+FrameHook = Callable[["Frame", "object", "Media"], None]
+
+
+def predict_with_progress(estimator: PoseEstimator, path: str, progress: Progress,
+                          on_frame: FrameHook | None = None) -> Recording:
+    """`estimator.predict_file(path)` with a bar in `progress`; `on_frame` sees every frame too."""
+    task = progress.add_task(Path(path).name, total=None)
+
+    def step(frame: Frame, rgb, media: Media) -> None:
+        progress.update(task, completed=frame.index + 1, total=media.frame_count)
+        if on_frame:
+            on_frame(frame, rgb, media)
+
+    return estimator.predict_file(path, on_frame=step)
+
+
+def warn(message: str) -> None:
+    from rich.console import Console
+
+    Console(stderr=True, highlight=False).print(f"posecam: warning: {message}")

@@ -1,0 +1,1 @@
+"""Pure camera geometry, no files: cameras and rigs, lifting to camera space, triangulation."""

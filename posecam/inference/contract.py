@@ -1,0 +1,113 @@
+"""The posecam model contract: what an ONNX file's metadata must say for the runtime to run it.
+
+Every model is recognised from its `metadata_props`, never from its file name. Keys:
+
+- ``posecam.inference.contract``  "1"
+- ``posecam.kind``      "detector" | "landmarks" (metric root-relative pose + 2D, BlazePose)
+                         | "root_depth" (the paper's ResNet-U: u, v, relative depth, z_a)
+- ``posecam.name``      a short model name, e.g. "blazepose-full"
+- ``posecam.joints``    JSON list of the joint names the model outputs, in output order
+- ``posecam.input``     JSON {"name", "layout": "NHWC"|"NCHW", "size": [h, w],
+                         "mean": [3], "std": [3]}: pixel = (rgb / 255 - mean) / std
+- ``posecam.outputs``   JSON {role: output name}; roles per kind:
+    detector:   "boxes" [1, A, 12], "scores" [1, A, 1]; plus ``posecam.anchors`` JSON
+                {"strides", "anchors_per_cell", "scale"}
+    landmarks:  "landmarks" [N, L*5], "presence" [N, 1], "world" [N, L*3]
+    root_depth: "uv" [N, J, 2] crop pixels, "depth" [N, J] mm relative to the root,
+                "z_root" [N, 1] mm, "confidence" [N, J] in [0, 1]; a second input
+                ``posecam.box_input`` [N, 4] takes the box (cx/W, cy/H, w/W, h/H)
+- root_depth only: ``posecam.train_focal`` focal length (px) of the training camera and
+  ``posecam.train_image_width`` its image width (px). z_a is rescaled by
+  (f / W) / (f_train / W_train), which is f / f_train for images of the training width.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+
+from posecam.errors import ModelError
+
+CONTRACT_VERSION = "1"
+KINDS = ("detector", "landmarks", "root_depth")
+REQUIRED_OUTPUTS = {
+    "detector": ("boxes", "scores"),
+    "landmarks": ("landmarks", "presence", "world"),
+    "root_depth": ("uv", "depth", "z_root", "confidence"),
+}
+
+
+@dataclass(frozen=True)
+class InputSpec:
+    name: str
+    layout: str
+    size: tuple[int, int]
+    mean: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    std: tuple[float, float, float] = (1.0, 1.0, 1.0)
+
+
+@dataclass(frozen=True)
+class ModelContract:
+    kind: str
+    name: str
+    input: InputSpec
+    outputs: dict[str, str]
+    joints: tuple[str, ...] = ()
+    anchors: dict = field(default_factory=dict)
+    box_input: str | None = None
+    train_focal: float | None = None
+    train_image_width: float | None = None
+
+    def to_metadata(self) -> dict[str, str]:
+        """The metadata_props that describe this model."""
+        meta = {
+            "posecam.contract": CONTRACT_VERSION,
+            "posecam.kind": self.kind,
+            "posecam.name": self.name,
+            "posecam.joints": json.dumps(list(self.joints)),
+            "posecam.input": json.dumps(
+                {"name": self.input.name, "layout": self.input.layout, "size": list(self.input.size),
+                 "mean": list(self.input.mean), "std": list(self.input.std)}
+            ),
+            "posecam.outputs": json.dumps(self.outputs),
+        }
+        if self.anchors:
+            meta["posecam.anchors"] = json.dumps(self.anchors)
+        if self.box_input:
+            meta["posecam.box_input"] = self.box_input
+        if self.train_focal is not None:
+            meta["posecam.train_focal"] = repr(float(self.train_focal))
+            meta["posecam.train_image_width"] = repr(float(self.train_image_width))
+        return meta
+
+    @classmethod
+    def from_metadata(cls, meta: dict[str, str], source: str) -> "ModelContract":
+        """Parse and check metadata; raise ModelError naming what is wrong."""
+        if meta.get("posecam.contract") != CONTRACT_VERSION:
+            raise ModelError(f"{source} is not a posecam model (no posecam.contract={CONTRACT_VERSION} metadata)")
+        kind = meta.get("posecam.kind")
+        if kind not in KINDS:
+            raise ModelError(f"{source}: unknown model kind {kind!r}; expected one of {', '.join(KINDS)}")
+        try:
+            inp = json.loads(meta["posecam.input"])
+            outputs = json.loads(meta["posecam.outputs"])
+            joints = tuple(json.loads(meta.get("posecam.joints", "[]")))
+            spec = InputSpec(inp["name"], inp["layout"], tuple(inp["size"]),
+                             tuple(inp.get("mean", (0, 0, 0))), tuple(inp.get("std", (1, 1, 1))))
+            anchors = json.loads(meta.get("posecam.anchors", "{}"))
+            train_focal = float(meta["posecam.train_focal"]) if "posecam.train_focal" in meta else None
+            train_width = float(meta["posecam.train_image_width"]) if "posecam.train_image_width" in meta else None
+        except (KeyError, ValueError, TypeError) as exc:
+            raise ModelError(f"{source}: malformed posecam metadata ({exc})") from None
+        missing = [r for r in REQUIRED_OUTPUTS[kind] if r not in outputs]
+        if missing:
+            raise ModelError(f"{source}: {kind} model lacks outputs for {', '.join(missing)}")
+        if spec.layout not in ("NHWC", "NCHW"):
+            raise ModelError(f"{source}: input layout must be NHWC or NCHW, got {spec.layout!r}")
+        if kind != "detector" and not joints:
+            raise ModelError(f"{source}: {kind} model does not list its joints")
+        if kind == "root_depth" and (train_focal is None or train_width is None or "posecam.box_input" not in meta):
+            raise ModelError(f"{source}: root_depth model needs posecam.train_focal, "
+                             "posecam.train_image_width and posecam.box_input")
+        return cls(kind, meta.get("posecam.name", source), spec, outputs, joints, anchors,
+                   meta.get("posecam.box_input"), train_focal, train_width)

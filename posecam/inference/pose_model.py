@@ -1,0 +1,103 @@
+"""Pose models: crops in, camera-space joints out, for both depth kinds of the model contract.
+
+- `LandmarkPoseModel` (kind "landmarks", BlazePose GHUM 3D): 2D landmarks in the crop plus a
+  metric root-relative pose; the root translation is solved from the pinhole model.
+- `RootDepthPoseModel` (kind "root_depth", the paper's ResNet-U): (u, v), relative depth d_i
+  and absolute root depth z_a; z_i = d_i + z_a, then back-projection (paper eq. 4).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from posecam.geometry.camera import Intrinsics
+from posecam.geometry.lift import back_project, solve_root_translation
+from posecam.inference.roi import Roi
+from posecam.inference.session import Model, to_input_tensor
+
+
+@dataclass
+class PoseCandidate:
+    """One person's pose in the joints of the model that produced it."""
+
+    score: float                # presence of a person in the ROI, [0, 1]
+    keypoints_2d: np.ndarray    # (J, 2) image pixels
+    keypoints_3d: np.ndarray    # (J, 3) camera coordinates, mm
+    confidence: np.ndarray      # (J,) [0, 1]
+    next_roi: Roi               # where to look for this person in the next frame
+
+
+def _sigmoid(x: np.ndarray) -> np.ndarray:
+    return 1.0 / (1.0 + np.exp(-np.clip(x, -80, 80)))
+
+
+class _CropModel:
+    """Shared crop + run: batches ROIs when the model's batch axis is dynamic."""
+
+    def __init__(self, model: Model):
+        self.model = model
+        self.contract = model.contract
+        self.size = int(self.contract.input.size[0])
+        self.joints = self.contract.joints
+
+    def _run(self, image_rgb: np.ndarray, rois: list[Roi], extra: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+        crops = np.stack([roi.crop(image_rgb, self.size) for roi in rois])
+        x = to_input_tensor(crops, self.contract.input)
+        feeds = {self.contract.input.name: x, **(extra or {})}
+        if self.model.batch_dynamic or len(rois) == 1:
+            return self.model.run(feeds)
+        parts = [self.model.run({k: v[i:i + 1] for k, v in feeds.items()}) for i in range(len(rois))]
+        return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+class LandmarkPoseModel(_CropModel):
+    """BlazePose GHUM 3D: 33 landmarks (+ 6 ROI helpers) and metric world landmarks."""
+
+    def __call__(self, image_rgb: np.ndarray, rois: list[Roi], k: Intrinsics) -> list[PoseCandidate]:
+        out = self._run(image_rgb, rois)
+        n_joints = len(self.joints)
+        landmarks = out["landmarks"].reshape(len(rois), -1, 5).astype(np.float64)
+        world = out["world"].reshape(len(rois), -1, 3)[:, :n_joints].astype(np.float64) * 1000.0
+        presence = out["presence"].reshape(len(rois)).astype(np.float64)
+        result = []
+        for roi, lm, rel, score in zip(rois, landmarks, world, presence):
+            uv = roi.to_image(lm[:, :2], self.size)
+            conf = _sigmoid(lm[:n_joints, 3]) * _sigmoid(lm[:n_joints, 4])
+            rel = roi.rotate_to_image(rel)  # world landmarks come in the crop's axes
+            t = solve_root_translation(rel, uv[:n_joints], conf, k)
+            result.append(PoseCandidate(
+                float(score), uv[:n_joints], rel + t, conf,
+                # landmarks 33, 34: hip centre and full-body scale point, as for the detector
+                Roi.from_alignment_points(uv[n_joints], uv[n_joints + 1]),
+            ))
+        return result
+
+
+class RootDepthPoseModel(_CropModel):
+    """The paper's ResNet-U: (u, v, d) per joint, z_a per person, confidence per joint."""
+
+    def __call__(self, image_rgb: np.ndarray, rois: list[Roi], k: Intrinsics) -> list[PoseCandidate]:
+        h, w = image_rgb.shape[:2]
+        rois = [Roi(r.cx, r.cy, r.size) for r in rois]  # ResNet-U crops are upright
+        boxes = np.array([[r.cx / w, r.cy / h, r.size / w, r.size / h] for r in rois], np.float32)
+        out = self._run(image_rgb, rois, {self.contract.box_input: boxes})
+        # z_a was learned for one camera: rescale by the focal length in image widths.
+        f_ratio = ((k.fx + k.fy) / 2 / w) / (self.contract.train_focal / self.contract.train_image_width)
+        result = []
+        for i, roi in enumerate(rois):
+            uv = roi.to_image(out["uv"][i].astype(np.float64), self.size)
+            z = out["depth"][i].astype(np.float64) + float(out["z_root"][i, 0]) * f_ratio  # z_i = d_i + z_a
+            conf = np.clip(out["confidence"][i].astype(np.float64), 0.0, 1.0)
+            confident = uv[conf >= 0.5] if (conf >= 0.5).sum() >= 2 else uv
+            result.append(PoseCandidate(
+                float(conf.mean()), uv, back_project(uv, z, k), conf, Roi.around_points(confident),
+            ))
+        return result
+
+
+def make_pose_model(model: Model) -> LandmarkPoseModel | RootDepthPoseModel:
+    if model.contract.kind == "landmarks":
+        return LandmarkPoseModel(model)
+    return RootDepthPoseModel(model)

@@ -1,0 +1,248 @@
+"""Camera estimation from the poses themselves: the paper's consensus-based optimisation
+(section 4, eq. 5-11, Algorithm 1) generalised to N cameras in one frame of reference.
+
+Every camera c maps reference-frame points X into its own frame as x_c = R_c X + t_c
+(eq. 5 with R_c = R_{ref,c}); the reference camera keeps R = I, t = 0.
+
+The depth model. posecam places a monocular pose at the root depth that makes its metric
+skeleton match its 2D size under the intrinsics it was given (f0), so the root depth grows
+with the assumed focal length: z_root = g z0_root with g = f / f0, while the root-relative
+depths stay metric. Each view's pose under candidate intrinsics (fx, fy, cx, cy) = (g f0x,
+g f0y, cx, cy) is therefore rebuilt as z_i = (z0_i - z0_root) + g z0_root, then x, y from
+the 2D keypoints by eq. 4. Square pixels are assumed here (fx / fy stays f0x / f0y);
+`posecam.multiview.bundle` frees fx and fy and refines everything from the 2D keypoints.
+
+Stage 1 aligns every camera with the reference view alone, as Algorithm 1 does per pair
+(from R = I). Stage 2 re-estimates every camera, the reference's intrinsics included,
+against the leave-one-out consensus of all the other views, until the parameters stop
+moving. Each iteration: rigid Procrustes without reflection for R, eq. 8 for t, then the
+focal length in closed form from the depths. The principal point stays at its start here: in
+this 3D alignment a shift of it trades against a small rotation and drifts; the bundle
+adjustment estimates it from the 2D keypoints. Only the reference camera's focal is fixed in
+stage 1 (it anchors the depths); all are free in stage 2.
+Joints with confidence below 0.5 are left out; outlier joints are down-weighted by
+iteratively reweighted least squares (Cauchy).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from posecam.geometry.camera import Intrinsics
+from posecam.errors import FusionError
+from posecam.geometry.camera import CameraCalibration, Rig
+from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
+
+# A monocular pose's depth is this many times less certain than its lateral position.
+DEPTH_NOISE_RATIO = 4.0
+MIN_SHARED_JOINTS = 12
+
+
+@dataclass
+class View:
+    """One camera's monocular poses of one person, frame by frame (NaN or conf 0: missing)."""
+
+    name: str
+    size: tuple[int, int]          # image width, height
+    intrinsics: Intrinsics         # those the monocular poses were computed with (f0)
+    uv: np.ndarray                 # (F, J, 2) pixels
+    xyz: np.ndarray                # (F, J, 3) camera coordinates, mm
+    conf: np.ndarray               # (F, J)
+
+    def weights(self, min_conf: float = MIN_CONFIDENCE) -> np.ndarray:
+        """Confidence as a weight; 0 for missing joints, conf < min_conf, or depth <= 0."""
+        w = observation_weights(self.uv, self.conf, min_conf)
+        return np.where(np.isfinite(self.xyz).all(axis=-1) & (np.nan_to_num(self.xyz[..., 2]) > 0), w, 0.0)
+
+    def root_depth(self) -> np.ndarray:
+        """(F,) confidence-weighted mean depth of each frame's joints: the part that scales with f."""
+        w = observation_weights(self.uv, self.conf, 0.0)
+        w = np.where(np.isfinite(self.xyz[..., 2]), w, 0.0)
+        total = w.sum(axis=1)
+        z = (np.nan_to_num(self.xyz[..., 2]) * w).sum(axis=1)
+        return np.where(total > 0, z / np.maximum(total, 1e-12), np.nan)
+
+
+@dataclass
+class ConsensusOptions:
+    reference: int = 0             # index of the camera that defines the frame of reference
+    min_conf: float = MIN_CONFIDENCE
+    max_iter: int = 100            # per stage
+    tol: float = 1e-5              # largest change (rad, or relative) that counts as converged
+    cauchy_scale: float = 2.5      # outlier scale, in robust standard deviations of the residuals
+
+
+@dataclass
+class ConsensusResult:
+    rig: Rig
+    focal_scale: np.ndarray        # (V,) g = f / f0, the factor applied to each view's root depth
+    residual_mm: np.ndarray        # (V,) median distance of each view's joints to the others' consensus
+    joints_used: np.ndarray        # (V,) joint observations with a weight (conf >= min_conf)
+    iterations: int
+    converged: bool
+
+
+def camera_points(view: View, k: np.ndarray) -> np.ndarray:
+    """(F, J, 3) the view's pose under intrinsics k = (fx, fy, cx, cy): depth model above, eq. 4."""
+    g = np.sqrt(k[0] * k[1] / (view.intrinsics.fx * view.intrinsics.fy))
+    root = view.root_depth()[:, None]
+    z = view.xyz[..., 2] + (g - 1.0) * root
+    x = (view.uv[..., 0] - k[2]) * z / k[0]
+    y = (view.uv[..., 1] - k[3]) * z / k[1]
+    return np.stack([x, y, z], axis=-1)
+
+
+def procrustes(src: np.ndarray, dst: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Weighted rigid fit dst ~ R src + t without reflection; src, dst (N, 3), w (N,)."""
+    mu_s, mu_d = w @ src / w.sum(), w @ dst / w.sum()
+    h = ((src - mu_s) * w[:, None]).T @ (dst - mu_d)
+    u, _, vt = np.linalg.svd(h)
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    r = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return r, mu_d - r @ mu_s          # eq. 8: the mean of the per-point translations
+
+
+def fit_focal(view: View, k: np.ndarray, target: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """Focal lengths that bring the view's depths onto `target` (F, J, 3, camera frame):
+    z = rel + g z0_root is linear in g (the counterpart of eq. 10 for this depth model),
+    weighted least squares; fx = g f0x, fy = g f0y."""
+    z0 = view.xyz[..., 2]
+    root = np.broadcast_to(view.root_depth()[:, None], z0.shape)
+    ok = w > 0
+    rel, root, zt, wv = (z0 - root)[ok], root[ok], target[..., 2][ok], w[ok]
+    g = float(np.sum(wv * root * (zt - rel)) / np.sum(wv * root * root))
+    if not np.isfinite(g) or g <= 0.05:
+        raise FusionError(f"camera {view.name}: the poses give no positive focal length")
+    out = k.copy()
+    out[0], out[1] = g * view.intrinsics.fx, g * view.intrinsics.fy
+    return out
+
+
+def fuse_points(points: np.ndarray, rotations: np.ndarray, w: np.ndarray,
+                depth_ratio: float = DEPTH_NOISE_RATIO, leave_one_out: bool = False) -> np.ndarray:
+    """Confidence-weighted mean of V views' points (V, F, J, 3) in one frame, each view's depth
+    axis (third row of its rotation) trusted `depth_ratio`^2 times less than its lateral axes.
+
+    With `leave_one_out`, returns (V, F, J, 3): for each view, the fusion of all the others.
+    NaN where no view (or no other view) sees the joint.
+    """
+    info = np.einsum("vki,k,vkj->vij", rotations, [1.0, 1.0, depth_ratio ** -2], rotations)  # (V, 3, 3)
+    wi = w[..., None, None] * info[:, None, None]                                            # (V, F, J, 3, 3)
+    wx = np.einsum("vfjik,vfjk->vfji", wi, np.nan_to_num(points))
+    m_all, b_all = wi.sum(axis=0), wx.sum(axis=0)
+    if leave_one_out:
+        m, b, n = m_all - wi, b_all - wx, w.sum(axis=0) - w
+    else:
+        m, b, n = m_all, b_all, w.sum(axis=0)
+    seen = n > 1e-9
+    out = np.full(b.shape, np.nan)
+    out[seen] = np.linalg.solve(m[seen], b[seen][..., None])[..., 0]
+    return out
+
+
+def _robust_weights(residual: np.ndarray, w0: np.ndarray, scale: float) -> np.ndarray:
+    """Cauchy IRLS weights times the confidence weights; residual (V, F, J) in mm."""
+    ok = (w0 > 0) & np.isfinite(residual)
+    if not ok.any():
+        return np.zeros_like(w0)
+    sigma = 1.4826 * np.median(residual[ok]) + 1e-9
+    return np.where(ok, w0 / (1.0 + (np.nan_to_num(residual) / (scale * sigma)) ** 2), 0.0)
+
+
+@dataclass
+class _State:
+    rotation: np.ndarray           # (V, 3, 3)
+    translation: np.ndarray        # (V, 3)
+    k: np.ndarray                  # (V, 4) fx, fy, cx, cy
+
+    def copy(self) -> "_State":
+        return _State(self.rotation.copy(), self.translation.copy(), self.k.copy())
+
+    def change(self, old: "_State") -> float:
+        """Largest change: rotation angle (rad), translation and intrinsics (relative)."""
+        rel = np.einsum("vij,vkj->vik", self.rotation, old.rotation)
+        angle = np.arccos(np.clip((np.trace(rel, axis1=1, axis2=2) - 1) / 2, -1, 1))
+        size = np.linalg.norm(self.translation, axis=1).max() + 1.0
+        dt = np.linalg.norm(self.translation - old.translation, axis=1) / size
+        dk = np.abs(self.k - old.k) / self.k[:, :1]
+        return float(max(angle.max(), dt.max(), dk.max()))
+
+
+def _points(views: list[View], s: _State) -> tuple[np.ndarray, np.ndarray]:
+    """Camera-frame points (V, F, J, 3) and the same in the reference frame, X = R^T (x - t)."""
+    p = np.stack([camera_points(v, s.k[i]) for i, v in enumerate(views)])
+    return p, np.einsum("vfjk,vki->vfji", p - s.translation[:, None, None], s.rotation)
+
+
+def _run_stage(views: list[View], s: _State, w0: np.ndarray, opts: ConsensusOptions,
+               joint: bool) -> tuple[int, bool]:
+    """Alternate extrinsics (Procrustes, eq. 8) and intrinsics until nothing moves.
+
+    joint=False: every camera against the reference view (stage 1; the reference is fixed);
+    joint=True: every camera against the leave-one-out consensus of the others (stage 2).
+    """
+    ref = opts.reference
+    for it in range(opts.max_iter):
+        p, x = _points(views, s)
+        if joint:
+            target = fuse_points(x, s.rotation, w0, leave_one_out=True)
+        else:
+            target = np.broadcast_to(x[ref], x.shape)
+        w = _robust_weights(np.linalg.norm(x - target, axis=-1), w0, opts.cauchy_scale)
+        w = np.where(np.isfinite(target).all(axis=-1), w, 0.0)
+        old = s.copy()
+        for i, view in enumerate(views):
+            if i == ref and not joint:
+                continue
+            ok = w[i] > 0
+            if ok.sum() < MIN_SHARED_JOINTS:
+                raise FusionError(f"camera {view.name} shares fewer than {MIN_SHARED_JOINTS} confident "
+                                  "joints with the other views")
+            if i != ref:
+                s.rotation[i], s.translation[i] = procrustes(target[i][ok], p[i][ok], w[i][ok])
+            s.k[i] = fit_focal(view, s.k[i], target[i] @ s.rotation[i].T + s.translation[i], w[i])
+        if it > 0 and s.change(old) < opts.tol:
+            return it + 1, True
+    return opts.max_iter, False
+
+
+def estimate_rig(views: list[View], options: ConsensusOptions | None = None) -> ConsensusResult:
+    """Intrinsics and extrinsics of every camera, relative to the reference camera, from the
+    views' time-aligned monocular poses (same F frames, same J joints in every view)."""
+    opts = options or ConsensusOptions()
+    if len(views) < 2:
+        raise FusionError(f"camera estimation needs at least two views, got {len(views)}")
+    shapes = {v.uv.shape[:2] for v in views}
+    if len(shapes) != 1:
+        raise FusionError(f"views must hold the same frames and joints, got shapes {sorted(shapes)}")
+    n, ref = len(views), opts.reference
+    w0 = np.stack([v.weights(opts.min_conf) for v in views])
+    k0 = np.array([[v.intrinsics.fx, v.intrinsics.fy, v.intrinsics.cx, v.intrinsics.cy] for v in views])
+    s = _State(np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 3)), k0.copy())
+    # Algorithm 1, line 3: R = I and the translation of eq. 8
+    p, _ = _points(views, s)
+    for i in range(n):
+        both = (w0[i] > 0) & (w0[ref] > 0)
+        if both.sum() < MIN_SHARED_JOINTS:
+            raise FusionError(f"cameras {views[i].name} and {views[ref].name} see the person together "
+                              f"in fewer than {MIN_SHARED_JOINTS} confident joints")
+        s.translation[i] = (p[i][both] - p[ref][both]).mean(axis=0)
+    it1, _ = _run_stage(views, s, w0, opts, joint=False)
+    it2, converged = _run_stage(views, s, w0, opts, joint=True)
+
+    _, x = _points(views, s)
+    target = fuse_points(x, s.rotation, w0, leave_one_out=True)
+    dist = np.where(w0 > 0, np.linalg.norm(x - target, axis=-1), np.nan)
+    cameras = [CameraCalibration(v.name, v.size, Intrinsics(*map(float, s.k[i]), source="consensus"),
+                                 s.rotation[i].copy(), s.translation[i].copy())
+               for i, v in enumerate(views)]
+    return ConsensusResult(
+        rig=Rig(cameras, reference=views[ref].name),
+        focal_scale=np.sqrt(s.k[:, 0] * s.k[:, 1] / (k0[:, 0] * k0[:, 1])),
+        residual_mm=np.nanmedian(dist.reshape(n, -1), axis=1),
+        joints_used=(w0 > 0).reshape(n, -1).sum(axis=1),
+        iterations=it1 + it2,
+        converged=converged,
+    )

@@ -1,0 +1,27 @@
+"""The layers of pyproject.toml's import-linter contracts hold, and the runtime stays light."""
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.mark.skipif(shutil.which("lint-imports") is None, reason="import-linter is not installed")
+def test_import_layers_are_kept():
+    r = subprocess.run(["lint-imports"], cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 0, r.stdout[-3000:]
+
+
+def test_import_posecam_loads_no_heavy_module():
+    """`import posecam` (and the CLI's help) must not pull onnxruntime, cv2, scipy or torch."""
+    code = ("import sys, posecam, posecam.cli; "
+            "print(','.join(m for m in ('onnxruntime', 'cv2', 'scipy', 'torch', 'onnx') if m in sys.modules))")
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                       env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "", f"imported eagerly: {r.stdout.strip()}"
