@@ -27,7 +27,7 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 MP_VENV = REPO / ".cache" / "mediapipe-venv"
 CAMERAS = ("cam01", "cam02", "cam03", "cam04")
-OFFSETS = {"cam01": 0, "cam02": -1, "cam03": 4, "cam04": 0}   # frames, vs cam01 (shared/ASSETS.md)
+OFFSETS = {"cam01": 0, "cam02": -1, "cam03": 4, "cam04": 0}   # frames, vs cam01 (export/ASSETS.md)
 
 
 def child_posecam(video: str, model: str) -> dict:

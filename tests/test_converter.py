@@ -1,17 +1,16 @@
 """The bundled ONNX models against the original TFLite models in LiteRT, on real crops."""
 
 import numpy as np
-import onnx
 import pytest
 
-from posecam.media import read_image
-from posecam.inference.roi import Roi
-from posecam.inference.session import load_model, to_input_tensor
-
-from conftest import DATA, EXAMPLES
-
+onnx = pytest.importorskip("onnx", reason="install the export extra")
 litert = pytest.importorskip("ai_edge_litert.interpreter", reason="install the test extra")
 assets = pytest.importorskip("export.assets")
+
+from conftest import DATA, EXAMPLES  # noqa: E402
+from posecam.inference.roi import Roi  # noqa: E402
+from posecam.inference.session import load_model, to_input_tensor  # noqa: E402
+from posecam.media import read_image  # noqa: E402
 
 
 def _litert_outputs(tflite_name: str, x: np.ndarray) -> dict[str, np.ndarray]:

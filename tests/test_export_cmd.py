@@ -14,10 +14,10 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-import onnx
 import pytest
 
-torch = pytest.importorskip("torch")
+torch = pytest.importorskip("torch", reason="install the export extra")
+onnx = pytest.importorskip("onnx", reason="install the export extra")
 
 from conftest import run_posecam  # noqa: E402
 from export import ResNetU, ResNetUConfig, save_checkpoint  # noqa: E402

@@ -43,9 +43,16 @@ def test_outputs_shapes_and_ranges():
 
 
 def test_trains_with_batch_one():
+    """A batch of one trains (no BatchNorm1d in the head) and every trainable weight gets a
+    finite gradient, the z_a head and the first backbone convolution included."""
     m = ResNetU(SMALL).train()
     out = m(torch.randn(1, 3, 128, 128), torch.rand(1, 4))
     sum(o.sum() for o in out).backward()
+    missing = [n for n, p in m.named_parameters() if p.requires_grad and p.grad is None]
+    assert not missing, f"no gradient reached {missing[:5]}"
+    grads = [p.grad for p in m.parameters() if p.requires_grad]
+    assert all(torch.isfinite(g).all() for g in grads)
+    assert sum(float(g.abs().sum()) for g in grads) > 0
 
 
 def test_light_backbones_and_imagenet_weights():

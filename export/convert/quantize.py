@@ -2,7 +2,7 @@
 
 QDQ format, uint8 activations, int8 per-channel weights; the U-blocks, soft-argmax and the
 fully connected heads stay float (quantising them moves joints by tens of pixels, see
-shared/ASSETS.md). On these CPUs only this combination is faster than fp32.
+export/ASSETS.md). On these CPUs only this combination is faster than fp32.
 """
 
 from __future__ import annotations

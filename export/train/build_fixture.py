@@ -24,7 +24,7 @@ from posecam.io.calibration import read_qualisys
 from posecam.geometry.triangulate import reprojection_errors, triangulate
 
 CAMERAS = ("cam01", "cam02", "cam03", "cam04")
-OFFSETS = {"cam01": 0, "cam02": -1, "cam03": 4, "cam04": 0}   # frames, vs cam01 (shared/ASSETS.md)
+OFFSETS = {"cam01": 0, "cam02": -1, "cam03": 4, "cam04": 0}   # frames, vs cam01 (export/ASSETS.md)
 INSTANTS = (12, 34, 56, 78)                                    # cam01 frame numbers
 DOWNSCALE = 0.25
 BOX_MARGIN = 0.1                                               # of the box's longer side, each side
