@@ -2,7 +2,7 @@
 
 Every model is recognised from its `metadata_props`, never from its file name. Keys:
 
-- ``posecam.inference.contract``  "1"
+- ``posecam.contract``  "1"
 - ``posecam.kind``      "detector" | "landmarks" (metric root-relative pose + 2D, BlazePose)
                          | "root_depth" (the paper's ResNet-U: u, v, relative depth, z_a)
 - ``posecam.name``      a short model name, e.g. "blazepose-full"
