@@ -1,34 +1,95 @@
 """The `posecam` command: a thin click layer over the Python API.
 
-Exit codes: 0 success, 1 unexpected error, 2 bad input, 3 bad model, 4 unwritable output,
-5 fusion impossible, 130 interrupted (Ctrl-C).
+Exit codes: 0 success, 1 unexpected error, 2 bad input (usage errors included), 3 bad model,
+4 unwritable output, 5 fusion impossible, 130 interrupted (Ctrl-C), 143 terminated (SIGTERM).
+Every error is one line on stderr, `posecam: error: ...`; warnings are `posecam: warning: ...`.
 """
 
 from __future__ import annotations
 
-import sys
+import os
+import signal
+import threading
 
-import click
 
-from posecam._version import __version__
-from posecam.commands.export import export_command
-from posecam.commands.predict import predict_command
-from posecam.commands.fuse import fuse_command
-from posecam.errors import PosecamError
+def _interrupted_while_starting(signum, frame) -> None:
+    """Ctrl-C or SIGTERM before the command runs: nothing to clean up yet."""
+    os.write(2, b"posecam: interrupted\n" if signum == signal.SIGINT else b"posecam: terminated\n")
+    os._exit(130 if signum == signal.SIGINT else 143)
+
+
+_MAIN_THREAD = threading.current_thread() is threading.main_thread()
+if _MAIN_THREAD:  # only while the imports below run; `main` installs the handlers it keeps
+    _saved = {s: signal.signal(s, _interrupted_while_starting) for s in (signal.SIGINT, signal.SIGTERM)}
+
+import sys  # noqa: E402
+import warnings  # noqa: E402
+
+import click  # noqa: E402
+
+from posecam._version import __version__  # noqa: E402
+from posecam.commands.export import export_command  # noqa: E402
+from posecam.commands.fuse import fuse_command  # noqa: E402
+from posecam.commands.predict import predict_command  # noqa: E402
+from posecam.errors import PosecamError  # noqa: E402
+
+if _MAIN_THREAD:
+    for _signum, _handler in _saved.items():
+        signal.signal(_signum, _handler)
+
+
+_NO_ARGS = getattr(click.exceptions, "NoArgsIsHelpError", ())   # click >= 8.2
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised like Ctrl-C so that every `with` block removes its temporary files."""
+
+
+def _raise_terminated(signum, frame) -> None:
+    raise Terminated
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    text = " ".join(str(message).split())
+    print(f"posecam: warning: {text}", file=sys.stderr)
+
+
+def _fail(message: str, code: int) -> None:
+    click.echo(f"posecam: error: {' '.join(message.split())}", err=True)
+    sys.exit(code)
 
 
 class _Group(click.Group):
-    """Turns posecam errors into one line on stderr and a documented exit code."""
+    """Turns every failure into one line on stderr and a documented exit code."""
 
-    def invoke(self, ctx: click.Context):
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        if not standalone_mode:   # called from Python (benchmarks): let exceptions through
+            return super().main(args, prog_name, complete_var, standalone_mode, **extra)
+        if _MAIN_THREAD:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+            signal.signal(signal.SIGTERM, _raise_terminated)
+        warnings.showwarning = _show_warning
         try:
-            return super().invoke(ctx)
+            code = super().main(args, prog_name or "posecam", complete_var, False, **extra)
+        except _NO_ARGS as exc:  # `posecam` alone: its help
+            click.echo(exc.ctx.get_help())
+            code = 0
+        except click.UsageError as exc:
+            where = f" (see: {exc.ctx.command_path} -h)" if exc.ctx else ""
+            _fail(exc.format_message() + where, 2)
+        except click.ClickException as exc:
+            _fail(exc.format_message(), exc.exit_code)
         except PosecamError as exc:
-            click.echo(f"posecam: error: {exc}", err=True)
-            sys.exit(exc.exit_code)
-        except KeyboardInterrupt:
-            click.echo("posecam: interrupted", err=True)
-            sys.exit(130)
+            _fail(str(exc), exc.exit_code)
+        except (KeyboardInterrupt, click.Abort) as exc:
+            terminated = isinstance(exc, Terminated) or isinstance(exc.__context__, Terminated)
+            click.echo("posecam: terminated" if terminated else "posecam: interrupted", err=True)
+            sys.exit(143 if terminated else 130)
+        except RecursionError:
+            _fail("input nested too deeply to read", 2)
+        except MemoryError:
+            _fail("out of memory (an input too large for this machine?)", 1)
+        sys.exit(code if isinstance(code, int) else 0)
 
 
 @click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 
 class PosecamError(Exception):
     """Base class: anything posecam reports to the user as a one-line message."""
@@ -31,3 +33,12 @@ class FusionError(PosecamError):
     """Multi-view fusion that cannot be done with these inputs (exit code 5)."""
 
     exit_code = 5
+
+
+class PosecamWarning(UserWarning):
+    """Something the user should know that does not stop the command (`posecam: warning: ...`)."""
+
+
+def warn(message: str) -> None:
+    """Report a problem that posecam works around (a truncated file, an implausible EXIF tag)."""
+    warnings.warn(message, PosecamWarning, stacklevel=2)

@@ -1,21 +1,39 @@
-"""Frame sources: a still image, a video file, or a folder of images, read one frame at a time."""
+"""Frame sources: a still image, a video file, or a folder of images, read one frame at a time.
+
+A folder is one of two things (`folder_kind`):
+- a **sequence** (the frames of one video): every image has the same size and every name is
+  one prefix followed by a frame number (`frame_0001.png`, `img7.jpg`, ..., ordered by that
+  number); it is one input with one size, one set of intrinsics and a frame rate of 30 fps.
+- **photos**: anything else (sizes differ, or names are not numbered frames). Each photo is
+  an input of its own, with its own size, intrinsics and EXIF (`expand_inputs`).
+
+Only regular files and folders are opened (a FIFO or a device would block forever), and
+OpenCV never sees a file name: images are decoded from their bytes, videos whose names
+OpenCV cannot take (not UTF-8) are opened through a temporary link with an ASCII name.
+"""
 
 from __future__ import annotations
 
 import os
+import re
+import stat
+import struct
 import sys
+import tempfile
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from posecam.errors import InputError
+from posecam.errors import InputError, warn
 
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp"}
 SEQUENCE_FPS = 30.0
+MAX_PIXELS = 1 << 28        # 268 Mpx: larger images are refused before decoding
+_NUMBERED = re.compile(r"^(.*?)(\d+)$")
 
 
 @dataclass
@@ -29,28 +47,35 @@ class Media:
     fps: float | None
     frame_count: int
     image: np.ndarray | None = field(default=None, repr=False)   # a still image, decoded once
+    files: list[Path] = field(default_factory=list, repr=False)  # a sequence's frames, in order
 
     def frames(self) -> Iterator[tuple[int, float, np.ndarray]]:
         """Yield (index, time in s, RGB uint8 image); memory stays flat for any length."""
         if self.kind == "image":
             yield 0, 0.0, self.image if self.image is not None else read_image(self.path)
         elif self.kind == "sequence":
-            for i, p in enumerate(_sequence_files(self.path)):
-                yield i, i / SEQUENCE_FPS, read_image(p)
+            for i, p in enumerate(self.files):
+                rgb = read_image(p)
+                if rgb.shape[:2] != (self.height, self.width):
+                    raise InputError(f"{p} is {rgb.shape[1]}x{rgb.shape[0]}, the other frames of "
+                                     f"{self.path} are {self.width}x{self.height}")
+                yield i, i / SEQUENCE_FPS, rgb
         else:
-            with _native_stderr_silenced():
-                cap = cv2.VideoCapture(str(self.path))
-            try:
-                index = 0
-                while True:
-                    with _native_stderr_silenced():
-                        ok, bgr = cap.read()
-                    if not ok:
-                        break
-                    yield index, index / self.fps, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
-                    index += 1
-            finally:
-                cap.release()
+            yield from self._video_frames()
+
+    def _video_frames(self) -> Iterator[tuple[int, float, np.ndarray]]:
+        index = 0
+        with _video_capture(self.path) as cap:
+            while True:
+                with _native_stderr_silenced():
+                    ok, bgr = cap.read()
+                if not ok:
+                    break
+                yield index, index / self.fps, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+                index += 1
+        if index < self.frame_count:
+            warn(f"{self.path} ended after {index} of its {self.frame_count} declared frames "
+                 "(a truncated or damaged video?)")
 
 
 @contextmanager
@@ -68,43 +93,164 @@ def _native_stderr_silenced() -> Iterator[None]:
         os.close(saved)
 
 
-def read_image(path: Path) -> np.ndarray:
+def check_input(path: str | os.PathLike, what: str = "") -> Path:
+    """An existing, readable regular file or folder, or InputError (FIFOs, devices, sockets)."""
+    path = Path(path)
+    name = f"{what} {path}".strip()
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise InputError(f"{name}: no such file or folder") from None
+    except OSError as exc:
+        raise InputError(f"{name} cannot be read ({exc.strerror})") from None
+    if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+        raise InputError(f"{name} is not a regular file or folder (a pipe, device or socket)")
+    if not os.access(path, os.R_OK | (os.X_OK if stat.S_ISDIR(mode) else 0)):
+        raise InputError(f"{name} cannot be read (permission denied)")
+    return path
+
+
+def _read_bytes(path: Path) -> bytes:
+    check_input(path)
+    try:
+        return path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{path} cannot be read ({exc.strerror})") from None
+
+
+def read_image(path: str | os.PathLike) -> np.ndarray:
     """RGB uint8 image (EXIF orientation applied) or InputError."""
-    with _native_stderr_silenced():
-        bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    path = Path(path)
+    data = _read_bytes(path)
+    size = header_size(data)
+    if size and size[0] * size[1] > MAX_PIXELS:
+        raise InputError(f"{path} claims {size[0]}x{size[1]} pixels, more than posecam decodes "
+                         f"({MAX_PIXELS // 10**6} Mpx)")
+    try:
+        with _native_stderr_silenced():
+            bgr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+    except cv2.error:
+        bgr = None
     if bgr is None:
         raise InputError(f"{path} is not a readable image")
+    if data[:2] == b"\xff\xd8" and data.rstrip(b"\x00")[-2:] != b"\xff\xd9":
+        warn(f"{path} ends before its end-of-image marker (a truncated JPEG?); decoded what is there")
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 
-def _sequence_files(folder: Path) -> list[Path]:
-    return sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+def header_size(data: bytes) -> tuple[int, int] | None:
+    """(width, height) from a PNG, JPEG or BMP header without decoding; None if unknown."""
+    try:
+        if data[:8] == b"\x89PNG\r\n\x1a\n":
+            return struct.unpack(">II", data[16:24])
+        if data[:2] == b"BM":
+            w, h = struct.unpack("<ii", data[18:26])
+            return w, abs(h)
+        if data[:2] == b"\xff\xd8":
+            pos = 2
+            while pos + 9 <= len(data) and data[pos] == 0xFF:
+                marker = data[pos + 1]
+                if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+                    h, w = struct.unpack(">HH", data[pos + 5: pos + 9])
+                    return w, h
+                pos += 2 + struct.unpack(">H", data[pos + 2: pos + 4])[0]
+    except struct.error:
+        return None
+    return None
 
 
-def open_media(path: str | Path) -> Media:
-    """Open an image, a video or a folder of images; raise InputError if it cannot be read."""
-    path = Path(path)
-    if not path.exists():
-        raise InputError(f"{path}: no such file or folder")
+def image_size(path: Path) -> tuple[int, int]:
+    """(width, height) of an image file, from its header when possible."""
+    check_input(path)
+    with open(path, "rb") as f:
+        size = header_size(f.read(1 << 18))
+    if size is None:
+        h, w = read_image(path).shape[:2]
+        size = (w, h)
+    return size
+
+
+@contextmanager
+def _video_capture(path: Path) -> Iterator[cv2.VideoCapture]:
+    """An opened cv2.VideoCapture; names OpenCV cannot take go through an ASCII-named link."""
+    with ExitStack() as stack:
+        name = str(path)
+        if not _opencv_name(path):
+            tmp = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="posecam-")))
+            link = tmp / ("video" + (path.suffix if path.suffix.isascii() else ""))
+            link.symlink_to(path.resolve())
+            name = str(link)
+        with _native_stderr_silenced():
+            cap = cv2.VideoCapture(name)
+        stack.callback(cap.release)
+        yield cap
+
+
+def _opencv_name(path: Path) -> bool:
+    """True when OpenCV can take this name as it is (valid UTF-8)."""
+    try:
+        str(path).encode("utf-8")
+        return True
+    except UnicodeEncodeError:
+        return False
+
+
+def _image_files(folder: Path) -> list[Path]:
+    """The regular image files of a folder, sorted by name."""
+    try:
+        entries = sorted(folder.iterdir())
+    except OSError as exc:
+        raise InputError(f"{folder} cannot be listed ({exc.strerror})") from None
+    return [p for p in entries if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file()]
+
+
+def folder_kind(folder: str | os.PathLike) -> tuple[str, list[Path]]:
+    """("sequence", frames in frame order) or ("photos", files by name); see the module doc."""
+    folder = Path(folder)
+    files = _image_files(folder)
+    if not files:
+        raise InputError(f"{folder}: folder holds no images")
+    matches = [_NUMBERED.match(p.stem) for p in files]
+    numbered = all(matches) and len({(m.group(1), p.suffix.lower()) for m, p in zip(matches, files)}) == 1
+    if numbered:
+        files = [p for _, p in sorted(zip((int(m.group(2)) for m in matches), files), key=lambda t: t[0])]
+        if len({image_size(p) for p in files}) == 1:
+            return "sequence", files
+    return "photos", files
+
+
+def expand_inputs(paths: list[str | os.PathLike]) -> list[Path]:
+    """Inputs as given, with each folder of photos replaced by its photos (see the module doc)."""
+    expanded = []
+    for p in paths:
+        p = check_input(p)
+        if p.is_dir():
+            kind, files = folder_kind(p)
+            expanded += files if kind == "photos" else [p]
+        else:
+            expanded.append(p)
+    return expanded
+
+
+def open_media(path: str | os.PathLike) -> Media:
+    """Open an image, a video or a folder of frames; raise InputError if it cannot be read."""
+    path = check_input(path)
     if path.is_dir():
-        files = _sequence_files(path)
-        if not files:
-            raise InputError(f"{path}: folder holds no images")
-        h, w = read_image(files[0]).shape[:2]
-        return Media(path, "sequence", w, h, SEQUENCE_FPS, len(files))
+        kind, files = folder_kind(path)
+        if kind == "photos":
+            raise InputError(f"{path} holds photos, not the frames of one video (their sizes differ or "
+                             "their names are not numbered frames); give each photo as an input")
+        w, h = image_size(files[0])
+        return Media(path, "sequence", w, h, SEQUENCE_FPS, len(files), files=files)
     if path.suffix.lower() in IMAGE_SUFFIXES:
         image = read_image(path)
         h, w = image.shape[:2]
         return Media(path, "image", w, h, None, 1, image)
-    with _native_stderr_silenced():
-        cap = cv2.VideoCapture(str(path))
+    with _video_capture(path) as cap, _native_stderr_silenced():
         ok, frame = cap.read() if cap.isOpened() else (False, None)
-    try:
-        if not ok:
-            raise InputError(f"{path} is neither a readable image nor a readable video")
         fps = cap.get(cv2.CAP_PROP_FPS)
         count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
-    finally:
-        cap.release()
+    if not ok:
+        raise InputError(f"{path} is neither a readable image nor a readable video")
     h, w = frame.shape[:2]
     return Media(path, "video", w, h, fps if fps and fps > 0 else 30.0, max(count, 1))
