@@ -35,8 +35,43 @@ def test_bad_json_is_refused(tmp_path, content):
         resolve_intrinsics(IntrinsicsOptions(file=str(p)), 640, 480)
 
 
-@pytest.mark.parametrize("opts", [IntrinsicsOptions(fx=-3.0), IntrinsicsOptions(fx=1000.0, cx=5000.0),
-                                  IntrinsicsOptions(file="/nonexistent/k.json")])
-def test_nonsense_intrinsics_are_refused(opts):
-    with pytest.raises(InputError):
-        resolve_intrinsics(opts, 640, 480)
+@pytest.mark.parametrize("opts, words", [
+    (dict(fx=-3.0), "positive"),
+    (dict(fx=1000.0, cx=5000.0, cy=240.0), "outside the 640x480 image"),
+    (dict(file="/nonexistent/k.json"), "no such file"),
+    (dict(fx=1e300), "field of view"),          # 0 degrees: a telescope
+    (dict(fx=10.0), "field of view"),           # 176 degrees
+    (dict(fx=500.0, fy=5000.0), "differ by more than"),
+])
+def test_nonsense_intrinsics_are_refused(opts, words):
+    with pytest.raises(InputError, match=words):
+        resolve_intrinsics(IntrinsicsOptions(**opts), 640, 480)
+
+
+@pytest.mark.parametrize("opts, words", [
+    (dict(fx=True), "must be a number"), (dict(fx="1000"), "must be a number"),
+    (dict(fx=float("nan")), "finite"), (dict(fx=1000.0, cx=320.0), "together"),
+    (dict(cx=320.0, cy=240.0), "need a focal length"), (dict(camera="cam01"), "give the file too"),
+])
+def test_options_that_cannot_go_together_are_refused_when_built(opts, words):
+    with pytest.raises(InputError, match=words):
+        IntrinsicsOptions(**opts)
+
+
+@pytest.mark.parametrize("doc, words", [
+    ({"fx": True, "cx": 320, "cy": 240}, "must be numbers"),
+    ({"fx": "800", "cx": 320, "cy": 240}, "must be numbers"),
+    ({"fx": 1e9, "cx": 320, "cy": 240}, "field of view"),
+])
+def test_file_values_are_checked_like_flags(tmp_path, doc, words):
+    p = tmp_path / "k.json"
+    p.write_text(json.dumps(doc))
+    with pytest.raises(InputError, match=words):
+        resolve_intrinsics(IntrinsicsOptions(file=str(p)), 640, 480)
+
+
+def test_deeply_nested_json_is_refused(tmp_path):
+    p = tmp_path / "deep.json"
+    p.write_text("[" * 200000 + "]" * 200000)
+    with pytest.raises(InputError, match="nested too deeply"):
+        resolve_intrinsics(IntrinsicsOptions(file=str(p)), 640, 480)

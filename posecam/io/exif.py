@@ -5,8 +5,13 @@ from __future__ import annotations
 import struct
 from pathlib import Path
 
+from posecam.errors import warn
+
 EXIF_IFD_POINTER = 0x8769
 FOCAL_LENGTH_35MM = 0xA405
+SHORT = 3
+# Plausible 35 mm-equivalent focal lengths: a fisheye to a long telephoto; 0 means "unknown".
+FOCAL_RANGE_MM = (8, 1200)
 
 
 def _ifd_entries(tiff: bytes, offset: int, endian: str) -> dict[int, tuple[int, int, bytes]]:
@@ -36,7 +41,8 @@ def _tiff_block(data: bytes) -> bytes | None:
 
 
 def focal_length_35mm(path: str | Path) -> float | None:
-    """FocalLengthIn35mmFilm in mm, or None when the file has no such tag (or is not a JPEG)."""
+    """FocalLengthIn35mmFilm in mm, or None when the file has no such tag (or is not a JPEG);
+    a tag of the wrong type or outside FOCAL_RANGE_MM is ignored with a warning."""
     try:
         with open(path, "rb") as f:
             data = f.read(1 << 17)  # EXIF lives in the first 64 KiB segment
@@ -52,7 +58,17 @@ def focal_length_35mm(path: str | Path) -> float | None:
         entry = _ifd_entries(tiff, exif_ifd, endian).get(FOCAL_LENGTH_35MM)
         if entry is None:
             return None
-        (value,) = struct.unpack_from(endian + "H", entry[2])  # type SHORT
-        return float(value) if value > 0 else None
     except (OSError, struct.error):
         return None
+    typ, count, field = entry
+    if typ != SHORT or count < 1:
+        warn(f"{path}: EXIF FocalLengthIn35mmFilm has type {typ}, not SHORT; ignored")
+        return None
+    (value,) = struct.unpack_from(endian + "H", field)
+    if value == 0:   # the standard's "unknown"
+        return None
+    if not FOCAL_RANGE_MM[0] <= value <= FOCAL_RANGE_MM[1]:
+        warn(f"{path}: EXIF FocalLengthIn35mmFilm of {value} mm is outside {FOCAL_RANGE_MM[0]}.."
+             f"{FOCAL_RANGE_MM[1]} mm; ignored")
+        return None
+    return float(value)

@@ -7,12 +7,15 @@ Order: explicit `fx/fy/cx/cy` > `--intrinsics FILE` > EXIF FocalLengthIn35mmFilm
 from __future__ import annotations
 
 import json
+import math
+import numbers
 from dataclasses import dataclass
 from pathlib import Path
 
 from posecam.geometry.camera import Intrinsics
 from posecam.errors import InputError
 from posecam.io.exif import focal_length_35mm
+from posecam.media import check_input
 
 
 @dataclass
@@ -24,47 +27,54 @@ class IntrinsicsOptions:
     file: str | None = None      # JSON (fx, fy, cx, cy or a 3x3 "matrix") or calibration TOML
     camera: str | None = None    # camera name inside a calibration TOML
 
+    def __post_init__(self) -> None:
+        for name in ("fx", "fy", "cx", "cy"):
+            value = getattr(self, name)
+            if value is not None and (isinstance(value, bool) or not isinstance(value, numbers.Real)):
+                raise InputError(f"{name} must be a number, got {value!r}")
+            if value is not None and not math.isfinite(value):
+                raise InputError(f"{name} must be a finite number, got {value!r}")
+        if (self.cx is None) != (self.cy is None):
+            raise InputError("give the principal point whole: --cx and --cy together")
+        if self.cx is not None and self.fx is None and self.fy is None:
+            raise InputError("--cx/--cy need a focal length too (--fx, and --fy if it differs)")
+        if self.camera is not None and not self.file:
+            raise InputError(f"camera {self.camera!r} names a camera inside a calibration file: "
+                             "give the file too (--intrinsics FILE)")
+
 
 def _from_json(path: Path) -> Intrinsics:
     try:
         doc = json.loads(path.read_text(encoding="utf-8"))
         if "matrix" in doc:
             return Intrinsics.from_matrix(doc["matrix"], source=f"file:{path.name}")
-        return Intrinsics(float(doc["fx"]), float(doc.get("fy", doc["fx"])),
-                          float(doc["cx"]), float(doc["cy"]), source=f"file:{path.name}")
+        return Intrinsics(doc["fx"], doc.get("fy", doc["fx"]), doc["cx"], doc["cy"], source=f"file:{path.name}")
+    except RecursionError:
+        raise InputError(f"{path}: JSON nested too deeply to be intrinsics") from None
+    except OSError as exc:
+        raise InputError(f"{path} cannot be read ({exc.strerror})") from None
     except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError, ValueError) as exc:
         raise InputError(f"{path}: not an intrinsics JSON with fx, fy, cx, cy or a 3x3 matrix ({exc})") from None
 
 
 def _from_toml(path: Path, camera: str | None, width: int, height: int) -> Intrinsics:
-    from posecam.io.calibration import read_toml
+    from posecam.io.calibration import read_calibration
 
-    cams = read_toml(path)
+    rig = read_calibration(path)
     if camera is None:
-        if len(cams) != 1:
-            names = ", ".join(c.name for c in cams)
+        if len(rig.cameras) != 1:
+            names = ", ".join(rig.names)
             raise InputError(f"{path} holds several cameras ({names}); choose one with --camera NAME")
-        cam = cams[0]
-    else:
-        matches = [c for c in cams if c.name == camera]
-        if not matches:
-            raise InputError(f"{path} has no camera named {camera!r} (it has {', '.join(c.name for c in cams)})")
-        cam = matches[0]
+        camera = rig.names[0]
+    # the one policy posecam fuse uses too: name match, then crop/pad or resize to this input
+    cam = rig.camera_for(camera, width, height)
     k = cam.intrinsics
-    cal_w = cam.size[0]
-    # A calibration made at another resolution: rescale it (small padding differences are kept as is).
-    if cal_w and abs(width / cal_w - 1) > 0.02:
-        k = k.scaled(width / cal_w)
-    return Intrinsics(k.fx, k.fy, k.cx, k.cy, source=f"file:{path.name}#{cam.name}")
+    return Intrinsics(k.fx, k.fy, k.cx, k.cy, source=f"file:{path.name}#{camera}")
 
 
 def resolve_intrinsics(opts: IntrinsicsOptions, width: int, height: int, image_path: str | Path | None = None) -> Intrinsics:
     """The intrinsics to use for an input of this size, following the documented order."""
-    k = _resolve(opts, width, height, image_path)
-    if not (0 <= k.cx <= width and 0 <= k.cy <= height):
-        raise InputError(f"principal point ({k.cx:g}, {k.cy:g}) from {k.source} lies outside the "
-                         f"{width}x{height} image")
-    return k
+    return _resolve(opts, width, height, image_path).check_image(width, height)
 
 
 def _resolve(opts: IntrinsicsOptions, width: int, height: int, image_path: str | Path | None) -> Intrinsics:
@@ -75,10 +85,10 @@ def _resolve(opts: IntrinsicsOptions, width: int, height: int, image_path: str |
         cy = opts.cy if opts.cy is not None else height / 2.0
         return Intrinsics(fx, fy, cx, cy, source="flags")
     if opts.file:
-        path = Path(opts.file)
+        path = check_input(opts.file, "intrinsics file")
         if not path.is_file():
-            raise InputError(f"intrinsics file {path} does not exist")
-        if path.suffix.lower() == ".toml":
+            raise InputError(f"intrinsics file {path} is a folder")
+        if path.suffix.lower() == ".toml" or path.name.lower().endswith(".qca.txt"):
             return _from_toml(path, opts.camera, width, height)
         return _from_json(path)
     if image_path is not None:
