@@ -1,5 +1,6 @@
 import csv
 import json
+import re
 
 import numpy as np
 import pytest
@@ -49,3 +50,54 @@ def test_not_a_pose_file(tmp_path):
     p.write_text("[1, 2]")
     with pytest.raises(InputError):
         read_poses(p)
+
+
+@pytest.mark.parametrize("field, value", [
+    ("bbox", np.zeros(3)), ("keypoints_2d", np.zeros((17, 3))), ("keypoints_3d", np.zeros((16, 3))),
+    ("confidence", np.zeros((17, 1))),
+])
+def test_person_checks_its_array_shapes(field, value):
+    arrays = {"bbox": np.zeros(4), "keypoints_2d": np.zeros((17, 2)), "keypoints_3d": np.zeros((17, 3)),
+              "confidence": np.zeros(17)}
+    Person(0, 1.0, **arrays)
+    with pytest.raises(ValueError, match=f"Person.{field}: expected shape"):
+        Person(0, 1.0, **{**arrays, field: value})
+
+
+def test_non_finite_values_are_null_in_json_and_empty_in_csv(tmp_path):
+    rec = _recording()
+    p = rec.frames[0].people[0]
+    p.keypoints_3d[2] = np.nan
+    p.keypoints_2d[3, 0] = np.inf
+    write_poses(tmp_path / "o.json", [rec])
+    write_poses(tmp_path / "o.csv", [rec])
+    text = (tmp_path / "o.json").read_text()
+    assert "NaN" not in text and "Infinity" not in text
+    json.loads(text, parse_constant=lambda c: pytest.fail(f"non-standard JSON token {c}"))
+    back = read_poses(tmp_path / "o.json")[0].frames[0].people[0]
+    assert np.isnan(back.keypoints_3d[2]).all() and np.isnan(back.keypoints_2d[3, 0])
+    assert np.isfinite(back.keypoints_3d[3]).all()
+    rows = list(csv.reader((tmp_path / "o.csv").open()))
+    assert rows[3][6:9] == ["", "", ""] and rows[4][4] == ""
+
+
+@pytest.mark.parametrize("edit, words", [
+    (lambda d: d["inputs"][0]["frames"][0]["people"][0].update(keypoints_3d=[[0, 0, 0]] * 16), "shape [16, 3]"),
+    (lambda d: d["inputs"][0]["frames"][0]["people"][0].update(confidence=[0.5] * 18), "shape [18]"),
+    (lambda d: d.update(joints=d["joints"][:16]), "expected [16, 2]"),
+])
+def test_joint_counts_must_match_the_declared_joints(tmp_path, edit, words):
+    path = tmp_path / "p.json"
+    write_poses(path, [_recording()])
+    doc = json.loads(path.read_text())
+    edit(doc)
+    path.write_text(json.dumps(doc))
+    with pytest.raises(InputError, match=re.escape(words)):
+        read_poses(path)
+
+
+def test_deeply_nested_pose_file_is_refused(tmp_path):
+    path = tmp_path / "deep.json"
+    path.write_text('{"joints": ' + "[" * 200000 + "]" * 200000 + "}")
+    with pytest.raises(InputError, match="nested too deeply"):
+        read_poses(path)

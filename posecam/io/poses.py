@@ -4,6 +4,10 @@ JSON: {"posecam", "model", "joints", "inputs": [{"source", "width", "height", "f
 "intrinsics": {"fx", "fy", "cx", "cy", "source"}, "fps", "frames": [{"index", "time",
 "people": [{"id", "score", "bbox", "keypoints_2d", "keypoints_3d", "confidence", "root"}]}]}]}
 CSV: one row per joint, header exactly CSV_HEADER.
+
+Both are written frame by frame (`write_poses`), so no second copy of a long video's poses is
+built in memory. Values that are not finite (a joint a model could not place) are written as
+JSON `null` and as an empty CSV field: the JSON is standard and every language reads it.
 """
 
 from __future__ import annotations
@@ -13,26 +17,39 @@ import io
 import json
 import os
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 
 from posecam._version import __version__
 from posecam.geometry.camera import Intrinsics
 from posecam.errors import InputError
-from posecam.io.atomic import write_text
+from posecam.io.atomic import atomic_path
+from posecam.media import check_input
 from posecam.results import Frame, Person, Recording
 
 CSV_HEADER = ("source", "frame", "person", "joint", "u", "v", "x", "y", "z", "confidence")
 
 
 def _round(a: np.ndarray, digits: int) -> list:
-    return np.round(np.asarray(a, dtype=float), digits).tolist()
+    """Rounded nested lists; NaN and infinities become None (JSON null)."""
+    a = np.round(np.asarray(a, dtype=float), digits)
+    finite = np.isfinite(a)
+    return a.tolist() if finite.all() else np.where(finite, a, None).tolist()
+
+
+def _number(x: float | None, digits: int) -> float | None:
+    return None if x is None or not np.isfinite(x) else round(float(x), digits)
+
+
+def _csv_number(x: float, digits: int) -> str:
+    return f"{x:.{digits}f}" if np.isfinite(x) else ""
 
 
 def person_to_dict(p: Person) -> dict:
     return {
         "id": int(p.id),
-        "score": round(float(p.score), 4),
+        "score": _number(p.score, 4),
         "bbox": _round(p.bbox, 1),
         "keypoints_2d": _round(p.keypoints_2d, 2),
         "keypoints_3d": _round(p.keypoints_3d, 1),
@@ -41,35 +58,44 @@ def person_to_dict(p: Person) -> dict:
     }
 
 
-def recording_to_dict(r: Recording) -> dict:
+def _header(r: Recording) -> dict:
     return {
         "source": r.source,
         "width": r.width,
         "height": r.height,
         "frame": r.frame_of_reference,
         "intrinsics": r.intrinsics.to_dict() if r.intrinsics else None,
-        "fps": r.fps,
-        "frames": [
-            {"index": f.index, "time": round(f.time, 4), "people": [person_to_dict(p) for p in f.people]}
-            for f in r.frames
-        ],
+        "fps": _number(r.fps, 6),
     }
 
 
-def to_json(recordings: list[Recording]) -> str:
+def frame_to_dict(f: Frame) -> dict:
+    return {"index": f.index, "time": _number(f.time, 4), "people": [person_to_dict(p) for p in f.people]}
+
+
+def recording_to_dict(r: Recording) -> dict:
+    return {**_header(r), "frames": [frame_to_dict(f) for f in r.frames]}
+
+
+def _dumps(value) -> str:
+    return json.dumps(value, allow_nan=False)
+
+
+def write_json(out: TextIO, recordings: list[Recording]) -> None:
+    """The JSON document, one frame per line, written as it is made."""
     first = recordings[0]
-    doc = {
-        "posecam": __version__,
-        "model": first.model,
-        "joints": list(first.joints),
-        "inputs": [recording_to_dict(r) for r in recordings],
-    }
-    return json.dumps(doc, indent=1)
+    out.write(f'{{"posecam": {_dumps(__version__)}, "model": {_dumps(first.model)},\n'
+              f' "joints": {_dumps(list(first.joints))},\n "inputs": [')
+    for i, r in enumerate(recordings):
+        out.write(("," if i else "") + "\n  " + _dumps(_header(r))[:-1] + ', "frames": [')
+        for j, f in enumerate(r.frames):
+            out.write(("," if j else "") + "\n   " + _dumps(frame_to_dict(f)))
+        out.write("]}")
+    out.write("]}\n")
 
 
-def to_csv(recordings: list[Recording]) -> str:
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
+def write_csv(out: TextIO, recordings: list[Recording]) -> None:
+    w = csv.writer(out, lineterminator="\n")
     w.writerow(CSV_HEADER)
     for r in recordings:
         for f in r.frames:
@@ -77,36 +103,58 @@ def to_csv(recordings: list[Recording]) -> str:
                 for j, name in enumerate(r.joints):
                     u, v = p.keypoints_2d[j]
                     x, y, z = p.keypoints_3d[j]
-                    w.writerow((r.source, f.index, p.id, name, f"{u:.2f}", f"{v:.2f}",
-                                f"{x:.1f}", f"{y:.1f}", f"{z:.1f}", f"{p.confidence[j]:.3f}"))
+                    w.writerow((r.source, f.index, p.id, name, _csv_number(u, 2), _csv_number(v, 2),
+                                _csv_number(x, 1), _csv_number(y, 1), _csv_number(z, 1),
+                                _csv_number(p.confidence[j], 3)))
+
+
+def to_json(recordings: list[Recording]) -> str:
+    buf = io.StringIO()
+    write_json(buf, recordings)
+    return buf.getvalue()
+
+
+def to_csv(recordings: list[Recording]) -> str:
+    buf = io.StringIO()
+    write_csv(buf, recordings)
     return buf.getvalue()
 
 
 def write_poses(path: str | os.PathLike, recordings: list[Recording]) -> None:
-    """Write JSON or CSV, chosen by the file extension, atomically."""
+    """Write JSON or CSV, chosen by the file extension, atomically and frame by frame."""
     suffix = Path(path).suffix.lower()
-    if suffix == ".json":
-        write_text(path, to_json(recordings))
-    elif suffix == ".csv":
-        write_text(path, to_csv(recordings))
-    else:
+    if suffix not in (".json", ".csv"):
         raise InputError(f"output must end in .json or .csv, got {path}")
+    with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as out:
+        (write_json if suffix == ".json" else write_csv)(out, recordings)
+
+
+def _array(values, columns: int | None, joints: int, what: str) -> np.ndarray:
+    """A (joints, columns) or (joints,) float array from JSON lists; null -> NaN."""
+    a = np.array(values, dtype=object)
+    a = np.where(np.equal(a, None), np.nan, a).astype(float)
+    want = (joints, columns) if columns else (joints,)
+    if a.shape != want:
+        raise ValueError(f"{what} has shape {list(a.shape)}, expected {list(want)} for {joints} joints")
+    return a
 
 
 def read_poses(path: str | os.PathLike) -> list[Recording]:
     """Read a JSON file written by `posecam predict` (or `fuse`) back into recordings."""
+    check_input(path, "pose file")
     try:
         doc = json.loads(Path(path).read_text(encoding="utf-8"))
         joints = tuple(doc["joints"])
+        n = len(joints)
         recordings = []
         for inp in doc["inputs"]:
             k = inp.get("intrinsics")
             frames = [
                 Frame(f["index"], f["time"], [
                     Person(p["id"], p["score"], np.array(p["bbox"], float),
-                           np.array(p["keypoints_2d"], float).reshape(-1, 2),
-                           np.array(p["keypoints_3d"], float).reshape(-1, 3),
-                           np.array(p["confidence"], float))
+                           _array(p["keypoints_2d"], 2, n, "keypoints_2d"),
+                           _array(p["keypoints_3d"], 3, n, "keypoints_3d"),
+                           _array(p["confidence"], None, n, "confidence"))
                     for p in f["people"]
                 ])
                 for f in inp["frames"]
@@ -116,8 +164,8 @@ def read_poses(path: str | os.PathLike) -> list[Recording]:
                 Intrinsics(k["fx"], k["fy"], k["cx"], k["cy"], k.get("source", "file")) if k else None,
                 joints, frames, doc.get("model", ""), inp.get("fps"), inp.get("frame", "camera"),
             ))
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file") from None
+    except RecursionError:
+        raise InputError(f"{path} is not a posecam pose file (JSON nested too deeply)") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
         raise InputError(f"{path} is not a posecam pose file ({type(exc).__name__}: {exc})") from None
     return recordings
