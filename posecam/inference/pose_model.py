@@ -58,6 +58,9 @@ class LandmarkPoseModel(_CropModel):
     def __call__(self, image_rgb: np.ndarray, rois: list[Roi], k: Intrinsics) -> list[PoseCandidate]:
         out = self._run(image_rgb, rois)
         n_joints = len(self.joints)
+        points = out["landmarks"].shape[-1] // 5   # the joints, then ROI helpers (at least 2)
+        self.model.check_shapes(out, {"landmarks": (len(rois), 5 * max(points, n_joints + 2)),
+                                      "presence": (len(rois), 1), "world": (len(rois), 3 * points)})
         landmarks = out["landmarks"].reshape(len(rois), -1, 5).astype(np.float64)
         world = out["world"].reshape(len(rois), -1, 3)[:, :n_joints].astype(np.float64) * 1000.0
         presence = out["presence"].reshape(len(rois)).astype(np.float64)
@@ -83,6 +86,8 @@ class RootDepthPoseModel(_CropModel):
         rois = [Roi(r.cx, r.cy, r.size) for r in rois]  # ResNet-U crops are upright
         boxes = np.array([[r.cx / w, r.cy / h, r.size / w, r.size / h] for r in rois], np.float32)
         out = self._run(image_rgb, rois, {self.contract.box_input: boxes})
+        n, j = len(rois), len(self.joints)
+        self.model.check_shapes(out, {"uv": (n, j, 2), "depth": (n, j), "z_root": (n, 1), "confidence": (n, j)})
         # z_a was learned for one camera: rescale by the focal length in image widths.
         f_ratio = ((k.fx + k.fy) / 2 / w) / (self.contract.train_focal / self.contract.train_image_width)
         result = []

@@ -10,7 +10,7 @@ import numpy as np
 import onnxruntime as ort
 
 from posecam.inference.contract import InputSpec, ModelContract
-from posecam.errors import ModelError
+from posecam.errors import InputError, ModelError
 
 MODELS_DIR = Path(__file__).resolve().parents[1] / "models"
 BUNDLED = {
@@ -19,7 +19,10 @@ BUNDLED = {
     "heavy": "blazepose_heavy.onnx",
     "detector": "blazepose_detector.onnx",
 }
-REBUILD_HINT = "pip install '.[export]' && python -m export.convert.build_models heavy"
+# Building needs torch's extra and ai-edge-litert (in `test`); run from a checkout of posecam.
+MAX_THREADS = 256
+DEVICES = ("cpu", "cuda")
+REBUILD_HINT = "pip install -e '.[export,test]' && python -m export.convert.build_models heavy"
 
 
 def resolve_model(name_or_path: str) -> Path:
@@ -44,10 +47,26 @@ class Model:
     path: Path
 
     def run(self, feeds: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """Run and return the outputs keyed by contract role."""
+        """Run and return the outputs keyed by contract role; ModelError if the run fails or
+        an output holds NaN or infinite values."""
         names = list(self.contract.outputs.values())
-        values = self.session.run(names, feeds)
-        return dict(zip(self.contract.outputs.keys(), values))
+        try:
+            values = self.session.run(names, feeds)
+        except Exception as exc:  # onnxruntime raises its own unrelated types at run time
+            raise ModelError(f"{self.path} failed while running ({_first_line(exc)})") from None
+        outputs = dict(zip(self.contract.outputs.keys(), values))
+        for role, value in outputs.items():
+            if not np.isfinite(value).all():
+                raise ModelError(f"{self.path}: output {role!r} holds NaN or infinite values")
+        return outputs
+
+    def check_shapes(self, outputs: dict[str, np.ndarray], shapes: dict[str, tuple[int | None, ...]]) -> None:
+        """ModelError unless each output has the shape given (None: any length on that axis)."""
+        for role, want in shapes.items():
+            got = outputs[role].shape
+            if len(got) != len(want) or any(w is not None and w != g for w, g in zip(want, got)):
+                shown = ", ".join("*" if w is None else str(w) for w in want)
+                raise ModelError(f"{self.path}: output {role!r} has shape {list(got)}, expected [{shown}]")
 
     @property
     def batch_dynamic(self) -> bool:
@@ -55,18 +74,42 @@ class Model:
         return not isinstance(dim, int)
 
 
-def load_model(name_or_path: str, threads: int | None = None, kind: str | None = None) -> Model:
-    """Load a posecam ONNX model; refuse files that are not ONNX or break the contract."""
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0][:160] if text else type(exc).__name__
+
+
+def providers(device: str) -> list[str]:
+    """onnxruntime execution providers for device "cpu" or "cuda"; refuse a missing CUDA provider."""
+    if device not in DEVICES:
+        raise InputError(f"device must be one of {', '.join(DEVICES)}, got {device!r}")
+    if device == "cpu":
+        return ["CPUExecutionProvider"]
+    if "CUDAExecutionProvider" not in ort.get_available_providers():
+        raise InputError("--device cuda needs onnxruntime's CUDA provider, which this onnxruntime lacks: "
+                         "pip uninstall onnxruntime && pip install onnxruntime-gpu")
+    return ["CUDAExecutionProvider", "CPUExecutionProvider"]
+
+
+def load_model(name_or_path: str, threads: int | None = None, kind: str | None = None,
+               device: str = "cpu") -> Model:
+    """Load a posecam ONNX model on `device` ("cpu" or "cuda"); refuse files that are not ONNX
+    or break the contract."""
+    chosen = providers(device)
+    if threads is not None and not 1 <= threads <= MAX_THREADS:
+        raise InputError(f"threads must be between 1 and {MAX_THREADS}, got {threads}")
     path = resolve_model(name_or_path)
     opts = ort.SessionOptions()
     opts.intra_op_num_threads = threads or min(os.cpu_count() or 1, 8)
     opts.inter_op_num_threads = 1
     opts.log_severity_level = 3
     try:
-        session = ort.InferenceSession(str(path), sess_options=opts, providers=["CPUExecutionProvider"])
+        session = ort.InferenceSession(str(path), sess_options=opts, providers=chosen)
     except Exception as exc:  # onnxruntime raises several unrelated types for a bad file
-        first_line = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise ModelError(f"{path} is not a readable ONNX model ({first_line[:160]})") from None
+        raise ModelError(f"{path} is not a readable ONNX model ({_first_line(exc)})") from None
+    if chosen[0] not in session.get_providers():   # onnxruntime falls back to the CPU silently
+        raise InputError(f"--device {device}: onnxruntime could not start {chosen[0]} "
+                         "(are the CUDA and cuDNN libraries that onnxruntime-gpu needs installed?)")
     contract = ModelContract.from_metadata(session.get_modelmeta().custom_metadata_map, str(path))
     if kind and contract.kind != kind:
         raise ModelError(f"{path} is a {contract.kind} model, expected a {kind} model")
@@ -83,6 +126,11 @@ def _check_io(session: ort.InferenceSession, contract: ModelContract, path: Path
     missing = set(contract.outputs.values()) - outputs
     if missing:
         raise ModelError(f"{path}: metadata names outputs {sorted(missing)} that the graph lacks")
+    image = next(i for i in session.get_inputs() if i.name == contract.input.name)
+    want = [None, *contract.input.size, 3] if contract.input.layout == "NHWC" else [None, 3, *contract.input.size]
+    if len(image.shape) != 4 or any(isinstance(g, int) and w is not None and g != w for g, w in zip(image.shape, want)):
+        shown = ", ".join("N" if w is None else str(w) for w in want)
+        raise ModelError(f"{path}: input {image.name} has shape {image.shape}, the metadata says [{shown}]")
 
 
 def to_input_tensor(crops_rgb: np.ndarray, spec: InputSpec) -> np.ndarray:
