@@ -38,6 +38,7 @@ class EstimatorOptions:
     min_presence: float = 0.5           # drop a person whose pose model presence falls below
     redetect_every: int = 15            # frames between detector runs while tracking
     threads: int | None = None
+    device: str = "cpu"                 # "cpu" or "cuda" (onnxruntime-gpu's CUDA provider)
     intrinsics: IntrinsicsOptions = field(default_factory=IntrinsicsOptions)
 
     def __post_init__(self) -> None:
@@ -57,7 +58,7 @@ class PoseEstimator:
     def __init__(self, options: EstimatorOptions | None = None):
         self.options = opts = options or EstimatorOptions()
         self.detector = PersonDetector(load_model("detector", opts.threads, kind="detector"), opts.min_detection_score)
-        pose = load_model(opts.model, opts.threads)
+        pose = load_model(opts.model, opts.threads, device=opts.device)
         if pose.contract.kind == "detector":
             raise ModelError(f"{pose.path} is a detector, not a pose model")
         self.pose_model = make_pose_model(pose)

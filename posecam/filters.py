@@ -1,0 +1,123 @@
+"""Temporal smoothing of pose trajectories, one track at a time.
+
+    from posecam.filters import SmoothOptions, smooth_recording
+    smoothed = smooth_recording(rec, SmoothOptions(cutoff_hz=6.0))
+
+Two standard filters over (F, ...) arrays whose missing frames are NaN:
+- `butterworth`: zero-phase low-pass (scipy `filtfilt`, forward and backward, as Pose2Sim
+  filters its trajectories); each unbroken run of frames is filtered on its own.
+- `one_euro`: the One-Euro filter (Casiez et al., CHI 2012), causal and speed-adaptive.
+A run too short for the filter's padding is filtered with shorter padding; runs of 1-3
+frames are left as they are.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.signal import butter, filtfilt
+
+from posecam.errors import InputError
+from posecam.results import Recording
+
+METHODS = ("butterworth", "one_euro")
+MIN_RUN = 4                     # frames; shorter runs are not filtered
+
+
+@dataclass
+class SmoothOptions:
+    method: str = "butterworth"     # "butterworth" or "one_euro"
+    cutoff_hz: float = 6.0          # butterworth: low-pass cut-off
+    order: int = 4                  # butterworth: order of the two passes together (even)
+    min_cutoff_hz: float = 1.0      # one_euro: cut-off at rest
+    beta: float = 0.05              # one_euro: cut-off growth per mm/s of speed
+    d_cutoff_hz: float = 1.0        # one_euro: cut-off of the speed estimate
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise InputError(f"smoothing method must be one of {', '.join(METHODS)}, got {self.method!r}")
+        if self.cutoff_hz <= 0 or self.min_cutoff_hz <= 0 or self.d_cutoff_hz <= 0 or self.beta < 0:
+            raise InputError("smoothing cut-offs must be positive and beta non-negative")
+        if self.order < 2 or self.order % 2:
+            raise InputError(f"butterworth order must be even and at least 2, got {self.order}")
+
+
+def runs(valid: np.ndarray) -> list[slice]:
+    """Slices of the unbroken True runs of a 1-D boolean array."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], valid.astype(np.int8), [0]])))
+    return [slice(a, b) for a, b in zip(edges[::2], edges[1::2])]
+
+
+def butterworth(x: np.ndarray, fps: float, cutoff_hz: float = 6.0, order: int = 4) -> np.ndarray:
+    """Zero-phase low-pass of (F, ...) `x` along frames; NaN frames split it into runs."""
+    x = np.asarray(x, dtype=float)
+    out = x.copy()
+    nyquist = fps / 2.0
+    if cutoff_hz >= nyquist:
+        return out
+    b, a = butter(order // 2, cutoff_hz / nyquist)
+    flat, res = x.reshape(len(x), -1), out.reshape(len(x), -1)
+    for col in range(flat.shape[1]):
+        for run in runs(np.isfinite(flat[:, col])):
+            n = run.stop - run.start
+            if n >= MIN_RUN:
+                res[run, col] = filtfilt(b, a, flat[run, col], padlen=min(3 * max(len(a), len(b)), n - 1))
+    return out
+
+
+def one_euro(x: np.ndarray, fps: float, min_cutoff_hz: float = 1.0, beta: float = 0.05,
+             d_cutoff_hz: float = 1.0) -> np.ndarray:
+    """One-Euro filter of (F, ...) `x` along frames; it restarts after every NaN gap."""
+    x = np.asarray(x, dtype=float)
+    out = x.copy()
+    dt = 1.0 / fps
+
+    def alpha(cutoff):
+        tau = 1.0 / (2 * np.pi * cutoff)
+        return 1.0 / (1.0 + tau / dt)
+
+    prev = np.full(x.shape[1:], np.nan)
+    d_prev = np.zeros(x.shape[1:])
+    for i in range(len(x)):
+        cur = x[i]
+        fresh = ~np.isfinite(prev)
+        d = np.where(fresh, 0.0, (cur - prev) / dt)
+        d_hat = alpha(d_cutoff_hz) * d + (1 - alpha(d_cutoff_hz)) * d_prev
+        a = alpha(min_cutoff_hz + beta * np.abs(d_hat))
+        filtered = np.where(fresh, cur, a * cur + (1 - a) * prev)
+        out[i] = filtered
+        prev, d_prev = filtered, np.where(np.isfinite(d_hat), d_hat, 0.0)
+    return out
+
+
+def smooth_array(x: np.ndarray, fps: float, options: SmoothOptions) -> np.ndarray:
+    """(F, ...) trajectory, NaN where missing -> the same shape, smoothed."""
+    if options.method == "butterworth":
+        return butterworth(x, fps, options.cutoff_hz, options.order)
+    return one_euro(x, fps, options.min_cutoff_hz, options.beta, options.d_cutoff_hz)
+
+
+def smooth_recording(rec: Recording, options: SmoothOptions | None = None) -> Recording:
+    """A copy of `rec` whose people's 2D and 3D keypoints are smoothed along each track id.
+
+    A still image (one frame) comes back unchanged; a recording without a frame rate is taken
+    at 30 fps."""
+    options = options or SmoothOptions()
+    frames = [dataclasses.replace(f, people=list(f.people)) for f in rec.frames]
+    if len(frames) < 2:
+        return dataclasses.replace(rec, frames=frames)
+    fps = rec.fps or 30.0
+    ids = sorted({p.id for f in frames for p in f.people})
+    for pid in ids:
+        where = [(i, k) for i, f in enumerate(frames) for k, p in enumerate(f.people) if p.id == pid]
+        for attr in ("keypoints_3d", "keypoints_2d"):
+            first = getattr(frames[where[0][0]].people[where[0][1]], attr)
+            track = np.full((len(frames), *first.shape), np.nan)
+            for i, k in where:
+                track[i] = getattr(frames[i].people[k], attr)
+            track = smooth_array(track, fps, options)
+            for i, k in where:
+                frames[i].people[k] = dataclasses.replace(frames[i].people[k], **{attr: track[i]})
+    return dataclasses.replace(rec, frames=frames)

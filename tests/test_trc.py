@@ -1,0 +1,152 @@
+"""TRC files read back by independent readers: OpenSim's own TRCFileAdapter and Pose2Sim's
+`read_trc` (taken from the pose2sim 0.10.49 wheel), both run in a side environment that has
+`opensim` and `pandas` (POSECAM_OPENSIM_PYTHON, else .cache/osim-venv/bin/python; make it with
+`python -m venv .cache/osim-venv && .cache/osim-venv/bin/pip install opensim pandas`)."""
+
+import ast
+import dataclasses
+import json
+import os
+import subprocess
+import sys
+import zipfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import DATA, run_posecam
+from posecam.io.trc import to_y_up, trc_paths, write_trc
+
+REPO = Path(__file__).resolve().parent.parent
+SIDE_PYTHON = Path(os.environ.get("POSECAM_OPENSIM_PYTHON", REPO / ".cache" / "osim-venv" / "bin" / "python"))
+
+READER = r"""
+import json, sys
+import numpy as np, pandas as pd, opensim as osim
+exec(sys.argv[1])                        # defines read_trc, Pose2Sim's own function
+out = []
+for path in sys.argv[2:]:
+    t = osim.TimeSeriesTableVec3(path)
+    table = t.flatten()                  # keep each SWIG object alive while it is used
+    matrix = table.getMatrix()
+    flat = matrix.to_numpy()
+    data, frames, times, markers, header = read_trc(path)
+    out.append({"osim_markers": list(t.getColumnLabels()), "osim_time": list(t.getIndependentColumn()),
+                "osim_xyz": np.where(np.isnan(flat), None, flat).tolist(),
+                "osim_units": t.getTableMetaDataAsString("Units"), "osim_rate": t.getTableMetaDataAsString("DataRate"),
+                "p2s_markers": markers, "p2s_frames": frames.tolist(), "p2s_time": times.tolist(),
+                "p2s_xyz": np.where(np.isnan(data.to_numpy(float)), None, data.to_numpy(float)).tolist()})
+print(json.dumps(out))
+"""
+
+
+def pose2sim_read_trc() -> str:
+    """The source of Pose2Sim's `read_trc` (Pose2Sim/common.py imports far more than it needs)."""
+    from export.assets import archive_path
+
+    with zipfile.ZipFile(archive_path("pose2sim")) as z:
+        source = z.read("Pose2Sim/common.py").decode()
+    node = next(n for n in ast.parse(source).body if isinstance(n, ast.FunctionDef) and n.name == "read_trc")
+    return ast.get_source_segment(source, node)
+
+
+def read_back(paths: list[Path]) -> list[dict]:
+    if not SIDE_PYTHON.exists():
+        pytest.skip(f"no OpenSim side environment at {SIDE_PYTHON}")
+    r = subprocess.run([str(SIDE_PYTHON), "-c", READER, pose2sim_read_trc(), *map(str, paths)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    return json.loads(r.stdout)
+
+
+def as_array(rows) -> np.ndarray:
+    return np.array([[np.nan if v is None else v for v in row] for row in rows], float)
+
+
+@pytest.fixture(scope="module")
+def clip(estimator):
+    """A real 30-frame clip (Pose2Sim's balance take, cam01) as predicted by posecam."""
+    return estimator.predict_file(DATA / "balance_cam01_30f.mp4")
+
+
+def test_round_trip_through_opensim_and_pose2sim(clip, tmp_path):
+    rec = dataclasses.replace(clip, frames=[dataclasses.replace(f, people=list(f.people)) for f in clip.frames])
+    rec.frames[5].people = []                               # a frame where the person is missing
+    (path,) = write_trc(tmp_path / "balance.trc", rec)
+    (doc,) = read_back([path])
+    truth = np.stack([f.people[0].keypoints_3d if f.people else np.full((17, 3), np.nan) for f in rec.frames])
+    truth = truth.reshape(len(truth), -1) / 1000.0
+    assert doc["osim_markers"] == doc["p2s_markers"] == list(rec.joints)
+    assert doc["osim_units"] == "m" and float(doc["osim_rate"]) == pytest.approx(rec.fps, abs=1e-3)
+    np.testing.assert_allclose(doc["osim_time"], [f.time for f in rec.frames], atol=1e-5)
+    for key in ("osim_xyz", "p2s_xyz"):
+        xyz = as_array(doc[key])
+        assert xyz.shape == truth.shape
+        assert np.isnan(xyz[5]).all() and not np.isnan(np.delete(xyz, 5, axis=0)).any()
+        np.testing.assert_allclose(xyz, truth, atol=1e-4, equal_nan=True)
+    assert doc["p2s_frames"] == [f.index + 1 for f in rec.frames]
+
+
+def test_one_file_per_person_and_y_up(clip, tmp_path):
+    """Two track ids -> NAME_id<ID>.trc each, trimmed to the frames the person is in; Y-up
+    turns camera coordinates 180 degrees about x."""
+    frames = []
+    for f in clip.frames:
+        people = list(f.people)
+        if f.index >= 10:                                   # a second person from frame 10 on
+            p = people[0]
+            people.append(dataclasses.replace(p, id=7, keypoints_3d=p.keypoints_3d + [800.0, 0.0, 500.0]))
+        frames.append(dataclasses.replace(f, people=people))
+    rec = dataclasses.replace(clip, frames=frames)
+    first_id = clip.frames[0].people[0].id
+    paths = write_trc(tmp_path / "two.trc", rec, y_up=True)
+    assert paths == trc_paths(tmp_path / "two.trc", [first_id, 7]) == [tmp_path / f"two_id{first_id}.trc", tmp_path / "two_id7.trc"]
+    docs = read_back(paths)
+    assert len(docs[0]["osim_time"]) == 30 and len(docs[1]["osim_time"]) == 20
+    second = np.stack([p.keypoints_3d for f in frames[10:] for p in f.people if p.id == 7])
+    np.testing.assert_allclose(as_array(docs[1]["osim_xyz"]).reshape(20, 17, 3), to_y_up(second, "camera") / 1000, atol=1e-4)
+    head_above_ankle = as_array(docs[0]["osim_xyz"]).reshape(30, 17, 3)
+    j = {n: i for i, n in enumerate(rec.joints)}
+    assert (head_above_ankle[:, j["head"], 1] > head_above_ankle[:, j["r_ankle"], 1] + 1.0).all()
+
+
+def test_predict_cli_writes_trc_and_refuses_several_inputs(tmp_path):
+    out = tmp_path / "clip.trc"
+    r = run_posecam("predict", DATA / "balance_cam01_30f.mp4", "-o", out, "--trc-y-up")
+    assert r.returncode == 0, r.stderr
+    lines = out.read_text().splitlines()
+    assert lines[0].startswith("PathFileType\t4\t(X/Y/Z)\tclip.trc") and lines[2].split("\t")[4] == "m"
+    assert len(lines) == 5 + 30
+    r = run_posecam("predict", DATA / "messi5.jpg", DATA / "fruits.jpg", "-o", tmp_path / "two.trc")
+    assert r.returncode == 2 and r.stderr.startswith("posecam: error:") and "one input" in r.stderr
+    assert not (tmp_path / "two.trc").exists()
+
+
+def test_c3d_read_back_by_ezc3d(clip, tmp_path):
+    """C3D (written with the `c3d` package) read by ezc3d, an independent C++ reader: labels,
+    rate, units, millimetres within 0.1 mm, the missing frame as NaN."""
+    pytest.importorskip("c3d")
+    ezc3d = pytest.importorskip("ezc3d")
+    from posecam.io.c3d import write_c3d
+
+    rec = dataclasses.replace(clip, frames=[dataclasses.replace(f, people=list(f.people)) for f in clip.frames])
+    rec.frames[7].people = []
+    (path,) = write_c3d(tmp_path / "balance.c3d", rec)
+    c = ezc3d.c3d(str(path))
+    point = c["parameters"]["POINT"]
+    assert point["LABELS"]["value"] == list(rec.joints) and point["UNITS"]["value"] == ["mm"]
+    assert point["RATE"]["value"][0] == pytest.approx(rec.fps, abs=1e-3)
+    xyz = c["data"]["points"][:3].transpose(2, 1, 0)                      # (F, J, 3)
+    truth = np.stack([f.people[0].keypoints_3d if f.people else np.full((17, 3), np.nan) for f in rec.frames])
+    assert np.isnan(xyz[7]).all() and not np.isnan(np.delete(xyz, 7, axis=0)).any()
+    np.testing.assert_allclose(xyz, truth, atol=0.1, equal_nan=True)
+
+
+def test_c3d_without_the_package_is_refused_before_work(tmp_path):
+    code = ("import sys; sys.modules['c3d'] = None; from posecam.cli import main; "
+            f"main(['predict', {str(DATA / 'messi5.jpg')!r}, '-o', {str(tmp_path / 'x.c3d')!r}])")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2 and r.stderr.strip() == ("posecam: error: writing .c3d needs the c3d package: "
+                                                      "pip install 'posecam[c3d]' (the c3d package)")
+    assert not list(tmp_path.iterdir())
