@@ -109,6 +109,25 @@ def root_error(cam, rec, world_root: np.ndarray, n: int) -> float:
     return float(np.nanmean(np.linalg.norm(roots - cam.to_camera(world_root), axis=-1)))
 
 
+def fused_figures(cams, recs, reference) -> None:
+    """The same figures for the views fused through the lab calibration (world frame)."""
+    from posecam.geometry.camera import Rig
+    from posecam.multiview.fuse import FuseOptions, fuse_recordings
+
+    fused = fuse_recordings(recs, FuseOptions(calibration=Rig(cams), offsets=[OFFSETS[c.name] for c in cams])).recording
+    start = -min(OFFSETS.values())          # fused frame i is cam01's frame i; the reference starts here
+    print(f"  fused through the lab calibration ({len(tracks(fused))} tracks):")
+    for label in ("none", "butterworth 6 Hz"):
+        rec = smooth_recording(fused, FILTERS[label]) if FILTERS[label] else fused
+        jit = [jitter(t) for t in tracks(rec).values() if np.sum(np.isfinite(t[:, 0, 0])) >= 10]
+        line = f"  {label:18s}{np.mean([j[0] for j in jit]):14.2f}{np.mean([j[1] for j in jit]):13.2f}"
+        if reference:
+            world_root, n = reference
+            root = _first_person(rec.frames[start:start + n], "keypoints_3d", (17, 3))[:, 0]
+            line += f"{np.nanmean(np.linalg.norm(root - world_root, axis=-1)):15.1f}"
+        print(line)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--model", default="full")
@@ -132,6 +151,7 @@ def main() -> None:
                 f"{c.name} {root_error(c, r, *reference):.0f} -> "
                 f"{root_error(c, smooth_recording(r, FILTERS['butterworth 6 Hz']), *reference):.0f}"
                 for c, r in zip(cams, recs)))
+        fused_figures(cams, recs, reference)
         print(f"  tracks measured: {len([t for r in recs for t in tracks(r).values() if np.sum(np.isfinite(t[:, 0, 0])) >= 10])}")
 
 
