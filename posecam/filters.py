@@ -59,11 +59,14 @@ def butterworth(x: np.ndarray, fps: float, cutoff_hz: float = 6.0, order: int = 
         return out
     b, a = butter(order // 2, cutoff_hz / nyquist)
     flat, res = x.reshape(len(x), -1), out.reshape(len(x), -1)
-    for col in range(flat.shape[1]):
-        for run in runs(np.isfinite(flat[:, col])):
+    valid = np.isfinite(flat)
+    masks, group = np.unique(valid, axis=1, return_inverse=True)    # columns missing in the same frames
+    for g in range(masks.shape[1]):
+        cols = np.flatnonzero(group.ravel() == g)
+        for run in runs(masks[:, g]):
             n = run.stop - run.start
             if n >= MIN_RUN:
-                res[run, col] = filtfilt(b, a, flat[run, col], padlen=min(3 * max(len(a), len(b)), n - 1))
+                res[run, cols] = filtfilt(b, a, flat[run][:, cols], axis=0, padlen=min(3 * max(len(a), len(b)), n - 1))
     return out
 
 
@@ -112,12 +115,13 @@ def smooth_recording(rec: Recording, options: SmoothOptions | None = None) -> Re
     ids = sorted({p.id for f in frames for p in f.people})
     for pid in ids:
         where = [(i, k) for i, f in enumerate(frames) for k, p in enumerate(f.people) if p.id == pid]
+        smoothed = {}
         for attr in ("keypoints_3d", "keypoints_2d"):
             first = getattr(frames[where[0][0]].people[where[0][1]], attr)
             track = np.full((len(frames), *first.shape), np.nan)
             for i, k in where:
                 track[i] = getattr(frames[i].people[k], attr)
-            track = smooth_array(track, fps, options)
-            for i, k in where:
-                frames[i].people[k] = dataclasses.replace(frames[i].people[k], **{attr: track[i]})
+            smoothed[attr] = smooth_array(track, fps, options)
+        for i, k in where:
+            frames[i].people[k] = dataclasses.replace(frames[i].people[k], **{a: t[i] for a, t in smoothed.items()})
     return dataclasses.replace(rec, frames=frames)
