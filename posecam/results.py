@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from posecam.geometry.camera import Intrinsics
+from posecam.skeleton import root_name, root_point
 
 
 @dataclass
@@ -20,10 +21,19 @@ class Person:
     keypoints_3d: np.ndarray    # (J, 3) x, y, z in mm, camera (or world) coordinates
     confidence: np.ndarray      # (J,) in [0, 1]
 
+    def __post_init__(self) -> None:
+        if np.ndim(self.confidence) != 1:
+            raise ValueError(f"Person.confidence: expected shape (J,), got {np.shape(self.confidence)}")
+        j = len(self.confidence)
+        for name, want in (("bbox", (4,)), ("keypoints_2d", (j, 2)), ("keypoints_3d", (j, 3))):
+            if np.shape(getattr(self, name)) != want:
+                raise ValueError(f"Person.{name}: expected shape {want}, got {np.shape(getattr(self, name))}")
+
     @property
     def root(self) -> np.ndarray:
-        """The root joint (first joint: pelvis for the 17-joint skeleton), mm."""
-        return self.keypoints_3d[0]
+        """The root in mm: the pelvis of the 17 joints, the midpoint of the hips of the 33
+        BlazePose landmarks (the same point); for other joint sets, the first joint."""
+        return root_point(self.keypoints_3d)
 
 
 @dataclass
@@ -31,6 +41,9 @@ class Frame:
     index: int
     time: float                 # seconds from the start of the input
     people: list[Person] = field(default_factory=list)
+    # presence scores of the people the pose model saw but dropped (below min_presence);
+    # empty with no people means the detector found nobody
+    dropped: list[float] = field(default_factory=list)
 
 
 @dataclass
@@ -46,3 +59,8 @@ class Recording:
     model: str = ""
     fps: float | None = None
     frame_of_reference: str = "camera"   # "camera", "reference camera NAME" or "world"
+
+    @property
+    def root_joint(self) -> str:
+        """What `Person.root` is: "pelvis" (17 joints), "mid_hip" (33 landmarks: the hips' midpoint)."""
+        return root_name(self.joints)

@@ -70,15 +70,25 @@ BLAZEPOSE_BONES: tuple[tuple[str, str], ...] = (
 
 @dataclass(frozen=True)
 class Skeleton:
-    """A named joint set: names, bones between them, and the root joint."""
+    """A named joint set: names, bones between them, and the root: the point that
+    `Person.root` reports, the mean of the joints in `root_of` (default: the joint `root`)."""
 
     name: str
     joints: tuple[str, ...]
     bones: tuple[tuple[str, str], ...]
     root: str
+    root_of: tuple[str, ...] = ()
 
     def index(self, joint: str) -> int:
         return self.joints.index(joint)
+
+    @property
+    def root_indices(self) -> tuple[int, ...]:
+        return tuple(self.index(j) for j in (self.root_of or (self.root,)))
+
+    def root_point(self, points: np.ndarray) -> np.ndarray:
+        """(..., J, D) points -> (..., D) root."""
+        return np.asarray(points)[..., list(self.root_indices), :].mean(axis=-2)
 
     @property
     def bone_indices(self) -> np.ndarray:
@@ -102,7 +112,9 @@ def mirror_name(joint: str) -> str:
 
 
 H36M = Skeleton("h36m17", H36M_JOINTS, H36M_BONES, root="pelvis")
-BLAZEPOSE33 = Skeleton("blazepose33", BLAZEPOSE_LANDMARKS, BLAZEPOSE_BONES, root="left_hip")
+# BlazePose has no pelvis landmark: its root is the midpoint of the hips, as the 17 joints' pelvis.
+BLAZEPOSE33 = Skeleton("blazepose33", BLAZEPOSE_LANDMARKS, BLAZEPOSE_BONES, root="mid_hip",
+                       root_of=("left_hip", "right_hip"))
 
 SKELETONS = {"17": H36M, "33": BLAZEPOSE33}
 
@@ -110,6 +122,24 @@ SKELETONS = {"17": H36M, "33": BLAZEPOSE33}
 def skeleton_of(joints: tuple[str, ...]) -> Skeleton:
     """The skeleton whose joints these are (a ResNet-U's joints are the 17 of H36M)."""
     return next(s for s in SKELETONS.values() if s.joints == tuple(joints))
+
+
+def root_point(points: np.ndarray) -> np.ndarray:
+    """The root of (..., J, D) points of a known skeleton, told apart by J (pelvis for 17 joints,
+    hip midpoint for 33); for any other joint set, the first joint."""
+    points = np.asarray(points)
+    for s in SKELETONS.values():
+        if points.shape[-2] == len(s.joints):
+            return s.root_point(points)
+    return points[..., 0, :]
+
+
+def root_name(joints: tuple[str, ...]) -> str:
+    """The name of the root that `root_point` gives for these joints."""
+    for s in SKELETONS.values():
+        if len(joints) == len(s.joints):
+            return s.root
+    return joints[0]
 
 
 def _h36m_mixing_matrix() -> np.ndarray:

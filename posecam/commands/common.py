@@ -8,6 +8,8 @@ from typing import TYPE_CHECKING
 
 import click
 
+from posecam.errors import InputError, OutputError
+
 if TYPE_CHECKING:
     from rich.progress import Progress
 
@@ -19,24 +21,52 @@ if TYPE_CHECKING:
 def intrinsics_options(f: Callable) -> Callable:
     """The intrinsics flags shared by `predict` and `fuse`."""
     for opt in reversed([
-        click.option("--fx", type=float, help="Focal length in pixels (x)."),
+        click.option("--fx", type=float, show_default="from --intrinsics, else EXIF, else a 28 mm-equivalent lens",
+                     help="Focal length in pixels (x)."),
         click.option("--fy", type=float, help="Focal length in pixels (y); defaults to fx."),
         click.option("--cx", type=float, help="Principal point x in pixels; defaults to the image centre."),
         click.option("--cy", type=float, help="Principal point y in pixels; defaults to the image centre."),
         click.option("--intrinsics", "intrinsics_file", type=click.Path(),
                      help="JSON with fx, fy, cx, cy (or a 3x3 matrix), or an anipose/Pose2Sim calibration TOML."),
-        click.option("--camera", help="Camera name inside a calibration TOML."),
+        click.option("--camera", help="Camera name inside the --intrinsics calibration (needs --intrinsics)."),
     ]):
         f = opt(f)
     return f
 
 
 def progress_bar() -> Progress:
+    """A bar on stderr that vanishes when done; off a terminal (a pipe, a log file) none at all."""
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 
+    console = Console(stderr=True)
     return Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                    TimeRemainingColumn(), console=Console(stderr=True), transient=True)
+                    TimeRemainingColumn(), console=console, transient=True, disable=not console.is_terminal)
+
+
+def check_output(path: str | None, suffixes: tuple[str, ...], what: str) -> None:
+    """Refuse, before any work, an output whose folder is missing or whose extension is wrong."""
+    if not path:
+        return
+    if Path(path).suffix.lower() not in suffixes:
+        raise InputError(f"{what} must end in {' or '.join(suffixes)}, got {path}")
+    folder = Path(path).parent
+    if not folder.is_dir():
+        raise OutputError(f"cannot write {path}: folder {folder} does not exist")
+
+
+def report_console(stdout_has_data: bool = False):
+    """Where summaries go: stdout, or stderr when stdout carries the poses themselves."""
+    from rich.console import Console
+
+    return Console(stderr=stdout_has_data, highlight=False)
+
+
+def report_written(paths: list[str | None], console) -> None:
+    """One line naming every file written."""
+    written = [str(p) for p in paths if p]
+    if written:
+        console.print(f"wrote {', '.join(written)}", soft_wrap=True)
 
 
 FrameHook = Callable[["Frame", "object", "Media"], None]
@@ -58,4 +88,4 @@ def predict_with_progress(estimator: PoseEstimator, path: str, progress: Progres
 def warn(message: str) -> None:
     from rich.console import Console
 
-    Console(stderr=True, highlight=False).print(f"posecam: warning: {message}")
+    Console(stderr=True, highlight=False).print(f"posecam: warning: {message}", soft_wrap=True)
