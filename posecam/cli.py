@@ -59,6 +59,23 @@ def _fail(message: str, code: int) -> None:
     sys.exit(code)
 
 
+def _interrupt_in_chain(exc: BaseException | None) -> KeyboardInterrupt | None:
+    """The Ctrl-C or SIGTERM behind `exc`, if one is (click's Abort, a failed native import)."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
+def _interrupted(exc: BaseException) -> None:
+    terminated = isinstance(_interrupt_in_chain(exc), Terminated)
+    click.echo("posecam: terminated" if terminated else "posecam: interrupted", err=True)
+    sys.exit(143 if terminated else 130)
+
+
 class _Group(click.Group):
     """Turns every failure into one line on stderr and a documented exit code."""
 
@@ -69,6 +86,7 @@ class _Group(click.Group):
             signal.signal(signal.SIGINT, signal.default_int_handler)
             signal.signal(signal.SIGTERM, _raise_terminated)
         warnings.showwarning = _show_warning
+        os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")   # posecam reports what goes wrong itself
         try:
             code = super().main(args, prog_name or "posecam", complete_var, False, **extra)
         except _NO_ARGS as exc:  # `posecam` alone: its help
@@ -82,13 +100,15 @@ class _Group(click.Group):
         except PosecamError as exc:
             _fail(str(exc), exc.exit_code)
         except (KeyboardInterrupt, click.Abort) as exc:
-            terminated = isinstance(exc, Terminated) or isinstance(exc.__context__, Terminated)
-            click.echo("posecam: terminated" if terminated else "posecam: interrupted", err=True)
-            sys.exit(143 if terminated else 130)
+            _interrupted(exc)
         except RecursionError:
             _fail("input nested too deeply to read", 2)
         except MemoryError:
             _fail("out of memory (an input too large for this machine?)", 1)
+        except Exception as exc:  # Ctrl-C inside a native module's import comes out as ImportError
+            if not _interrupt_in_chain(exc):
+                raise
+            _interrupted(exc)
         sys.exit(code if isinstance(code, int) else 0)
 
 

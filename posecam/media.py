@@ -129,12 +129,15 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     try:
         with _native_stderr_silenced():
             bgr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
+            damaged = bgr is None and _opencv_name(path)
+            if damaged:  # imread, unlike imdecode, keeps what libjpeg decoded of a damaged file
+                bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
     except cv2.error:
         bgr = None
     if bgr is None:
         raise InputError(f"{path} is not a readable image")
-    if data[:2] == b"\xff\xd8" and data.rstrip(b"\x00")[-2:] != b"\xff\xd9":
-        warn(f"{path} ends before its end-of-image marker (a truncated JPEG?); decoded what is there")
+    if damaged or (data[:2] == b"\xff\xd8" and data.rstrip(b"\x00")[-2:] != b"\xff\xd9"):
+        warn(f"{path} is damaged or truncated (a JPEG cut short?); posecam used what could be decoded")
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 

@@ -102,7 +102,7 @@ def load_model(name_or_path: str, threads: int | None = None, kind: str | None =
     opts = ort.SessionOptions()
     opts.intra_op_num_threads = threads or min(os.cpu_count() or 1, 8)
     opts.inter_op_num_threads = 1
-    opts.log_severity_level = 3
+    opts.log_severity_level = 4   # fatal only: posecam reports model errors itself, on one line
     try:
         session = ort.InferenceSession(str(path), sess_options=opts, providers=chosen)
     except Exception as exc:  # onnxruntime raises several unrelated types for a bad file

@@ -183,6 +183,11 @@ class OutputSet:
         try:
             if kind is None:
                 self._commit_all()
+            elif issubclass(kind, OutputError):   # name the user's file, not its temporary one
+                message = str(exc)
+                for target, tmp in self._staged.items():
+                    message = message.replace(str(tmp), str(target))
+                raise OutputError(message) from None
         finally:
             for stage in self._folders.values():
                 shutil.rmtree(stage, ignore_errors=True)
