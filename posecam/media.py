@@ -100,7 +100,7 @@ def check_input(path: str | os.PathLike, what: str = "") -> Path:
     try:
         mode = os.stat(path).st_mode
     except FileNotFoundError:
-        raise InputError(f"{name}: no such file or folder") from None
+        raise InputError(f"{name} does not exist (no such file or folder)") from None
     except OSError as exc:
         raise InputError(f"{name} cannot be read ({exc.strerror})") from None
     if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):

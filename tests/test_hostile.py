@@ -188,6 +188,18 @@ def test_export_refuses_to_overwrite_its_checkpoint(env):
     assert ck.read_bytes() == b"not really a checkpoint"
 
 
+def test_export_leaves_no_model_when_its_verification_fails(env):
+    pytest.importorskip("torch")
+    from export import ResNetU, ResNetUConfig, save_checkpoint
+
+    ck = env["tmp"] / "ck.pt"
+    save_checkpoint(ResNetU(ResNetUConfig(backbone="mobilenetv2", input_size=128, head_channels=16)), ck)
+    r = run_posecam("export", ck, "-o", env["out"] / "m.onnx", "--verify", "--quantize", "int8",
+                    "--images", env["in"] / "notes.txt")
+    check_promise(r, 2, "notes.txt")
+    assert sorted(p.name for p in env["out"].iterdir()) == ["taken", "taken.json", "taken.toml"]
+
+
 # Inputs that must work: names OpenCV cannot take, names as long as a file system allows,
 # a folder of photos of different sizes.
 
