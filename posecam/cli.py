@@ -105,6 +105,12 @@ class _Group(click.Group):
             _fail("input nested too deeply to read", 2)
         except MemoryError:
             _fail("out of memory (an input too large for this machine?)", 1)
+        except BrokenPipeError:  # `posecam ... | head`: the reader left, nothing to report
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            sys.exit(141)
+        except OSError as exc:  # writes are OutputErrors already: this is an input that failed
+            where = f"{exc.filename}: " if exc.filename else ""
+            _fail(f"{where}{exc.strerror or exc}", 2)
         except Exception as exc:  # Ctrl-C inside a native module's import comes out as ImportError
             if not _interrupt_in_chain(exc):
                 raise

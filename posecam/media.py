@@ -31,6 +31,7 @@ import numpy as np
 from posecam.errors import InputError, warn
 
 IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp"}
+VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv"}
 SEQUENCE_FPS = 30.0
 MAX_PIXELS = 1 << 28        # 268 Mpx: larger images are refused before decoding
 _NUMBERED = re.compile(r"^(.*?)(\d+)$")
@@ -187,6 +188,12 @@ def _video_capture(path: Path) -> Iterator[cv2.VideoCapture]:
             cap = cv2.VideoCapture(name)
         stack.callback(cap.release)
         yield cap
+
+
+def readable_video(path: Path) -> bool:
+    """True when OpenCV opens the video and decodes its first frame (a check on written files)."""
+    with _video_capture(path) as cap, _native_stderr_silenced():
+        return bool(cap.isOpened() and cap.read()[0])
 
 
 def _opencv_name(path: Path) -> bool:

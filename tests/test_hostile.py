@@ -146,6 +146,7 @@ ROWS = [
     ("fuse-calibration-folder", "fuse {in}/a.json {in}/b.json --save-calibration {out}/taken.toml", 4,
      "existing folder", ()),
     ("fuse-16-joints", "fuse {in}/a.json {in}/j16.json -o {out}/f.json", 2, "expected [17, 2]", ()),
+    ("fuse-calibration-fifo", "fuse {in}/a.json {in}/b.json --calibration {in}/pipe.mp4", 2, "not a regular", ()),
     ("fuse-fifo", "fuse {in}/a.json {in}/pipe.mp4 -o {out}/f.json", 2, "not a regular file", ()),
     ("fuse-deep-json", "fuse {in}/a.json {in}/deep.json -o {out}/f.json", 2, "nested", ()),
     # models that pass the contract check but break at run time
@@ -335,12 +336,14 @@ def test_ctrl_c_while_starting_is_one_line(delay):
 # Full disks: slow, and the tmpfs one needs root.
 
 @pytest.mark.slow
-@pytest.mark.parametrize("output", ["p.json", "p.csv"])
-def test_a_file_size_limit_is_exit_4(tmp_path, output):
-    code = (f"ulimit -f 1; exec {sys.executable} -m posecam predict {DATA / 'balance_cam01_30f.mp4'} "
-            f"--model lite -o {tmp_path / output}")
+@pytest.mark.parametrize("output, word", [("-o p.json", "too large"), ("-o p.csv", "too large"),
+                                          ("--viz v.mp4", "does not read back")])
+def test_a_file_size_limit_is_exit_4(tmp_path, output, word):
+    flag, name = output.split()
+    code = (f"ulimit -f 8; exec {sys.executable} -m posecam predict {DATA / 'balance_cam01_30f.mp4'} "
+            f"--model lite {flag} {tmp_path / name}")
     r = subprocess.run(["bash", "-c", code], capture_output=True, text=True, timeout=600)
-    check_promise(r, 4, "too large")
+    check_promise(r, 4, word)
     assert list(tmp_path.iterdir()) == []
 
 

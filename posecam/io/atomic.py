@@ -23,6 +23,7 @@ from pathlib import Path
 from types import TracebackType
 
 from posecam.errors import OutputError
+from posecam.media import VIDEO_SUFFIXES, readable_video
 
 _MAX_SUFFIX = 16   # longer "extensions" are not kept in temporary names
 
@@ -105,6 +106,9 @@ def _commit(tmp: Path, target: Path) -> None:
     """Flush `tmp` to disk and rename it onto `target`; a full disk shows here at the latest."""
     if not tmp.is_file():
         raise OutputError(f"cannot write {target}: the writer produced no file")
+    if tmp.suffix.lower() in VIDEO_SUFFIXES and not readable_video(tmp):
+        # FFmpeg drops write errors: a video that does not read back was not written
+        raise OutputError(f"cannot write {target}: the video does not read back (disk full or file too large?)")
     with open(tmp, "rb+") as f:
         os.fsync(f.fileno())
     stats = os.statvfs(tmp)
