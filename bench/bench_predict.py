@@ -1,6 +1,6 @@
 """Benchmark `posecam predict` on the Pose2Sim demo, against MediaPipe's own pose solution.
 
-    python bench/bench_predict.py [--runs 5]
+    python bench/bench_predict.py [--runs 5] [--detector movenet|blazepose] [--vtest PATH/vtest.avi]
 
 1. Speed and memory: frames per second and peak resident memory of `posecam predict` on the
    100-frame 1080x1920 cam01 clip, and of MediaPipe 0.10.21's Python pose solution (same
@@ -10,6 +10,9 @@
 2. Accuracy: for each of the 4 demo cameras, with the lab calibration's intrinsics, the mean
    distance between posecam's root (pelvis) and the pelvis triangulated from all 4 views
    through the lab's Qualisys calibration (the videos' frame offsets are set as measured).
+3. Frames per second of `posecam predict` on the two multi-person recordings: Pose2Sim's
+   two-person take (cam03, 1088x1920) and, with --vtest, OpenCV's vtest.avi (768x576, 795
+   frames of pedestrians); medians of the same runs.
 """
 
 from __future__ import annotations
@@ -30,13 +33,14 @@ CAMERAS = ("cam01", "cam02", "cam03", "cam04")
 OFFSETS = {"cam01": 0, "cam02": -1, "cam03": 4, "cam04": 0}   # frames, vs cam01 (export/ASSETS.md)
 
 
-def child_posecam(video: str, model: str) -> dict:
+def child_posecam(video: str, model: str, detector: str) -> dict:
     """Run `posecam predict VIDEO -o out.json` in this process; report time and peak memory."""
     from posecam.cli import main
 
     with tempfile.TemporaryDirectory() as tmp:
         start = time.perf_counter()
-        main(["predict", video, "--model", model, "-o", f"{tmp}/out.json"], standalone_mode=False)
+        main(["predict", video, "--model", model, "--detector", detector, "-o", f"{tmp}/out.json"],
+             standalone_mode=False)
         seconds = time.perf_counter() - start
         frames = len(json.loads(Path(f"{tmp}/out.json").read_text())["inputs"][0]["frames"])
     return {"frames": frames, "seconds": seconds, "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
@@ -75,18 +79,21 @@ def run_child(python: str, mode: str, *args: str) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def speed(video: Path, runs: int, model: str) -> None:
+def speed(video: Path, runs: int, model: str, detector: str, others: dict[str, Path]) -> None:
     mp_python = str(ensure_mediapipe_venv())
-    results: dict[str, list[dict]] = {"posecam": [], "mediapipe": []}
+    results: dict[str, list[dict]] = {"posecam": [], "mediapipe": [], **{name: [] for name in others}}
     for _ in range(runs):
-        results["posecam"].append(run_child(sys.executable, "posecam", str(video), model))
+        results["posecam"].append(run_child(sys.executable, "posecam", str(video), model, detector))
         results["mediapipe"].append(run_child(mp_python, "mediapipe", str(video)))
+        for name, path in others.items():
+            results[name].append(run_child(sys.executable, "posecam", str(path), model, detector))
     print(f"\nSpeed on {video.name} (1080x1920, 100 frames), {runs} runs each, medians:")
-    print(f"{'':28s}{'fps':>8s}{'s/run':>8s}{'peak MB':>9s}")
-    for name, label in (("posecam", f"posecam predict ({model})"), ("mediapipe", "MediaPipe 0.10.21 (full)")):
+    print(f"{'':34s}{'fps':>8s}{'s/run':>8s}{'peak MB':>9s}")
+    for name, label in (("posecam", f"posecam predict ({model}, {detector})"), ("mediapipe", "MediaPipe 0.10.21 (full)"),
+                        *((n, f"posecam on {n}") for n in others)):
         rs = results[name]
         fps = statistics.median(r["frames"] / r["seconds"] for r in rs)
-        print(f"{label:28s}{fps:8.1f}{statistics.median(r['seconds'] for r in rs):8.2f}"
+        print(f"{label:34s}{fps:8.1f}{statistics.median(r['seconds'] for r in rs):8.2f}"
               f"{statistics.median(r['peak_mb'] for r in rs):9.0f}")
 
 
@@ -97,7 +104,7 @@ def _first_person(frames: list, attr: str, shape: tuple[int, ...]):
     return np.stack([getattr(f.people[0], attr) if f.people else np.full(shape, np.nan) for f in frames])
 
 
-def accuracy(videos: dict[str, Path], calib_path: Path, model: str) -> None:
+def accuracy(videos: dict[str, Path], calib_path: Path, model: str, detector: str) -> None:
     import cv2
     import numpy as np
 
@@ -111,7 +118,8 @@ def accuracy(videos: dict[str, Path], calib_path: Path, model: str) -> None:
     uv, conf, roots = [], [], []
     for cam in cams:
         k = cam.intrinsics
-        opts = EstimatorOptions(model=model, max_people=1, intrinsics=IntrinsicsOptions(k.fx, k.fy, k.cx, k.cy))
+        opts = EstimatorOptions(model=model, detector=detector, max_people=1,
+                                intrinsics=IntrinsicsOptions(k.fx, k.fy, k.cx, k.cy))
         rec = PoseEstimator(opts).predict_file(videos[cam.name])
         start = OFFSETS[cam.name] - min(OFFSETS.values())
         frames = rec.frames[start:start + n]
@@ -137,6 +145,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--runs", type=int, default=5)
     ap.add_argument("--model", default="full")
+    ap.add_argument("--detector", default="movenet")
+    ap.add_argument("--vtest", help="OpenCV's vtest.avi (apt-get download opencv-doc) for its frames/s")
+    ap.add_argument("--no-accuracy", action="store_true")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     ap.add_argument("args", nargs="*", help=argparse.SUPPRESS)
     a = ap.parse_args()
@@ -149,8 +160,12 @@ def main() -> None:
     from export.assets import pose2sim_demo_path
 
     videos = {c: pose2sim_demo_path(f"videos/{c}.mp4") for c in CAMERAS}
-    speed(videos["cam01"], a.runs, a.model)
-    accuracy(videos, pose2sim_demo_path("calibration/Calib.qca.txt"), a.model)
+    others = {"two-person cam03": pose2sim_demo_path("videos/cam03.mp4").parents[2] / "Demo_MultiPerson/videos/cam03.mp4"}
+    if a.vtest:
+        others["vtest.avi"] = Path(a.vtest)
+    speed(videos["cam01"], a.runs, a.model, a.detector, others)
+    if not a.no_accuracy:
+        accuracy(videos, pose2sim_demo_path("calibration/Calib.qca.txt"), a.model, a.detector)
 
 
 if __name__ == "__main__":

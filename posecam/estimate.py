@@ -10,21 +10,22 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from posecam.errors import InputError, ModelError
 from posecam.geometry.camera import Intrinsics
-from posecam.inference.detector import PersonDetector
+from posecam.inference.detector import Detection, load_detector
 from posecam.inference.pose_model import PoseCandidate, make_pose_model
+from posecam.inference.roi import Roi
 from posecam.inference.session import load_model
 from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
 from posecam.media import Media, open_media
 from posecam.results import Frame, Person, Recording
 from posecam.skeleton import BLAZEPOSE_LANDMARKS, H36M_JOINTS, blazepose_to_h36m
-from posecam.tracking import Tracker
+from posecam.tracking import Track, Tracker, TrackerOptions, foreign_joints, oks
 
 SKELETONS = ("17", "33")
 
@@ -32,9 +33,11 @@ SKELETONS = ("17", "33")
 @dataclass
 class EstimatorOptions:
     model: str = "full"                 # lite | full | heavy | path to a posecam .onnx
+    detector: str = "movenet"           # movenet | blazepose | path to a posecam detector .onnx
+    detector_size: int | None = None    # detector input's long side (px); None: the model's default
     skeleton: str = "17"                # "17" (Human3.6M-style) or "33" (all BlazePose landmarks)
-    max_people: int = 4
-    min_detection_score: float = 0.5
+    max_people: int = 6
+    min_detection_score: float | None = None  # detector score a person needs to be looked at (None: the detector's default)
     min_presence: float = 0.5           # drop a person whose pose model presence falls below
     redetect_every: int = 15            # frames between detector runs while tracking
     threads: int | None = None
@@ -46,6 +49,9 @@ class EstimatorOptions:
             raise InputError(f"skeleton must be one of {', '.join(SKELETONS)}, got {self.skeleton!r}")
         if self.max_people < 1 or self.redetect_every < 1:
             raise InputError("max_people and redetect_every must be at least 1")
+        for name in ("min_detection_score", "min_presence"):
+            if getattr(self, name) is not None and not 0.0 <= getattr(self, name) <= 1.0:
+                raise InputError(f"{name} must lie in [0, 1], got {getattr(self, name)}")
 
 
 # Called after each frame of predict_file: the frame's result, its RGB image, the opened input.
@@ -57,13 +63,19 @@ class PoseEstimator:
 
     def __init__(self, options: EstimatorOptions | None = None):
         self.options = opts = options or EstimatorOptions()
-        self.detector = PersonDetector(load_model("detector", opts.threads, kind="detector"), opts.min_detection_score)
+        self.detector = load_detector(opts.detector, opts.threads, opts.min_detection_score, opts.detector_size)
+        self.min_detection_score = opts.min_detection_score if opts.min_detection_score is not None \
+            else self.detector.default_score
         pose = load_model(opts.model, opts.threads, device=opts.device)
         if pose.contract.kind == "detector":
             raise ModelError(f"{pose.path} is a detector, not a pose model")
         self.pose_model = make_pose_model(pose)
         self.model_name = pose.contract.name
         self.joints = self._output_joints()
+        # pose joints in the detector's keypoint order, to tell whose joints a pose holds
+        names = self.pose_model.joints
+        self._to_detector = np.array([names.index(n) for n in self.detector.joints]) \
+            if self.detector.joints and set(self.detector.joints) <= set(names) else None
 
     def _output_joints(self) -> tuple[str, ...]:
         source = tuple(self.pose_model.joints)
@@ -86,22 +98,57 @@ class PoseEstimator:
     def _step(self, image_rgb: np.ndarray, k: Intrinsics, tracker: Tracker) -> Frame:
         """One frame: detect if the tracker asks for it, run the pose model on every track."""
         _check_image(image_rgb)
-        if tracker.needs_detection():
-            tracker.add_detections([d.roi for d in self.detector(image_rgb, self.options.max_people)])
-        if not tracker.tracks:
+        detections = self.detector(image_rgb) if tracker.needs_detection() else None
+        tracks = tracker.begin_frame(detections)
+        if not tracks:
             return Frame(0, 0.0, [])
-        ids = [t.id for t in tracker.tracks]
-        candidates = self.pose_model(image_rgb, [t.roi for t in tracker.tracks], k)
-        kept = tracker.update([c.score >= self.options.min_presence for c in candidates],
-                              [c.next_roi for c in candidates])
-        return Frame(0, 0.0, [self._to_person(ids[i], candidates[i]) for i in kept])
+        candidates = self.pose_model(image_rgb, [t.roi for t in tracks], k)
+        found = [c.score >= self.options.min_presence for c in candidates]
+        if detections is not None and self._to_detector is not None:
+            checked = [self._own_pose(image_rgb, k, t, c, detections) for t, c in zip(tracks, candidates)]
+            candidates, found = [c for c, _ in checked], [ok for _, ok in checked]
+        idx = self._to_detector
+        kept = tracker.end_frame(
+            tracks, found,
+            [c.keypoints_2d[idx] if c is not None and idx is not None else None for c in candidates],
+            [c.confidence[idx] if c is not None and idx is not None else None for c in candidates],
+            [c.next_roi if c is not None else t.roi for t, c in zip(tracks, candidates)])
+        return Frame(0, 0.0, [self._to_person(tracks[i].id, candidates[i]) for i in kept],
+                     dropped=[float(c.score) for c, ok in zip(candidates, found) if c is not None and not ok])
+
+    def _own_pose(self, image_rgb: np.ndarray, k: Intrinsics, track: Track, c: PoseCandidate,
+                  detections: list[Detection]) -> tuple[PoseCandidate | None, bool]:
+        """The pose of the track's own person, and whether to keep it. A pose the pose model
+        doubts (presence below min_presence) or with 3 or more joints on a neighbour is redone
+        from an upright crop of the person's box; joints that still fall on a neighbour lose
+        their confidence, and the pose is refused (None) when most of its joints do. A doubted
+        pose is kept when it agrees with the detector's keypoints of the person (OKS >= 0.5)."""
+        own = track.detection
+        others = [d for d in detections if d is not own and _overlap(d.box, own.box)]
+        idx = self._to_detector
+        foreign = foreign_joints(c.keypoints_2d[idx], c.confidence[idx], own, others)
+        if foreign.sum() >= 3 or c.score < self.options.min_presence:
+            redo = self.pose_model(image_rgb, [Roi.around_points(own.box.reshape(2, 2))], k)[0]
+            again = foreign_joints(redo.keypoints_2d[idx], redo.confidence[idx], own, others)
+            if (redo.score >= self.options.min_presence, -again.sum()) > (c.score >= self.options.min_presence, -foreign.sum()):
+                c, foreign = redo, again
+        if foreign.sum() > (c.confidence[idx] >= 0.5).sum() / 2:
+            return None, False
+        if foreign.any():
+            conf = c.confidence.copy()
+            conf[idx[foreign]] = 0.0
+            c = replace(c, confidence=conf)
+        area = float(np.prod(own.box[2:] - own.box[:2]))
+        agrees = oks(c.keypoints_2d[idx], c.confidence[idx], own.keypoints, own.keypoint_scores, area) >= 0.5
+        return c, c.score >= self.options.min_presence or agrees
 
     def _tracker(self) -> Tracker:
-        return Tracker(self.options.max_people, self.options.redetect_every)
+        o, high = self.options, self.min_detection_score
+        return Tracker(TrackerOptions(o.max_people, o.redetect_every, high_score=high, low_score=high / 3))
 
     def _intrinsics(self, image_rgb: np.ndarray, k: Intrinsics | None) -> Intrinsics:
-        h, w = image_rgb.shape[:2]
-        return k or resolve_intrinsics(self.options.intrinsics, w, h)
+        h, w = image_rgb.shape[:2]   # given intrinsics are checked as the CLI checks them
+        return k.check_image(w, h) if k else resolve_intrinsics(self.options.intrinsics, w, h)
 
     def predict_image(self, image_rgb: np.ndarray, intrinsics: Intrinsics | None = None) -> Frame:
         """Poses of every person in one RGB uint8 image; nothing is kept between calls."""
@@ -112,7 +159,7 @@ class PoseEstimator:
         in this generator: each call starts a new video."""
         tracker, k = self._tracker(), intrinsics
         for index, rgb in enumerate(frames_rgb):
-            k = k or self._intrinsics(rgb, None)
+            k = self._intrinsics(rgb, k)
             frame = self._step(rgb, k, tracker)
             frame.index = index
             yield frame
@@ -132,6 +179,10 @@ class PoseEstimator:
             if on_frame:
                 on_frame(frame, rgb, media)
         return rec
+
+
+def _overlap(a: np.ndarray, b: np.ndarray) -> bool:
+    return bool((np.minimum(a[2:], b[2:]) > np.maximum(a[:2], b[:2])).all())
 
 
 def _check_image(image_rgb: np.ndarray) -> None:

@@ -1,61 +1,234 @@
-"""People followed over the frames of a video: each track keeps an id and where to look next.
+"""People followed over the frames of a video: ByteTrack-style multi-object tracking.
 
-The detector runs when no one is tracked and every `redetect_every` frames; in between, each
-track's next crop comes from its pose of the previous frame (the pose model's next ROI).
+Each track keeps an id, a constant-velocity Kalman filter on its box (centre, size), its last
+keypoints and the ROI where the pose model looks next. On a detector frame the tracks are
+matched to the detections in two stages (ByteTrack): first the confident detections, then the
+weak ones against the tracks left over, each by the Hungarian method on a cost that mixes box
+overlap (IoU) and keypoint similarity (OKS). Hysteresis: only a confident detection starts a
+track, a weak one keeps it alive, and an unmatched track survives `max_lost` frames before it is
+dropped, so ids outlast crossings and short occlusions. Between detector frames each track's ROI
+comes from its previous pose.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.optimize import linear_sum_assignment
 
+from posecam.inference.detector import Detection
 from posecam.inference.roi import Roi
+
+# COCO keypoint sigmas (OKS), used when there are 17 keypoints; 0.07 for each otherwise.
+COCO_SIGMAS = np.array([.026, .025, .025, .035, .035, .079, .079, .072, .072, .062, .062,
+                        .107, .107, .087, .087, .089, .089])
+MIN_KEYPOINT_SCORE = 0.3
+
+
+def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(N, 4) x (M, 4) boxes (x0, y0, x1, y1) -> (N, M) intersection over union."""
+    lo = np.maximum(a[:, None, :2], b[None, :, :2])
+    hi = np.minimum(a[:, None, 2:], b[None, :, 2:])
+    inter = np.prod(np.clip(hi - lo, 0, None), axis=-1)
+    area = lambda x: np.prod(np.clip(x[:, 2:] - x[:, :2], 0, None), axis=-1)  # noqa: E731
+    return inter / np.maximum(area(a)[:, None] + area(b)[None, :] - inter, 1e-9)
+
+
+def oks(points_a: np.ndarray, conf_a: np.ndarray, points_b: np.ndarray, conf_b: np.ndarray,
+        area: float) -> float:
+    """Object keypoint similarity of two (K, 2) keypoint sets over the joints both see (0 if none)."""
+    both = (conf_a >= MIN_KEYPOINT_SCORE) & (conf_b >= MIN_KEYPOINT_SCORE)
+    if not both.any():
+        return 0.0
+    k = 2 * (COCO_SIGMAS if len(points_a) == len(COCO_SIGMAS) else np.full(len(points_a), 0.07))
+    d2 = np.sum((points_a - points_b) ** 2, axis=-1)
+    return float(np.mean(np.exp(-d2[both] / (2 * max(area, 1.0) * k[both] ** 2))))
+
+
+def foreign_joints(points: np.ndarray, conf: np.ndarray, own: Detection, others: list[Detection]) -> np.ndarray:
+    """(K,) mask of a pose's joints (detector joint order) that lie on a neighbour: nearer to a
+    neighbour's keypoint than to the own detection's, within 15 % of the own box's diagonal of
+    the neighbour's and off the own one by more than 10 %."""
+    if not others or not len(own.keypoints):
+        return np.zeros(len(points), bool)
+    scale = float(np.hypot(*(own.box[2:] - own.box[:2])))
+    d_own = np.linalg.norm(points - own.keypoints, axis=-1)
+    d_own[own.keypoint_scores < MIN_KEYPOINT_SCORE] = np.inf
+    d_other = np.full(len(points), np.inf)
+    for o in others:
+        d = np.linalg.norm(points - o.keypoints, axis=-1)
+        d_other = np.minimum(d_other, np.where(o.keypoint_scores >= MIN_KEYPOINT_SCORE, d, np.inf))
+    return (conf >= MIN_KEYPOINT_SCORE) & (d_other < d_own) & (d_own > 0.1 * scale) & (d_other < 0.15 * scale)
+
+
+class BoxKalman:
+    """Constant-velocity Kalman filter on (cx, cy, w, h), noise relative to the box height (as ByteTrack)."""
+
+    POS, VEL = 1 / 20, 1 / 160
+
+    def __init__(self, box: np.ndarray):
+        self.x = np.concatenate([_xywh(box), np.zeros(4)])
+        h = self.x[3]
+        self.p = np.diag(np.square([2 * self.POS * h] * 4 + [10 * self.VEL * h] * 4))
+        self.f = np.eye(8)
+        self.f[:4, 4:] = np.eye(4)
+
+    def predict(self) -> None:
+        h = self.x[3]
+        q = np.diag(np.square([self.POS * h] * 4 + [self.VEL * h] * 4))
+        self.x = self.f @ self.x
+        self.p = self.f @ self.p @ self.f.T + q
+
+    def update(self, box: np.ndarray) -> None:
+        r = np.diag(np.square([self.POS * self.x[3]] * 4))
+        s = self.p[:4, :4] + r
+        gain = np.linalg.solve(s, self.p[:4, :]).T
+        self.x = self.x + gain @ (_xywh(box) - self.x[:4])
+        self.p = self.p - gain @ self.p[:4, :]
+
+    @property
+    def box(self) -> np.ndarray:
+        cx, cy, w, h = self.x[:4]
+        return np.array([cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2])
+
+
+def _xywh(box: np.ndarray) -> np.ndarray:
+    return np.array([(box[0] + box[2]) / 2, (box[1] + box[3]) / 2, box[2] - box[0], box[3] - box[1]], float)
 
 
 @dataclass
 class Track:
     id: int
-    roi: Roi
+    roi: Roi                                   # where the pose model looks in this frame
+    kalman: BoxKalman
+    keypoints: np.ndarray                      # (K, 2) last keypoints, detector joint order
+    keypoint_scores: np.ndarray                # (K,)
+    hits: int = 1
+    lost: int = 0                              # frames since last seen
+    detection: Detection | None = field(default=None, repr=False)   # this frame's, if any
+
+    @property
+    def box(self) -> np.ndarray:
+        return self.kalman.box
 
 
-def same_person(a: Roi, b: Roi) -> bool:
-    """Two ROIs whose centres are closer than a quarter of the larger one's side."""
-    return bool(np.hypot(a.cx - b.cx, a.cy - b.cy) < 0.25 * max(a.size, b.size))
+@dataclass
+class TrackerOptions:
+    max_people: int = 6
+    redetect_every: int = 1         # frames between detector runs (1: every frame)
+    high_score: float = 0.3         # a detection this confident may start a track ...
+    low_score: float = 0.1          # ... one this confident only keeps a track alive
+    max_lost: int = 30              # frames a track survives unseen
+    match_cost: float = 0.8         # 1 - similarity above which no match (first stage)
+    low_match_cost: float = 0.5     # ... second stage (weak detections)
 
 
 class Tracker:
-    """Ids and ROIs of the people followed in one video."""
+    """Ids, motion and ROIs of the people followed in one video."""
 
-    def __init__(self, max_people: int, redetect_every: int):
-        self.max_people = max_people
-        self.redetect_every = redetect_every
+    def __init__(self, options: TrackerOptions | None = None):
+        self.options = options or TrackerOptions()
         self.tracks: list[Track] = []
         self._next_id = 0
         self._since_detection = 0
+        self._dropped = False
 
     def needs_detection(self) -> bool:
-        return not self.tracks or self._since_detection >= self.redetect_every
+        """Detect on the first frame, every `redetect_every` frames, as soon as a track was lost
+        off a detector frame, and on every frame where two people's boxes overlap (there a crop
+        placed from the last pose may slide onto the neighbour)."""
+        active = self.active()
+        if not active or self._since_detection >= self.options.redetect_every or self._dropped:
+            return True
+        boxes = np.array([t.box for t in active])
+        iou = box_iou(boxes, boxes)
+        return bool((iou[np.triu_indices(len(active), 1)] > 0).any())
 
-    def add_detections(self, rois: list[Roi]) -> None:
-        """Start a track for each detection that is not already followed."""
-        for roi in rois:
-            if len(self.tracks) < self.max_people and not any(same_person(roi, t.roi) for t in self.tracks):
-                self.tracks.append(Track(self._next_id, roi))
-                self._next_id += 1
-        self._since_detection = 0
+    def active(self) -> list[Track]:
+        return [t for t in self.tracks if t.lost == 0]
 
-    def update(self, found: list[bool], next_rois: list[Roi]) -> list[int]:
-        """After the pose model ran on every track's ROI: drop the lost tracks (not `found`) and
-        duplicates of a track already kept, move the others to their next ROI. Returns the
-        indices (into the tracks as they were) of the kept ones."""
-        kept, indices = [], []
-        for i, (t, ok, roi) in enumerate(zip(self.tracks, found, next_rois)):
-            if not ok or any(same_person(roi, k.roi) for k in kept):
+    def begin_frame(self, detections: list[Detection] | None) -> list[Track]:
+        """Move every track on and, on a detector frame, match the detections; returns the
+        tracks the pose model must run on now (each with its ROI, and its detection if any)."""
+        for t in self.tracks:
+            t.kalman.predict()
+            t.detection = None
+        if detections is None:
+            for t in self.tracks:
+                t.lost += t.lost > 0
+            self.tracks = [t for t in self.tracks if t.lost <= self.options.max_lost]
+            self._since_detection += 1
+            return self.active()
+        self._since_detection, self._dropped = 1, False
+        o = self.options
+        high = [d for d in detections if d.score >= o.high_score]
+        low = [d for d in detections if o.low_score <= d.score < o.high_score]
+        pool = list(self.tracks)
+        left = self._match(pool, high, o.match_cost)
+        pool = [t for t in pool if t.detection is None]
+        self._match(pool, low, o.low_match_cost)
+        for t in self.tracks:
+            if t.detection is None:
+                t.lost += 1
+        self.tracks = [t for t in self.tracks if t.lost <= o.max_lost]
+        for d in left:   # births, most confident first, while there is room
+            if len(self.active()) >= o.max_people:
+                break
+            self.tracks.append(Track(self._next_id, d.roi, BoxKalman(d.box), d.keypoints, d.keypoint_scores, detection=d))
+            self._next_id += 1
+        return [t for t in self.tracks if t.detection is not None]
+
+    def _match(self, tracks: list[Track], detections: list[Detection], max_cost: float) -> list[Detection]:
+        """Hungarian matching on 1 - max(IoU, OKS); matched tracks take their detection. Returns
+        the detections left unmatched."""
+        if not tracks or not detections:
+            return list(detections)
+        boxes = np.array([d.box for d in detections])
+        sim = box_iou(np.array([t.box for t in tracks]), boxes)
+        for i, t in enumerate(tracks):
+            area = float(np.prod(np.clip(t.box[2:] - t.box[:2], 1, None)))
+            for j, d in enumerate(detections):
+                if len(d.keypoints) == len(t.keypoints) and sim[i, j] > 0:
+                    sim[i, j] = max(sim[i, j], oks(t.keypoints, t.keypoint_scores, d.keypoints, d.keypoint_scores, area))
+        rows, cols = linear_sum_assignment(1.0 - sim)
+        used = set()
+        for i, j in zip(rows, cols):
+            if 1.0 - sim[i, j] <= max_cost:
+                t, d = tracks[i], detections[j]
+                t.detection, t.roi, t.lost = d, d.roi, 0
+                t.hits += 1
+                t.kalman.update(d.box)
+                t.keypoints, t.keypoint_scores = d.keypoints, d.keypoint_scores
+                used.add(j)
+        return [d for j, d in enumerate(detections) if j not in used]
+
+    def end_frame(self, tracks: list[Track], found: list[bool], keypoints: list[np.ndarray | None],
+                  keypoint_scores: list[np.ndarray | None], next_rois: list[Roi]) -> list[int]:
+        """After the pose model ran on `tracks`: the found ones move to their next ROI (and, off
+        detector frames, their pose updates the motion model); the others count as lost.
+        A track whose pose duplicates an older track's is lost too. Returns the indices (into
+        `tracks`) of the people to report."""
+        kept: list[int] = []
+        order = sorted(range(len(tracks)), key=lambda i: -tracks[i].hits)
+        for i in order:
+            t = tracks[i]
+            kp, sc = keypoints[i], keypoint_scores[i]
+            if not found[i] or (kp is not None and any(self._same_pose(kp, sc, tracks[j]) for j in kept)):
+                t.lost = max(t.lost, 1)
+                self._dropped = True
                 continue
-            t.roi = roi
-            kept.append(t)
-            indices.append(i)
-        self.tracks = kept
-        self._since_detection += 1
-        return indices
+            if t.detection is None and kp is not None:
+                seen = kp[sc >= MIN_KEYPOINT_SCORE]
+                if len(seen) >= 2:
+                    lo, hi = seen.min(axis=0), seen.max(axis=0)
+                    t.kalman.update(np.concatenate([lo, hi]))
+                t.keypoints, t.keypoint_scores = kp, sc
+            t.roi = next_rois[i]
+            kept.append(i)
+        return sorted(kept)
+
+    @staticmethod
+    def _same_pose(kp: np.ndarray, sc: np.ndarray, other: Track) -> bool:
+        area = float(np.prod(np.clip(other.box[2:] - other.box[:2], 1, None)))
+        return len(kp) == len(other.keypoints) and oks(kp, sc, other.keypoints, other.keypoint_scores, area) > 0.7

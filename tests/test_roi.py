@@ -1,6 +1,6 @@
 import numpy as np
 
-from posecam.inference.roi import Roi
+from posecam.inference.roi import Roi, body_roi
 
 
 def test_crop_and_map_back_with_rotation():
@@ -23,3 +23,46 @@ def test_alignment_points_make_the_body_upright():
     # the scale point maps to the top centre of the crop
     top = lying.crop_matrix(256) @ np.array([200.0, 200.0, 1.0])
     assert np.allclose(top, [128, 128 - 256 / 2.5])
+
+
+def _standing(cx=300.0, hip_y=400.0, height=400.0):
+    """17 COCO keypoints of an upright person: head at the top, feet at the bottom."""
+    ys = {"nose": -0.45, "eye": -0.47, "ear": -0.46, "shoulder": -0.3, "elbow": -0.15, "wrist": 0.0,
+          "hip": 0.0, "knee": 0.25, "ankle": 0.48}
+    names = ["nose"] + [f"{s}_{p}" for p in ("eye", "ear", "shoulder", "elbow", "wrist", "hip", "knee", "ankle")
+                        for s in ("left", "right")]
+    pts = []
+    for n in names:
+        part = n.split("_")[-1]
+        dx = 0.0 if part == "nose" else (-0.1 if n.startswith("left") else 0.1) * height
+        pts.append([cx + dx, hip_y + ys[part] * height])
+    return np.array(pts)
+
+
+HIPS, SHOULDERS = (11, 12), (5, 6)
+
+
+def test_body_roi_from_keypoints_is_centred_on_the_hips_and_holds_the_body():
+    pts = _standing()
+    box = np.concatenate([pts.min(axis=0), pts.max(axis=0)])
+    roi = body_roi(pts, np.ones(17), box, HIPS, SHOULDERS)
+    assert np.allclose([roi.cx, roi.cy], [300, 400]) and abs(roi.angle) < 1e-9
+    corners = roi.box
+    assert (corners[:2] <= pts.min(axis=0)).all() and (corners[2:] >= pts.max(axis=0)).all()
+    assert roi.size < 2.5 * 400                      # not much larger than the body
+
+
+def test_body_roi_turns_with_the_torso():
+    pts = _standing()
+    lying = np.column_stack([400 + (pts[:, 1] - 400) * -1, 300 + (pts[:, 0] - 300)])  # head to the right
+    box = np.concatenate([lying.min(axis=0), lying.max(axis=0)])
+    roi = body_roi(lying, np.ones(17), box, HIPS, SHOULDERS)
+    assert np.isclose(roi.angle, np.pi / 2)
+
+
+def test_body_roi_falls_back_to_the_box_without_hips():
+    pts = _standing()
+    conf = np.ones(17)
+    conf[list(HIPS)] = 0.0
+    roi = body_roi(pts, conf, np.array([100.0, 200.0, 200.0, 600.0]), HIPS, SHOULDERS)
+    assert (roi.cx, roi.cy, roi.angle) == (150.0, 400.0, 0.0) and roi.size == 400 * 1.25

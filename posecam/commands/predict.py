@@ -9,6 +9,7 @@ import click
 
 from posecam.commands.common import intrinsics_options, predict_with_progress, progress_bar, warn
 from posecam.errors import InputError
+from posecam.inference.contract import DETECTORS
 
 
 def print_summary(recordings) -> None:
@@ -42,10 +43,13 @@ def print_summary(recordings) -> None:
 @click.option("--model", default="full", show_default=True, help="lite, full, heavy or a posecam .onnx file.")
 @click.option("--skeleton", type=click.Choice(["17", "33"]), default="17", show_default=True,
               help="17 Human3.6M-style joints (pelvis root) or all 33 BlazePose landmarks.")
-@click.option("--max-people", type=click.IntRange(1), default=4, show_default=True)
+@click.option("--detector", type=click.Choice(list(DETECTORS)), default="movenet", show_default=True,
+              help="Person detector: movenet (MoveNet MultiPose: whole bodies, up to 6 per run) or blazepose "
+                   "(BlazePose's: heads of near, frontal people).")
+@click.option("--max-people", type=click.IntRange(1), default=6, show_default=True)
 @click.option("--threads", type=click.IntRange(1), help="CPU threads for onnxruntime.")
 @intrinsics_options
-def predict_command(inputs, output, viz, model, skeleton, max_people, threads,
+def predict_command(inputs, output, viz, model, skeleton, detector, max_people, threads,
                     fx, fy, cx, cy, intrinsics_file, camera) -> None:
     """3D poses in camera coordinates (mm) for every person in INPUTS (images, videos, folders)."""
     from posecam.estimate import EstimatorOptions, PoseEstimator
@@ -59,7 +63,7 @@ def predict_command(inputs, output, viz, model, skeleton, max_people, threads,
         raise InputError("--viz draws one input; pass a single input with --viz")
     if output and Path(output).suffix.lower() not in (".json", ".csv"):
         raise InputError(f"output must end in .json or .csv, got {output}")
-    opts = EstimatorOptions(model=model, skeleton=skeleton, max_people=max_people, threads=threads,
+    opts = EstimatorOptions(model=model, detector=detector, skeleton=skeleton, max_people=max_people, threads=threads,
                             intrinsics=IntrinsicsOptions(fx, fy, cx, cy, intrinsics_file, camera))
     first = None
     for path in inputs:  # fail on a bad input before spending time on the good ones

@@ -8,10 +8,17 @@ Every model is recognised from its `metadata_props`, never from its file name. K
 - ``posecam.name``      a short model name, e.g. "blazepose-full"
 - ``posecam.joints``    JSON list of the joint names the model outputs, in output order
 - ``posecam.input``     JSON {"name", "layout": "NHWC"|"NCHW", "size": [h, w],
-                         "mean": [3], "std": [3]}: pixel = (rgb / 255 - mean) / std
+                         "mean": [3], "std": [3]}: pixel = (rgb / 255 - mean) / std;
+                         optional "multiple": k when the graph takes any H, W that are multiples
+                         of k ("size" is then the default, its larger side the long side)
+- ``posecam.decoder``   detectors only: "blazepose_ssd" (the default when absent) or
+                         "movenet_multipose"
 - ``posecam.outputs``   JSON {role: output name}; roles per kind:
-    detector:   "boxes" [1, A, 12], "scores" [1, A, 1]; plus ``posecam.anchors`` JSON
-                {"strides", "anchors_per_cell", "scale"}
+    detector, blazepose_ssd:     "boxes" [1, A, 12], "scores" [1, A, 1]; plus ``posecam.anchors``
+                                 JSON {"strides", "anchors_per_cell", "scale"}
+    detector, movenet_multipose: "people" [1, P, 3 * K + 5]: per candidate K x (y, x, score) then
+                                 ymin, xmin, ymax, xmax, score, all normalised to the input;
+                                 ``posecam.joints`` names the K keypoints
     landmarks:  "landmarks" [N, L*5], "presence" [N, 1], "world" [N, L*3]
     root_depth: "uv" [N, J, 2] crop pixels, "depth" [N, J] mm relative to the root,
                 "z_root" [N, 1] mm, "confidence" [N, J] in [0, 1]; a second input
@@ -29,9 +36,18 @@ from dataclasses import dataclass, field
 from posecam.errors import ModelError
 
 CONTRACT_VERSION = "1"
+# The bundled detectors by --detector name (light to import, for the CLI); how each is decoded
+# comes from its file's metadata.
+DETECTORS = {
+    "movenet": "movenet_multipose.onnx",
+    "blazepose": "blazepose_detector.onnx",
+}
 KINDS = ("detector", "landmarks", "root_depth")
+DECODERS = {  # detector decoders and the outputs each needs
+    "blazepose_ssd": ("boxes", "scores"),
+    "movenet_multipose": ("people",),
+}
 REQUIRED_OUTPUTS = {
-    "detector": ("boxes", "scores"),
     "landmarks": ("landmarks", "presence", "world"),
     "root_depth": ("uv", "depth", "z_root", "confidence"),
 }
@@ -44,6 +60,7 @@ class InputSpec:
     size: tuple[int, int]
     mean: tuple[float, float, float] = (0.0, 0.0, 0.0)
     std: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    multiple: int = 0    # > 0: any H, W that are multiples of it (size is the default)
 
 
 @dataclass(frozen=True)
@@ -57,6 +74,7 @@ class ModelContract:
     box_input: str | None = None
     train_focal: float | None = None
     train_image_width: float | None = None
+    decoder: str = ""
 
     def to_metadata(self) -> dict[str, str]:
         """The metadata_props that describe this model."""
@@ -67,10 +85,13 @@ class ModelContract:
             "posecam.joints": json.dumps(list(self.joints)),
             "posecam.input": json.dumps(
                 {"name": self.input.name, "layout": self.input.layout, "size": list(self.input.size),
-                 "mean": list(self.input.mean), "std": list(self.input.std)}
+                 "mean": list(self.input.mean), "std": list(self.input.std),
+                 **({"multiple": self.input.multiple} if self.input.multiple else {})}
             ),
             "posecam.outputs": json.dumps(self.outputs),
         }
+        if self.decoder:
+            meta["posecam.decoder"] = self.decoder
         if self.anchors:
             meta["posecam.anchors"] = json.dumps(self.anchors)
         if self.box_input:
@@ -93,21 +114,25 @@ class ModelContract:
             outputs = json.loads(meta["posecam.outputs"])
             joints = tuple(json.loads(meta.get("posecam.joints", "[]")))
             spec = InputSpec(inp["name"], inp["layout"], tuple(inp["size"]),
-                             tuple(inp.get("mean", (0, 0, 0))), tuple(inp.get("std", (1, 1, 1))))
+                             tuple(inp.get("mean", (0, 0, 0))), tuple(inp.get("std", (1, 1, 1))),
+                             int(inp.get("multiple", 0)))
             anchors = json.loads(meta.get("posecam.anchors", "{}"))
             train_focal = float(meta["posecam.train_focal"]) if "posecam.train_focal" in meta else None
             train_width = float(meta["posecam.train_image_width"]) if "posecam.train_image_width" in meta else None
         except (KeyError, ValueError, TypeError) as exc:
             raise ModelError(f"{source}: malformed posecam metadata ({exc})") from None
-        missing = [r for r in REQUIRED_OUTPUTS[kind] if r not in outputs]
+        decoder = meta.get("posecam.decoder", "blazepose_ssd" if kind == "detector" else "")
+        if kind == "detector" and decoder not in DECODERS:
+            raise ModelError(f"{source}: unknown detector decoder {decoder!r}; expected one of {', '.join(DECODERS)}")
+        missing = [r for r in (DECODERS[decoder] if kind == "detector" else REQUIRED_OUTPUTS[kind]) if r not in outputs]
         if missing:
             raise ModelError(f"{source}: {kind} model lacks outputs for {', '.join(missing)}")
         if spec.layout not in ("NHWC", "NCHW"):
             raise ModelError(f"{source}: input layout must be NHWC or NCHW, got {spec.layout!r}")
-        if kind != "detector" and not joints:
+        if (kind != "detector" or decoder == "movenet_multipose") and not joints:
             raise ModelError(f"{source}: {kind} model does not list its joints")
         if kind == "root_depth" and (train_focal is None or train_width is None or "posecam.box_input" not in meta):
             raise ModelError(f"{source}: root_depth model needs posecam.train_focal, "
                              "posecam.train_image_width and posecam.box_input")
         return cls(kind, meta.get("posecam.name", source), spec, outputs, joints, anchors,
-                   meta.get("posecam.box_input"), train_focal, train_width)
+                   meta.get("posecam.box_input"), train_focal, train_width, decoder)

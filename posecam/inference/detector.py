@@ -1,30 +1,37 @@
-"""Person detector: BlazePose's SSD detector, decoded into body ROIs.
+"""Person detectors, decoded into boxes, keypoints and the body ROIs the pose model needs.
 
-The detector sees a letterboxed square of the whole image. Each anchor regresses a box
-(about the head) and 4 keypoints: hip centre, full-body scale point, shoulder centre,
-upper-body scale point. The body ROI comes from the first two.
+The decoder comes from the model's contract metadata (``posecam.decoder``), never its file name:
+
+- ``movenet_multipose`` (Google's MoveNet MultiPose, the default): the whole image, resized so
+  that its long side is the input size and padded to multiples of 32, gives up to 6 people,
+  each a box and the 17 COCO keypoints with scores. The ROI is aligned on the hips and shoulders.
+- ``blazepose_ssd`` (BlazePose's detector): a letterboxed square; each anchor regresses a box
+  (about the head) and 4 keypoints: hip centre, full-body scale point, shoulder centre,
+  upper-body scale point. The body ROI comes from the first two. Made for one near person.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import cv2
 import numpy as np
 
-from posecam.inference.roi import Roi
-from posecam.inference.session import Model, to_input_tensor
+from posecam.errors import ModelError
+from posecam.inference.contract import DETECTORS
+from posecam.inference.roi import Roi, body_roi
+from posecam.inference.session import MODELS_DIR, Model, load_model, to_input_tensor
 
 
-@dataclass
+
+@dataclass(eq=False)
 class Detection:
     score: float
-    box: np.ndarray          # (4,) x0, y0, x1, y1 in image pixels
-    keypoints: np.ndarray    # (4, 2) image pixels
-
-    @property
-    def roi(self) -> Roi:
-        return Roi.from_alignment_points(self.keypoints[0], self.keypoints[1])
+    box: np.ndarray                # (4,) x0, y0, x1, y1 in image pixels
+    keypoints: np.ndarray          # (K, 2) image pixels, in the detector's `joints` order
+    keypoint_scores: np.ndarray    # (K,) [0, 1]
+    roi: Roi                       # the pose model's crop for this person
 
 
 def ssd_anchors(size: int, strides: list[int], per_cell: list[int]) -> np.ndarray:
@@ -69,8 +76,11 @@ def weighted_nms(scores: np.ndarray, boxes: np.ndarray, points: np.ndarray, iou:
     return kept
 
 
-class PersonDetector:
-    """Finds people and returns them with the body ROI the pose model needs."""
+class BlazePoseDetector:
+    """BlazePose's SSD detector: heads of near people, with the body ROI from 2 keypoints."""
+
+    joints: tuple[str, ...] = ()   # its 4 keypoints are ROI helpers, not body joints
+    default_score = 0.5
 
     def __init__(self, model: Model, min_score: float = 0.5, nms_iou: float = 0.3):
         self.model = model
@@ -95,6 +105,8 @@ class PersonDetector:
     def __call__(self, image_rgb: np.ndarray, max_people: int | None = None) -> list[Detection]:
         crop, scale, pad = self.letterbox(image_rgb)
         out = self.model.run({self.model.contract.input.name: to_input_tensor(crop[None], self.model.contract.input)})
+        a = len(self.anchors)
+        self.model.check_shapes(out, {"boxes": (1, a, 12), "scores": (1, a, 1)})
         raw = out["boxes"][0].astype(np.float64)
         logits = np.clip(out["scores"][0, :, 0].astype(np.float64), -100, 100)
         scores = 1.0 / (1.0 + np.exp(-logits))
@@ -108,8 +120,86 @@ class PersonDetector:
         points = raw[:, 4:12].reshape(-1, 4, 2) / self.scale + anchors[:, None, :]
         kept = weighted_nms(scores, boxes, points, self.nms_iou)[:max_people]
         unit_to_px = self.size * scale  # letterbox unit square -> image pixels, less the padding
-        return [
-            Detection(float(scores[i]), (boxes[i].reshape(2, 2) * unit_to_px - pad).ravel(),
-                      points[i] * unit_to_px - pad)
-            for i in kept
-        ]
+        result = []
+        for i in kept:
+            kp = points[i] * unit_to_px - pad
+            result.append(Detection(float(scores[i]), (boxes[i].reshape(2, 2) * unit_to_px - pad).ravel(),
+                                    kp, np.ones(len(kp)), Roi.from_alignment_points(kp[0], kp[1])))
+        return result
+
+
+class MoveNetDetector:
+    """MoveNet MultiPose: up to 6 people per run, each a box and 17 scored COCO keypoints.
+
+    `input_size` is the long side the image is resized to (the contract's default when None);
+    larger finds smaller people, at a cost that grows with its square.
+    """
+
+    default_score = 0.25   # people seen from behind or half hidden score 0.3 to 0.5
+
+    def __init__(self, model: Model, min_score: float = 0.2, input_size: int | None = None):
+        self.model = model
+        self.min_score = min_score
+        spec = model.contract.input
+        self.multiple = spec.multiple or 32
+        self.input_size = int(input_size or max(spec.size))
+        self.joints = model.contract.joints
+        names = {n: i for i, n in enumerate(self.joints)}
+        try:
+            self._hips = (names["left_hip"], names["right_hip"])
+            self._shoulders = (names["left_shoulder"], names["right_shoulder"])
+        except KeyError as exc:
+            raise ModelError(f"{model.path}: a movenet_multipose detector must name the joint {exc}") from None
+
+    def prepare(self, image_rgb: np.ndarray) -> tuple[np.ndarray, float]:
+        """Resize (long side = input size) and pad right/bottom to multiples; returns the input
+        image and the factor from input pixels to image pixels."""
+        h, w = image_rgb.shape[:2]
+        s = self.input_size / max(h, w)
+        nw, nh = max(1, round(w * s)), max(1, round(h * s))
+        small = cv2.resize(image_rgb, (nw, nh), interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR)
+        m = self.multiple
+        canvas = np.zeros((-(-nh // m) * m, -(-nw // m) * m, 3), np.uint8)
+        canvas[:nh, :nw] = small
+        return canvas, 1.0 / s
+
+    def __call__(self, image_rgb: np.ndarray, max_people: int | None = None) -> list[Detection]:
+        canvas, to_image = self.prepare(image_rgb)
+        spec = self.model.contract.input
+        out = self.model.run({spec.name: to_input_tensor(canvas[None], spec)})["people"][0].astype(np.float64)
+        in_h, in_w = canvas.shape[:2]
+        k = len(self.joints)
+        order = np.argsort(-out[:, 3 * k + 4])
+        result = []
+        for row in out[order]:
+            score = float(row[3 * k + 4])
+            if not np.isfinite(score) or score < self.min_score:
+                break
+            kp = row[:3 * k].reshape(k, 3)
+            points = kp[:, [1, 0]] * [in_w, in_h] * to_image
+            box = row[3 * k:3 * k + 4][[1, 0, 3, 2]] * [in_w, in_h, in_w, in_h] * to_image
+            conf = np.clip(kp[:, 2], 0.0, 1.0)
+            result.append(Detection(score, box, points, conf,
+                                    body_roi(points, conf, box, self._hips, self._shoulders)))
+        return result[:max_people]
+
+
+Detector = BlazePoseDetector | MoveNetDetector
+PersonDetector = BlazePoseDetector   # its earlier name (golden tests, export/crops.py)
+
+
+def load_detector(name_or_path: str, threads: int | None = None, min_score: float | None = None,
+                  input_size: int | None = None) -> Detector:
+    """A bundled detector by name (see DETECTORS) or a detector .onnx file, decoded as its
+    metadata says. `min_score` is the score that starts a track (None: the detector's
+    `default_score`); MoveNet's detections down to a third of it are kept too (they keep
+    tracks alive), BlazePose's from it."""
+    path = str(MODELS_DIR / DETECTORS[name_or_path]) if name_or_path in DETECTORS else name_or_path
+    if name_or_path in DETECTORS and not Path(path).is_file():
+        raise ModelError(f"detector '{name_or_path}' is not built in this install ({path}); "
+                         "build it with: pip install '.[export]' && python -m export.convert.build_models")
+    model = load_model(path, threads, kind="detector")
+    if model.contract.decoder == "movenet_multipose":
+        score = MoveNetDetector.default_score if min_score is None else min_score
+        return MoveNetDetector(model, score / 3, input_size)
+    return BlazePoseDetector(model, BlazePoseDetector.default_score if min_score is None else min_score)

@@ -68,3 +68,31 @@ class Roi:
         corners = self.rotate_to_image(np.array([[-h, -h, 0], [h, -h, 0], [h, h, 0], [-h, h, 0]]))[:, :2]
         corners += [self.cx, self.cy]
         return np.concatenate([corners.min(axis=0), corners.max(axis=0)])
+
+
+# A body ROI from scored keypoints (MoveNet's): the same alignment as BlazePose's detector, whose
+# scale point lies on the circle about the hip centre that holds the whole body.
+REACH_MARGIN = 1.0     # circle radius over the farthest visible keypoint's distance (head top, feet)
+TORSO_REACH = 1.6      # ... and at least this many hip-to-shoulder lengths (legs hidden)
+MAX_BOX_RATIO = 1.6    # largest ROI side over the box's longer side (upright body: about 1.3)
+
+
+def body_roi(points: np.ndarray, conf: np.ndarray, box: np.ndarray, hips: tuple[int, int],
+             shoulders: tuple[int, int], min_conf: float = 0.4) -> Roi:
+    """Rotated ROI centred on the hip midpoint, upright along hips -> shoulders, sized to hold
+    every visible keypoint; an upright square about `box` (x0, y0, x1, y1) when the hips or
+    both shoulders are not visible, or when the keypoints' ROI is far larger than the box
+    (keypoints guessed outside the image)."""
+    seen = conf >= min_conf
+    hip_idx, top_idx = list(hips), [i for i in shoulders if seen[i]]
+    if seen[hip_idx].all() and top_idx:
+        centre = points[hip_idx].mean(axis=0)
+        up = points[top_idx].mean(axis=0) - centre
+        torso = float(np.hypot(*up))
+        if torso > 1e-6:
+            reach = float(np.max(np.linalg.norm(points[seen] - centre, axis=1)))
+            radius = max(REACH_MARGIN * reach, TORSO_REACH * torso)
+            roi = Roi.from_alignment_points(centre, centre + up / torso * radius)
+            if roi.size <= MAX_BOX_RATIO * float(np.max(box[2:] - box[:2])):
+                return roi
+    return Roi.around_points(np.asarray(box, np.float64).reshape(2, 2))

@@ -1,0 +1,296 @@
+"""Benchmark `posecam predict` on scenes with several people.
+
+    python bench/bench_people.py [--detector movenet|blazepose] [--redetect-every N]
+                                 [--vtest PATH [--vtest-frames N] [--overlay OUT.mp4]]
+
+1. Pose2Sim's two-person take (`Demo_MultiPerson`, 4 portrait cameras 1088x1920, 100 frames,
+   the lab's Qualisys calibration), each camera run with the lab intrinsics. The reference
+   for camera C comes from the OTHER three cameras only: MoveNet MultiPose keypoints of every
+   person in each view (at a larger input, 384 px), associated across views by triangulation
+   through the lab calibration (a set of detections, one per view, whose triangulated joints
+   reproject within a gate), then the pelvis (hip midpoint) triangulated from the other views.
+   A person is visible in C when that pelvis projects inside C's image. Per camera:
+   - recall: visible reference people matched by a posecam person (2D pelvis within 10 % of the
+     image height of the projected reference pelvis, Hungarian), over visible reference people;
+   - root error: mean 3D distance (mm, camera frame) of posecam's root to the reference pelvis;
+   - id switches: changes of the posecam id matched to the same reference person;
+   - extra: posecam people matched to nobody.
+   The videos are not frame-synchronised: the offsets (frames vs cam01) are checked here, from
+   the reprojection error of the cross-view association for each candidate offset.
+2. OpenCV's vtest.avi (768x576 pedestrians, `apt-get download opencv-doc`): people per frame,
+   and an overlay video with ids to look at.
+Frames per second are printed for each recording.
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+from scipy.optimize import linear_sum_assignment
+
+REPO = Path(__file__).resolve().parent.parent
+CAMERAS = ("cam01", "cam02", "cam03", "cam04")
+OFFSETS = {"cam01": 0, "cam02": -1, "cam03": 4, "cam04": 0}   # frames, vs cam01
+DEMO = "Pose2Sim/Demo_MultiPerson"
+REFERENCE_SIZE = 384
+GATE_PX = 40.0          # mean reprojection error (px) for detections of one person across views
+MATCH = 0.10            # posecam-to-reference 2D match gate, in image heights
+
+
+def demo_path(relative: str) -> Path:
+    from export.assets import _extract   # the cached pose2sim wheel, as for the single-person demo
+
+    return _extract("pose2sim", f"{DEMO}/{relative}")
+
+
+def read_frames(video: Path) -> list[np.ndarray]:
+    cap = cv2.VideoCapture(str(video))
+    frames = []
+    while True:
+        ok, bgr = cap.read()
+        if not ok:
+            return frames
+        frames.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+
+
+# ---------------------------------------------------------------- reference from the other views
+
+def reference_detections(frames: dict[str, list[np.ndarray]], detector: str) -> dict[str, list[list]]:
+    """Per camera, per frame: [(keypoints (17, 2), scores (17,))] from MoveNet at REFERENCE_SIZE."""
+    from posecam.inference.detector import load_detector
+
+    det = load_detector(detector, min_score=0.3, input_size=REFERENCE_SIZE)
+    return {c: [[(d.keypoints, d.keypoint_scores) for d in det(rgb)] for rgb in fs] for c, fs in frames.items()}
+
+
+def _triangulate(cams, members: list[tuple[int, np.ndarray, np.ndarray]]):
+    from posecam.geometry.triangulate import reprojection_errors, triangulate
+
+    sub = [cams[v] for v, _, _ in members]
+    uv = np.stack([kp for _, kp, _ in members])[:, None]
+    conf = np.stack([sc for _, _, sc in members])[:, None]
+    world = triangulate(sub, uv, conf, min_conf=0.3)
+    err = reprojection_errors(sub, world, uv, conf, min_conf=0.3)
+    return world[0], float(np.nanmean(err)) if np.isfinite(err).any() else np.inf
+
+
+def associate(cams, views: list[list]) -> list[list[tuple[int, int]]]:
+    """People across views: greedy disjoint sets of (view, detection) whose triangulation
+    reprojects within GATE_PX, the sets with more views first."""
+    candidates = []
+    for (va, da), (vb, db) in itertools.combinations(
+            [(v, i) for v, ds in enumerate(views) for i in range(len(ds))], 2):
+        if va == vb:
+            continue
+        members = [(va, da), (vb, db)]
+        for vc in range(len(views)):
+            if vc in (va, vb):
+                continue
+            best = min(((_triangulate(cams, [(v, *views[v][d]) for v, d in members + [(vc, dc)]])[1], dc)
+                        for dc in range(len(views[vc]))), default=(np.inf, -1))
+            if best[0] < GATE_PX:
+                members.append((vc, best[1]))
+        err = _triangulate(cams, [(v, *views[v][d]) for v, d in members])[1]
+        if err < GATE_PX:
+            candidates.append((-len(members), err, members))
+    people, used = [], set()
+    for _, _, members in sorted(candidates, key=lambda c: c[:2]):
+        if not used & set(members):
+            people.append(members)
+            used |= set(members)
+    return people
+
+
+def build_reference(cams, dets: dict[str, list[list]], n: int, start: dict[str, int]):
+    """Per frame of the common timeline: list of (reference id, pelvis world (3,), {cam: pelvis
+    triangulated from the other cameras}), ids linked over time by 3D proximity."""
+    names = [c.name for c in cams]
+    per_frame, last, next_id, errors = [], {}, 0, []
+    for f in range(n):
+        views = [dets[c][f + start[c]] for c in names]
+        people = associate(cams, views)
+        entries = []
+        for members in people:
+            full, err = _triangulate(cams, [(v, *views[v][d]) for v, d in members])
+            errors.append(err)
+            pelvis = full[11:13].mean(axis=0)
+            others = {}
+            for target in range(len(cams)):
+                rest = [(v, *views[v][d]) for v, d in members if v != target]
+                if len(rest) >= 2:
+                    w = _triangulate(cams, rest)[0]
+                    others[names[target]] = w[11:13].mean(axis=0)
+            entries.append([None, pelvis, others])
+        # link to the previous frame's people
+        prev = list(last.items())
+        if prev and entries:
+            cost = np.array([[np.linalg.norm(e[1] - p) if np.isfinite(e[1]).all() else 1e9 for _, p in prev]
+                             for e in entries])
+            for i, j in zip(*linear_sum_assignment(cost)):
+                if cost[i, j] < 500:
+                    entries[i][0] = prev[j][0]
+        for e in entries:
+            if e[0] is None:
+                e[0], next_id = next_id, next_id + 1
+            if np.isfinite(e[1]).all():
+                last[e[0]] = e[1]
+        per_frame.append(entries)
+    return per_frame, float(np.nanmedian(errors)) if errors else np.nan
+
+
+def check_offsets(cams, dets: dict[str, list[list]]) -> None:
+    """Median cross-view reprojection error of cam01 + camX for offsets around the assumed ones."""
+    print("frame offsets vs cam01 (median px of 2-view association; lower is better):")
+    for c in cams[1:]:
+        row = []
+        for off in range(OFFSETS[c.name] - 3, OFFSETS[c.name] + 4):
+            errs = []
+            for f in range(10, 90, 4):
+                if 0 <= f + off < len(dets[c.name]):
+                    views = [dets[cams[0].name][f], dets[c.name][f + off]]
+                    pair = [cams[0], c]
+                    for members in associate(pair, views):
+                        if len(members) == 2:
+                            errs.append(_triangulate(pair, [(v, *views[v][d]) for v, d in members])[1])
+            row.append(f"{off:+d}: {np.median(errs) if errs else np.nan:5.1f}")
+        print(f"  {c.name}  " + "  ".join(row))
+
+
+# ---------------------------------------------------------------- scoring posecam
+
+def score_camera(cam, rec_frames, reference, start: int, height: int) -> dict:
+    visible = matched = extra = switches = 0
+    errors, last_id = [], {}
+    for f, entries in enumerate(reference):
+        people = rec_frames[start + f].people
+        seen = []
+        for rid, _, others in entries:
+            p = others.get(cam.name)
+            if p is None or not np.isfinite(p).all():
+                continue
+            uv = cam.project(p)
+            depth = cam.to_camera(p)[2]
+            w, h = cam.size
+            if depth > 0 and 0 <= uv[0] < w and 0 <= uv[1] < h:
+                seen.append((rid, p, uv))
+        visible += len(seen)
+        used = set()
+        if seen and people:
+            cost = np.array([[np.linalg.norm(q.keypoints_2d[0] - uv) for q in people] for _, _, uv in seen])
+            for i, j in zip(*linear_sum_assignment(cost)):
+                if cost[i, j] < MATCH * height:
+                    rid, p, _ = seen[i]
+                    matched += 1
+                    used.add(j)
+                    errors.append(np.linalg.norm(people[j].root - cam.to_camera(p)))
+                    if rid in last_id and last_id[rid] != people[j].id:
+                        switches += 1
+                    last_id[rid] = people[j].id
+        extra += len(people) - len(used)
+    return {"visible": visible, "recall": matched / max(visible, 1), "root_mm": float(np.mean(errors)) if errors else np.nan,
+            "median_mm": float(np.median(errors)) if errors else np.nan, "switches": switches, "extra": extra}
+
+
+def estimator(args, k=None):
+    from posecam import EstimatorOptions, IntrinsicsOptions, PoseEstimator
+
+    intr = IntrinsicsOptions(k.fx, k.fy, k.cx, k.cy) if k else IntrinsicsOptions()
+    return PoseEstimator(EstimatorOptions(model=args.model, detector=args.detector, max_people=args.max_people,
+                                          redetect_every=args.redetect_every, detector_size=args.detector_size,
+                                          min_detection_score=args.min_detection_score, intrinsics=intr))
+
+
+def two_person(args) -> None:
+    from posecam.io.calibration import read_qualisys
+
+    videos = {c: demo_path(f"videos/{c}.mp4") for c in CAMERAS}
+    frames = {c: read_frames(v) for c, v in videos.items()}
+    sizes = {c: (fs[0].shape[1], fs[0].shape[0]) for c, fs in frames.items()}
+    cams = read_qualisys(demo_path("calibration/Calib.qca.txt"), image_widths={c: s[0] for c, s in sizes.items()})
+    cache = REPO / ".cache" / f"bench_people_reference_{REFERENCE_SIZE}.npy"
+    if cache.exists():
+        dets = np.load(cache, allow_pickle=True).item()
+    else:
+        dets = reference_detections(frames, args.reference_detector)
+        cache.parent.mkdir(exist_ok=True)
+        np.save(cache, np.array(dets, dtype=object), allow_pickle=True)
+    if args.check_offsets:
+        check_offsets(cams, dets)
+    n = min(len(f) for f in frames.values()) - max(OFFSETS.values()) + min(OFFSETS.values())
+    start = {c: OFFSETS[c] - min(OFFSETS.values()) for c in CAMERAS}
+    reference, reproj = build_reference(cams, dets, n, start)
+    counts = [len(e) for e in reference]
+    print(f"\nTwo-person take, {n} synchronised frames; reference: {np.mean(counts):.2f} people/frame found "
+          f"across views, median reprojection {reproj:.1f} px")
+    print(f"detector {args.detector}, redetect every {args.redetect_every}, model {args.model}, lab intrinsics")
+    print(f"{'camera':8s}{'visible':>8s}{'recall':>8s}{'root mm':>9s}{'median':>8s}{'id sw.':>7s}{'extra':>6s}{'fps':>6s}")
+    errors = []
+    for cam in cams:
+        est = estimator(args, cam.intrinsics)
+        t0 = time.perf_counter()
+        rec_frames = list(est.track(frames[cam.name], cam.intrinsics))
+        fps = len(rec_frames) / (time.perf_counter() - t0)
+        s = score_camera(cam, rec_frames, reference, start[cam.name], sizes[cam.name][1])
+        errors.append(s["root_mm"])
+        print(f"{cam.name:8s}{s['visible']:8d}{s['recall']:8.3f}{s['root_mm']:9.0f}{s['median_mm']:8.0f}"
+              f"{s['switches']:7d}{s['extra']:6d}{fps:6.1f}")
+    print(f"{'all':8s}{'':8s}{'':8s}{np.nanmean(errors):9.0f}")
+
+
+def vtest(args) -> None:
+    from posecam.viz.draw import draw_people
+    from posecam.viz.sinks import VideoSink
+
+    frames = read_frames(Path(args.vtest))[:args.vtest_frames]
+    est = estimator(args)
+    t0 = time.perf_counter()
+    counts = []
+    sink = VideoSink(args.overlay, 10.0, frames[0].shape[1], frames[0].shape[0]) if args.overlay else None
+    with sink if sink else _nothing():
+        for rgb, frame in zip(frames, est.track(frames)):
+            counts.append(len(frame.people))
+            if sink:
+                sink.write(draw_people(rgb, frame.people, est.joints))
+    fps = len(counts) / (time.perf_counter() - t0)
+    c = np.array(counts)
+    print(f"\nvtest.avi, {len(c)} frames, detector {args.detector}, redetect every {args.redetect_every}: people per "
+          f"frame median {np.median(c):.0f}, mean {c.mean():.2f}, max {c.max()}, frames with nobody {int((c == 0).sum())}, "
+          f"{fps:.1f} frames/s")
+
+
+class _nothing:
+    def __enter__(self):
+        return None
+
+    def __exit__(self, *exc):
+        return False
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--detector", default="movenet")
+    ap.add_argument("--reference-detector", default="movenet", help="MoveNet model for the cross-view reference")
+    ap.add_argument("--detector-size", type=int)
+    ap.add_argument("--redetect-every", type=int, default=1)
+    ap.add_argument("--min-detection-score", type=float, default=None)
+    ap.add_argument("--max-people", type=int, default=6)
+    ap.add_argument("--model", default="full")
+    ap.add_argument("--check-offsets", action="store_true")
+    ap.add_argument("--skip-take", action="store_true")
+    ap.add_argument("--vtest", help="path to vtest.avi (opencv-doc)")
+    ap.add_argument("--vtest-frames", type=int, default=795)
+    ap.add_argument("--overlay", help="write vtest's overlay video here")
+    a = ap.parse_args()
+    if not a.skip_take:
+        two_person(a)
+    if a.vtest:
+        vtest(a)
+
+
+if __name__ == "__main__":
+    main()

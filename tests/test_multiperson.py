@@ -1,0 +1,130 @@
+"""Several people: the MoveNet MultiPose detector, crops that hold one person, the tracker."""
+
+import cv2
+import numpy as np
+import pytest
+
+from conftest import DATA
+from posecam import EstimatorOptions, PoseEstimator
+from posecam.inference.detector import Detection
+from posecam.inference.roi import Roi
+from posecam.media import read_image
+from posecam.tracking import Tracker, TrackerOptions, box_iou, foreign_joints
+
+
+@pytest.fixture(scope="module")
+def people():
+    return PoseEstimator(EstimatorOptions(max_people=6))
+
+
+def _confident_box(p, min_conf=0.5):
+    uv = p.keypoints_2d[p.confidence >= min_conf]
+    return np.concatenate([uv.min(axis=0), uv.max(axis=0)])
+
+
+def _clip():
+    cap = cv2.VideoCapture(str(DATA / "two_people_cam03_30f.mp4"))
+    frames = []
+    while True:
+        ok, bgr = cap.read()
+        if not ok:
+            return frames
+        frames.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+
+
+@pytest.mark.parametrize("image, count", [("basketball2.png", 2), ("messi5.jpg", 1), ("fruits.jpg", 0)])
+def test_people_counted_in_photos(people, image, count):
+    assert len(people.predict_image(read_image(DATA / image)).people) == count
+
+
+def test_two_players_get_one_skeleton_each(people):
+    frame = people.predict_image(read_image(DATA / "basketball2.png"))
+    a, b = sorted(frame.people, key=lambda p: p.root[0])
+    box_a, box_b = _confident_box(a), _confident_box(b)
+    assert box_a[2] < box_b[0], (box_a, box_b)          # no skeleton reaches into the other player
+    assert a.root[0] < b.root[0] and abs(a.root[2] - b.root[2]) < 3000
+
+
+def test_clip_of_two_people_keeps_two_ids_and_one_person_per_skeleton(people):
+    frames = _clip()
+    detector = people.detector
+    results = list(people.track(frames))
+    counts = [len(f.people) for f in results]
+    assert sum(c == 2 for c in counts) >= 0.8 * len(frames), counts
+    ids = {p.id for f in results for p in f.people}
+    assert len(ids) == 2, ids
+    last = {}
+    for rgb, f in zip(frames, results):
+        dets = detector(rgb)
+        for p in f.people:
+            # the confident joints lie on the person's own detection, not on the neighbour's
+            own = max(dets, key=lambda d: box_iou(d.box[None], _confident_box(p)[None])[0, 0])
+            pad = 0.15 * (own.box[2:] - own.box[:2])
+            uv = p.keypoints_2d[p.confidence >= 0.5]
+            inside = ((uv >= own.box[:2] - pad) & (uv <= own.box[2:] + pad)).all(axis=1)
+            assert inside.mean() >= 0.85, (f.index, p.id, inside.mean())
+            # an id stays on its person: its confident pelvis moves little between frames
+            if p.confidence[0] < 0.5:
+                continue
+            if p.id in last:
+                assert np.linalg.norm(p.keypoints_2d[0] - last[p.id]) < 60, (f.index, p.id)
+            last[p.id] = p.keypoints_2d[0]
+
+
+def _det(box, score=0.8):
+    box = np.asarray(box, float)
+    return Detection(score, box, np.zeros((0, 2)), np.zeros(0), Roi.around_points(box.reshape(2, 2)))
+
+
+def _run(tracker, frames):
+    """Detections per frame -> {detection index: track id} per frame, the pose model's part
+    played by the detection itself."""
+    out = []
+    for dets in frames:
+        tracks = tracker.begin_frame(dets)
+        tracker.end_frame(tracks, [True] * len(tracks), [None] * len(tracks), [None] * len(tracks),
+                          [t.roi for t in tracks])
+        out.append({dets.index(t.detection): t.id for t in tracks})
+    return out
+
+
+def test_ids_survive_a_crossing():
+    # two people walk past each other (the boxes overlap for several frames)
+    frames = []
+    for f in range(30):
+        xa, xb = 100 + 10 * f, 400 - 10 * f
+        frames.append([_det([xa, 100, xa + 80, 300]), _det([xb, 110, xb + 80, 310])])
+    ids = _run(Tracker(), frames)
+    assert all(i == ids[0] for i in ids), ids
+
+
+def test_ids_survive_a_short_occlusion():
+    frames = []
+    for f in range(40):
+        x = 100 + 5 * f
+        a, b = _det([x, 100, x + 80, 300]), _det([600, 100, 680, 300])
+        frames.append([b] if 10 <= f < 20 else [a, b])      # a hidden for 10 frames
+    ids = _run(Tracker(TrackerOptions(max_lost=30)), frames)
+    first_a = ids[0][0]
+    assert ids[25][0] == first_a and ids[25][1] == ids[0][1]
+    assert len({t for i in ids for t in i.values()}) == 2
+
+
+def test_a_weak_detection_keeps_a_track_but_does_not_start_one():
+    tracker = Tracker(TrackerOptions(high_score=0.5, low_score=0.1))
+    ids = _run(tracker, [[_det([0, 0, 100, 200], 0.9)], [_det([5, 0, 105, 200], 0.2)]])
+    assert ids == [{0: 0}, {0: 0}]
+    assert _run(Tracker(TrackerOptions(high_score=0.5, low_score=0.1)), [[_det([0, 0, 100, 200], 0.2)]]) == [{}]
+
+
+def test_joints_on_a_neighbour_are_found():
+    k = 17
+    own_kp = np.column_stack([np.full(k, 100.0), np.linspace(100, 300, k)])
+    other_kp = own_kp + [60, 0]
+    own = Detection(0.9, np.array([80, 90, 120, 310.0]), own_kp, np.ones(k), Roi(100, 200, 300))
+    other = Detection(0.9, np.array([140, 90, 180, 310.0]), other_kp, np.ones(k), Roi(160, 200, 300))
+    pose = own_kp.copy()
+    pose[13:] = other_kp[13:]                      # knees and ankles taken from the neighbour
+    foreign = foreign_joints(pose, np.ones(k), own, [other])
+    assert foreign.tolist() == [False] * 13 + [True] * 4
+    assert not foreign_joints(own_kp, np.ones(k), own, [other]).any()
