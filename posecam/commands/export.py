@@ -10,7 +10,8 @@ from rich.console import Console
 from posecam.errors import InputError
 
 err = Console(stderr=True, highlight=False)
-INSTALL_HINT = "posecam export needs torch and onnx: pip install 'posecam[export]' (or pip install '.[export]' in a checkout)"
+INSTALL_HINT = ("posecam export needs torch and onnx; in a checkout of posecam run: "
+                "pip install torch==2.13.0 && pip install -e '.[export]'")
 
 
 @click.command()
@@ -26,19 +27,33 @@ INSTALL_HINT = "posecam export needs torch and onnx: pip install 'posecam[export
 @click.option("--max-crops", type=click.IntRange(1), default=16, show_default=True,
               help="Person crops taken from --images.")
 def export_command(checkpoint, output, name, verify, quantize, images, max_crops) -> None:
-    """Export a ResNet-U CHECKPOINT to a posecam ONNX model (root_depth kind)."""
+    """Export a ResNet-U checkpoint to ONNX.
+
+    CHECKPOINT (a `python -m export.train` file) becomes a posecam ONNX model of the root_depth
+    kind that `posecam predict --model FILE.onnx` runs. Needs the `export` extra (torch).
+    """
     if Path(output).suffix.lower() != ".onnx":
         raise InputError(f"output must end in .onnx, got {output}")
+    from posecam.io.atomic import OutputSet
+    from posecam.media import check_input, expand_inputs
+
+    check_input(checkpoint, "checkpoint")
     try:
-        from export.pipeline import ExportOptions, export_checkpoint
+        from export.pipeline import ExportOptions, export_checkpoint, int8_path
     except ImportError as exc:
         if getattr(exc, "name", None) in ("torch", "onnx"):
             raise InputError(INSTALL_HINT) from None
         raise
-    opts = ExportOptions(name=name, verify=verify, quantize=quantize, max_crops=max_crops)
+    opts = ExportOptions(name=name or Path(output).stem, verify=verify, quantize=quantize, max_crops=max_crops)
     if images:
-        opts.images = list(images)
-    with err.status("exporting") as status:
-        lines = export_checkpoint(checkpoint, output, opts, step=lambda msg: status.update(msg))
+        opts.images = [str(p) for p in expand_inputs(images)]
+    int8 = int8_path(output) if quantize else None
+    staged = OutputSet([output, int8], [checkpoint, *opts.images])  # checked before the work
+    with staged, err.status("exporting") as status:  # both files or neither
+        tmp = staged.path(output)
+        lines = export_checkpoint(checkpoint, tmp, opts, step=lambda msg: status.update(msg))
+        if int8:
+            staged.adopt(int8, int8_path(tmp))
+    lines = [line.replace(str(int8_path(tmp)), str(int8)).replace(str(tmp), str(output)) for line in lines]
     for line in lines:
         click.echo(line)
