@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from posecam.commands.common import predict_with_progress, progress_bar
+from posecam.commands.common import check_output, predict_with_progress, progress_bar, report_console, report_written
 from posecam.errors import InputError
 
 if TYPE_CHECKING:
@@ -17,7 +17,8 @@ if TYPE_CHECKING:
     from posecam.results import Recording
 
 
-def load_views(inputs: list[str], model: str, calibration: tuple[str, Rig] | None) -> list[Recording]:
+def load_views(inputs: list[str], model: str, calibration: tuple[str, Rig] | None,
+               device: str = "cpu") -> list[Recording]:
     """Recordings from pose JSON files as they are, and from videos/sequences by predicting them
     (with the calibration's intrinsics when given, else posecam's default). Every input is
     checked before anything is predicted."""
@@ -37,7 +38,7 @@ def load_views(inputs: list[str], model: str, calibration: tuple[str, Rig] | Non
     with progress_bar() as progress:
         for path, view in zip(inputs, views):
             if isinstance(view, IntrinsicsOptions):
-                estimator = PoseEstimator(EstimatorOptions(model=model, intrinsics=view))
+                estimator = PoseEstimator(EstimatorOptions(model=model, intrinsics=view, device=device))
                 view = [predict_with_progress(estimator, path, progress)]
             recordings += view
     return recordings
@@ -52,11 +53,13 @@ def calibration_file_camera(calibration: tuple[str, Rig] | None, path: str) -> d
     return {"file": calibration[0], "camera": calibration_camera(calibration[1], Path(path).stem).name}
 
 
-def print_report(result: FusionResult) -> None:
-    from rich.console import Console
+def print_report(result: FusionResult, console) -> None:
     from rich.table import Table
 
-    table = Table(title=f"posecam fuse: cameras ({result.recording.frame_of_reference})")
+    table = Table(title=f"posecam fuse: cameras ({result.recording.frame_of_reference})",
+                  caption="offset: frames against the first view; error px: median reprojection error of the "
+                          "fused joints; joints: joints used; L/R: frames with left and right swapped back; "
+                          "f px, cx, cy: intrinsics; centre m: camera centre")
     for col in ("camera", "offset", "error px", "joints", "L/R", "f px", "cx, cy", "centre m"):
         table.add_column(col, justify="left" if col == "camera" else "right", no_wrap=True)
     for rep, cam in zip(result.cameras, result.rig.cameras):
@@ -64,12 +67,21 @@ def print_report(result: FusionResult) -> None:
         focal = f"{fx:.0f}" if abs(fx - fy) < 0.5 else f"{fx:.0f}/{fy:.0f}"
         table.add_row(rep.name, str(rep.offset), f"{rep.reprojection_px:.1f}", str(rep.joints_used),
                       str(rep.swaps_fixed), focal, f"{cx:.0f}, {cy:.0f}", " ".join(f"{v / 1000:.1f}" for v in cam.centre))
-    Console().print(table)
+    console.print(table)
 
 
 @click.command()
 @click.argument("inputs", nargs=-1, required=True)
-@click.option("-o", "--output", type=click.Path(), help="Write fused poses to FILE.json or FILE.csv.")
+@click.option("-o", "--output", type=click.Path(),
+              help="Write fused poses to FILE.json or FILE.csv, or markers to FILE.trc (OpenSim, metres) or "
+                   "FILE.c3d (needs posecam[c3d]): one file per person (FILE_id<ID>.trc when several).")
+@click.option("--viz3d", type=click.Path(), help="FILE.html: a self-contained 3D view of the fused poses and the cameras.")
+@click.option("--smooth/--no-smooth", default=True, show_default=True,
+              help="Smooth each fused person's joints over time (zero-phase 6 Hz Butterworth).")
+@click.option("--trc-y-up", is_flag=True, help="TRC/C3D: Y-up axes as OpenSim expects (a calibration's Z-up world "
+                                               "as Pose2Sim turns it; a camera frame turned 180 degrees about x).")
+@click.option("--device", type=click.Choice(["cpu", "cuda"]), default="cpu", show_default=True,
+              help="Run the pose model for video inputs on the CPU or on an NVIDIA GPU (needs onnxruntime-gpu).")
 @click.option("--calibration", type=click.Path(), help="Known cameras: an anipose/Pose2Sim calibration TOML.")
 @click.option("--save-calibration", type=click.Path(), help="Write the cameras to FILE.toml (anipose/Pose2Sim).")
 @click.option("--method", type=click.Choice(["average", "triangulate"]), default="average", show_default=True,
@@ -78,48 +90,67 @@ def print_report(result: FusionResult) -> None:
               help="auto: estimate each video's frame offset against the first.")
 @click.option("--offsets", help="Frame offsets, one per view, e.g. 0,-1,4,0: view c's frame i+o "
                                 "shows the same instant as the first view's frame i.")
-@click.option("--max-offset", type=click.IntRange(0), default=10, show_default=True)
-@click.option("--model", default="full", show_default=True, help="Pose model for video inputs.")
-@click.option("--viz", type=click.Path(), help="FILE.png: the fused pose projected into every view.")
-def fuse_command(inputs, output, calibration, save_calibration, method, sync, offsets, max_offset, model, viz) -> None:
-    """Fuse INPUTS (2+ videos, image folders or `posecam predict` JSON files) of one scene."""
+@click.option("--max-offset", type=click.IntRange(0), default=10, show_default=True,
+              help="Largest frame offset --sync auto tries, in frames either way.")
+@click.option("--model", default="full", show_default=True,
+              help="Pose model for video inputs: lite, full, heavy or a posecam .onnx file.")
+@click.option("--viz", type=click.Path(), help="FILE.png or FILE.jpg: the fused pose projected into every view.")
+def fuse_command(inputs, output, calibration, save_calibration, method, sync, offsets, max_offset, model, viz,
+                 viz3d=None, smooth=True, trc_y_up=False, device="cpu") -> None:
+    """Fuse several cameras' views of one scene.
+
+    INPUTS are 2 or more videos, image folders or `posecam predict` JSON files, one per
+    static camera.
+    """
     from rich.console import Console
 
     from posecam.geometry.camera import Rig
+    from posecam.io.atomic import OutputSet
+    from posecam.media import check_input
     from posecam.io.calibration import read_toml, write_toml
+    from posecam.filters import smooth_recording
     from posecam.io.poses import write_poses
+    from posecam.io.trc import check_markers_output, write_markers
     from posecam.multiview.fuse import FuseOptions, fuse_recordings
+    from posecam.viz.view3d import write_view3d
 
     err = Console(stderr=True, highlight=False)
-    for path in (output, save_calibration, viz):
-        if path and not Path(path).parent.is_dir() and str(Path(path).parent):
-            raise InputError(f"cannot write {path}: folder {Path(path).parent} does not exist")
-    if output and Path(output).suffix.lower() not in (".json", ".csv"):
-        raise InputError(f"output must end in .json or .csv, got {output}")
-    if save_calibration and Path(save_calibration).suffix.lower() != ".toml":
-        raise InputError(f"--save-calibration must end in .toml, got {save_calibration}")
+    check_output(output, (".json", ".csv", ".trc", ".c3d"), "output")
+    check_output(viz3d, (".html",), "--viz3d")
+    markers = output if output and Path(output).suffix.lower() in (".trc", ".c3d") else None
+    if markers:
+        check_markers_output(markers, [*inputs, calibration])
+    check_output(save_calibration, (".toml",), "--save-calibration")
+    check_output(viz, (".png", ".jpg", ".jpeg"), "--viz")
     if offsets and sync == "auto":
         raise InputError("give either --offsets or --sync auto")
     try:
         offset_list = [int(v) for v in offsets.split(",")] if offsets else None
     except ValueError:
         raise InputError(f"--offsets must be integers separated by commas, got {offsets!r}") from None
+    if calibration:
+        check_input(calibration, "calibration")   # a pipe or a device would block the read
+    staged = OutputSet([None if markers else output, save_calibration, viz, viz3d], [*inputs, calibration])  # checked before the work
     rig = Rig(read_toml(calibration), None) if calibration else None
-    recordings = load_views(list(inputs), model, (calibration, rig) if rig else None)
+    recordings = load_views(list(inputs), model, (calibration, rig) if rig else None, device)
     opts = FuseOptions(calibration=rig, method=method, offsets=offset_list, sync=sync == "auto",
                        max_offset=max_offset)
     with err.status("fusing") as status:
         result = fuse_recordings(recordings, opts, progress=lambda msg: status.update(msg))
-    print_report(result)
-    if output:
-        write_poses(output, [result.recording])
-        err.print(f"wrote {output}", highlight=False)
-    if save_calibration:
-        write_toml(save_calibration, result.rig.cameras,
-                   {"frame": result.recording.frame_of_reference, "offsets": ",".join(map(str, result.offsets))})
-        err.print(f"wrote {save_calibration}", highlight=False)
-    if viz:
-        from posecam.viz.fusion_grid import write_grid
+    fused = smooth_recording(result.recording) if smooth else result.recording
+    with staged:  # every output or none
+        written = write_markers(markers, fused, trc_y_up, staged) if markers else [output]
+        if output and not markers:
+            write_poses(staged.path(output), [fused])
+        if viz3d:
+            write_view3d(staged.path(viz3d), fused, result.rig)
+        if save_calibration:
+            write_toml(staged.path(save_calibration), result.rig.cameras,
+                       {"frame": result.recording.frame_of_reference, "offsets": ",".join(map(str, result.offsets))})
+        if viz:
+            from posecam.viz.fusion_grid import write_grid
 
-        write_grid(viz, result, recordings)
-        err.print(f"wrote {viz}", highlight=False)
+            write_grid(staged.path(viz), result, recordings)
+    console = report_console()
+    print_report(result, console)
+    report_written([*written, save_calibration, viz, viz3d], console)
