@@ -56,10 +56,7 @@ def calibration_file_camera(calibration: tuple[str, Rig] | None, path: str) -> d
 def print_report(result: FusionResult, console) -> None:
     from rich.table import Table
 
-    table = Table(title=f"posecam fuse: cameras ({result.recording.frame_of_reference})",
-                  caption="offset: frames against the first view; error px: median reprojection error of the "
-                          "fused joints; joints: joints used; L/R: frames with left and right swapped back; "
-                          "f px, cx, cy: intrinsics; centre m: camera centre")
+    table = Table(title=f"posecam fuse: cameras ({result.recording.frame_of_reference})")
     for col in ("camera", "offset", "error px", "joints", "L/R", "f px", "cx, cy", "centre m"):
         table.add_column(col, justify="left" if col == "camera" else "right", no_wrap=True)
     for rep, cam in zip(result.cameras, result.rig.cameras):
@@ -68,6 +65,9 @@ def print_report(result: FusionResult, console) -> None:
         table.add_row(rep.name, str(rep.offset), f"{rep.reprojection_px:.1f}", str(rep.joints_used),
                       str(rep.swaps_fixed), focal, f"{cx:.0f}, {cy:.0f}", " ".join(f"{v / 1000:.1f}" for v in cam.centre))
     console.print(table)
+    console.print("offset: frames against the first view; error px: median reprojection error of the fused "
+                  "joints; joints: joints used; L/R: frames with left and right swapped back; f px, cx, cy: "
+                  "intrinsics; centre m: camera centre", style="dim")
 
 
 @click.command()
