@@ -38,9 +38,12 @@ def print_summary(recordings, console) -> None:
     console.print(table)
     console.print(f"frames: frames the person is in; x right, y down, z forward (depth): median of the person's "
                   f"{root} position; mean conf.: mean joint confidence, 0 to 1", style="dim")
-    if recordings and recordings[0].intrinsics:
-        k = recordings[0].intrinsics
-        console.print(f"intrinsics ({k.source}): fx={k.fx:.1f} fy={k.fy:.1f} cx={k.cx:.1f} cy={k.cy:.1f}")
+    shown = [r for r in recordings if r.intrinsics]
+    same = len({(r.intrinsics.fx, r.intrinsics.fy, r.intrinsics.cx, r.intrinsics.cy) for r in shown}) == 1
+    for rec in shown[:1] if same else shown:   # one line, or one per input when they differ
+        k = rec.intrinsics
+        name = "" if same else f" of {Path(rec.source).name}"
+        console.print(f"intrinsics{name} ({k.source}): fx={k.fx:.1f} fy={k.fy:.1f} cx={k.cx:.1f} cy={k.cy:.1f}")
 
 
 def explain_empty(rec, min_detection_score: float, min_presence: float) -> str | None:
