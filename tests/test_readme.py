@@ -204,6 +204,9 @@ def test_version_and_top_level_help_whole_sentences() -> None:
     (["predict", "examples/balance.jpg", "--camera", "cam01"], "--intrinsics"),
     (["predict", "examples/balance.jpg", "--min-presence", "2"], "min_presence must lie in [0, 1]"),
     (["fuse", "a.mp4", "b.mp4", "--viz", "out/grid.gif"], "--viz must end in"),
+    (["fuse", "a.mp4", "b.mp4", "--max-offset", "5"], "--max-offset needs --sync auto"),
+    (["predict", "examples/balance.jpg", "--trc-y-up"], "--trc-y-up needs -o FILE.trc"),
+    (["predict", "examples/balance.jpg", "--format", "csv"], "--format needs --out-dir"),
 ])
 def test_refused_before_any_work(args: list[str], words: str, tmp_path: Path) -> None:
     (tmp_path / "out").mkdir()

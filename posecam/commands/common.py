@@ -55,6 +55,16 @@ def check_output(path: str | None, suffixes: tuple[str, ...], what: str) -> None
         raise OutputError(f"cannot write {path}: folder {folder} does not exist")
 
 
+def refuse_alone(option: str, needs: str, given_with: bool) -> None:
+    """Refuse an option typed on the command line without the one it depends on (`needs`)."""
+    from click.core import ParameterSource
+
+    ctx = click.get_current_context()
+    if ctx.get_parameter_source(option) == ParameterSource.COMMANDLINE and not given_with:
+        flag = next(p.opts[0] for p in ctx.command.params if p.name == option)
+        raise InputError(f"{flag} needs {needs}")
+
+
 def report_console(stdout_has_data: bool = False):
     """Where summaries go: stdout, or stderr when stdout carries the poses themselves."""
     from rich.console import Console

@@ -8,7 +8,8 @@ from typing import TYPE_CHECKING
 
 import click
 
-from posecam.commands.common import check_output, predict_with_progress, progress_bar, report_console, report_written
+from posecam.commands.common import (check_output, predict_with_progress, progress_bar, refuse_alone, report_console,
+                                     report_written)
 from posecam.errors import InputError
 
 if TYPE_CHECKING:
@@ -124,6 +125,8 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     check_output(viz, (".png", ".jpg", ".jpeg"), "--viz")
     if offsets and sync == "auto":
         raise InputError("give either --offsets or --sync auto")
+    refuse_alone("max_offset", "--sync auto", sync == "auto")
+    refuse_alone("trc_y_up", "-o FILE.trc or FILE.c3d", bool(markers))
     try:
         offset_list = [int(v) for v in offsets.split(",")] if offsets else None
     except ValueError:

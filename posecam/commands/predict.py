@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from posecam.commands.common import (check_output, intrinsics_options, predict_with_progress, progress_bar,
-                                     report_console, report_written, warn)
+                                     refuse_alone, report_console, report_written, warn)
 from posecam.errors import InputError
 from posecam.inference.contract import DETECTORS
 
@@ -120,6 +120,8 @@ def predict_command(inputs, output, viz, model, skeleton, detector, max_people, 
     check_output(output, (".json", ".csv", *MARKER_SUFFIXES), "output")
     check_output(viz3d, (".html",), "--viz3d")
     markers = output if output and Path(output).suffix.lower() in MARKER_SUFFIXES else None
+    refuse_alone("trc_y_up", "-o FILE.trc or FILE.c3d", bool(markers))
+    refuse_alone("out_format", "--out-dir", bool(out_dir))
     for flag, value in (("-o FILE.trc/.c3d", markers), ("--viz3d", viz3d)):
         if value and len(inputs) > 1:
             raise InputError(f"{flag} holds one input; pass a single input (or write .json)")
