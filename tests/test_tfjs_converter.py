@@ -1,0 +1,146 @@
+"""The models converted from TF.js against the original TF.js graphs, on real images.
+
+The reference runtime is @tensorflow/tfjs (pure JavaScript, CPU backend) in node, driven by
+tests/tfjs_runner/run.js; its exact version is pinned in tests/tfjs_runner/package.json and
+package-lock.json and installed into .cache/tfjs_runner on first use (`npm ci`, from npm's
+cache afterwards). Without `node` these tests skip.
+
+Tolerance: every value of MoveNet MultiPose's output is a normalised coordinate or a score in
+[0, 1]. The two runtimes differ by float32 rounding only (other convolution algorithms and
+summation orders). Measured on these three images at 256, 384 and 512 on the long side: at
+most 3.0e-6 on scores, 1.8e-7 on keypoint coordinates, 4.8e-7 on box corners. 1e-4 (0.03 px
+at 256 px) leaves a 30x margin and still catches a real conversion error (a wrong padding or
+layout moves keypoints by heatmap cells, 1/64 of the input, and changes scores by 1e-2 or more).
+NanoDet: at most 1.7e-5 absolute on box logits of magnitude up to 9 (1e-5 relative), so 1e-4
+relative to each output's largest value.
+"""
+
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import cv2
+import numpy as np
+import onnx
+import pytest
+from conftest import DATA
+
+pytestmark = pytest.mark.skipif(shutil.which("node") is None,
+                                reason="node is not installed: the reference runtime, @tensorflow/tfjs, runs in node")
+ort = pytest.importorskip("onnxruntime")
+build = pytest.importorskip("export.convert.build_models", reason="install the export extra")
+
+REPO = Path(__file__).resolve().parent.parent
+RUNNER = Path(__file__).parent / "tfjs_runner"
+PREFIX = REPO / ".cache" / "tfjs_runner"
+TOLERANCE = 1e-4
+
+
+@pytest.fixture(scope="module")
+def node_modules() -> Path:
+    """The pinned @tensorflow/tfjs installed in .cache/tfjs_runner (npm ci on first use)."""
+    pinned = json.loads((RUNNER / "package.json").read_text())["dependencies"]["@tensorflow/tfjs"]
+    installed = PREFIX / "node_modules" / "@tensorflow" / "tfjs" / "package.json"
+    if not installed.exists() or json.loads(installed.read_text())["version"] != pinned:
+        PREFIX.mkdir(parents=True, exist_ok=True)
+        for name in ("package.json", "package-lock.json"):
+            shutil.copyfile(RUNNER / name, PREFIX / name)
+        npm = shutil.which("npm")
+        assert npm, "node is installed but npm is not: cannot install @tensorflow/tfjs for the reference runs"
+        done = subprocess.run([npm, "ci", "--prefix", str(PREFIX), "--no-audit", "--no-fund", "--prefer-offline"],
+                              check=False, capture_output=True, text=True, timeout=600)
+        assert done.returncode == 0, f"npm ci for the tfjs runner failed:\n{done.stderr[-2000:]}"
+    return PREFIX / "node_modules"
+
+
+def run_tfjs(node_modules: Path, model_json: Path, inputs: dict[str, np.ndarray], tmp: Path) -> dict:
+    """{input stem: {output name: array}} from the TF.js graph, one run per input."""
+    files = []
+    for stem, x in inputs.items():
+        files.append(tmp / f"{stem}.npy")
+        np.save(files[-1], x)
+    done = subprocess.run(["node", str(RUNNER / "run.js"), str(model_json), str(tmp / "out"), *map(str, files)],
+                          check=False, capture_output=True, text=True, timeout=600,
+                          env={**os.environ, "NODE_PATH": str(node_modules)})
+    assert done.returncode == 0, done.stderr[-2000:]
+    out = {}
+    for stem in inputs:
+        out[stem] = {p.name.split(".")[1]: np.load(p) for p in (tmp / "out").glob(f"{stem}.*.npy")}
+    return out
+
+
+def letterbox(rgb: np.ndarray, long_side: int, multiple: int = 32, square: bool = False) -> np.ndarray:
+    """Long side scaled to `long_side`, padded bottom/right to multiples of `multiple` (or a square)."""
+    h, w = rgb.shape[:2]
+    scale = long_side / max(h, w)
+    nh, nw = round(h * scale), round(w * scale)
+    ph, pw = (long_side, long_side) if square else (-(-nh // multiple) * multiple, -(-nw // multiple) * multiple)
+    out = np.zeros((ph, pw, 3), np.uint8)
+    out[:nh, :nw] = cv2.resize(rgb, (nw, nh), interpolation=cv2.INTER_AREA)
+    return out
+
+
+def real_images() -> dict[str, np.ndarray]:
+    images = {p.stem: cv2.cvtColor(cv2.imread(str(DATA / p)), cv2.COLOR_BGR2RGB)
+              for p in (Path("messi5.jpg"), Path("basketball2.png"))}
+    cap = cv2.VideoCapture(str(DATA / "balance_cam01_30f.mp4"))
+    cap.set(cv2.CAP_PROP_POS_FRAMES, 15)
+    ok, bgr = cap.read()
+    assert ok
+    images["balance_cam01_f15"] = cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+    return images
+
+
+@pytest.fixture(scope="module")
+def movenet_outputs(node_modules, tmp_path_factory):
+    """(ONNX, TF.js) outputs of MoveNet MultiPose on the real images at 256 on the long side,
+    and on one of them at 384 (the input size is free: any multiples of 32)."""
+    inputs = {f"{name}_256": letterbox(rgb, 256) for name, rgb in real_images().items()}
+    inputs["basketball2_384"] = letterbox(real_images()["basketball2"], 384)
+    graph, _ = build.tfjs_sources("movenet")
+    ref = run_tfjs(node_modules, graph, {k: x[None].astype(np.int32) for k, x in inputs.items()},
+                   tmp_path_factory.mktemp("tfjs"))
+    sess = ort.InferenceSession(str(build.MODELS_DIR / "movenet_multipose.onnx"), providers=["CPUExecutionProvider"])
+    ours = {k: sess.run(None, {"input": x[None].astype(np.float32)})[0] for k, x in inputs.items()}
+    return {k: (ours[k], ref[k]["Identity"]) for k in inputs}
+
+
+@pytest.mark.parametrize("case", ["messi5_256", "basketball2_256", "balance_cam01_f15_256", "basketball2_384"])
+def test_movenet_multipose_matches_tfjs(movenet_outputs, case):
+    ours, ref = movenet_outputs[case]
+    assert ours.shape == ref.shape == (1, 6, 56)
+    assert ref[0, :, 55].max() > 0.3  # a real person is found, so the comparison is not on noise
+    np.testing.assert_allclose(ours, ref, rtol=0, atol=TOLERANCE)
+
+
+def test_nanodet_matches_tfjs(node_modules, tmp_path):
+    model = build.build("nanodet", tmp_path)
+    x = letterbox(real_images()["basketball2"], 416, square=True).transpose(2, 0, 1)[None].astype(np.float32) / 255
+    ref = run_tfjs(node_modules, build.tfjs_sources("nanodet")[0], {"basketball2": x}, tmp_path)["basketball2"]
+    sess = ort.InferenceSession(str(model), providers=["CPUExecutionProvider"])
+    ours = dict(zip([o.name for o in sess.get_outputs()], sess.run(None, {"input_1": x})))
+    assert sorted(ours) == sorted(ref) == [f"Identity{s}" for s in ("", "_1", "_2", "_3", "_4", "_5")]
+    assert max(ref[f"Identity{s}"][0, :, 0].max() for s in ("", "_1", "_2")) > 0.3  # people (class 0) seen
+    for name, r in ref.items():
+        np.testing.assert_allclose(ours[name], r, rtol=0, atol=TOLERANCE * max(1.0, np.abs(r).max()), err_msg=name)
+
+
+def test_movenet_rebuilds_the_bundled_file_exactly(tmp_path):
+    rebuilt = build.build("movenet", tmp_path)
+    assert rebuilt.read_bytes() == (build.MODELS_DIR / "movenet_multipose.onnx").read_bytes()
+
+
+def test_movenet_file_format_and_metadata():
+    from posecam.inference.contract import ModelContract
+
+    model = onnx.load(build.MODELS_DIR / "movenet_multipose.onnx")
+    assert (model.ir_version, model.opset_import[0].version) == (9, 17)
+    (inp,), (out,) = model.graph.input, model.graph.output
+    dims = [d.dim_value or d.dim_param for d in inp.type.tensor_type.shape.dim]
+    assert (inp.name, inp.type.tensor_type.elem_type, dims) == ("input", onnx.TensorProto.FLOAT, [1, "H", "W", 3])
+    assert [d.dim_value for d in out.type.tensor_type.shape.dim] == [1, 6, 56]
+    contract = ModelContract.from_metadata({p.key: p.value for p in model.metadata_props}, "movenet_multipose.onnx")
+    assert (contract.kind, contract.decoder, contract.outputs) == ("detector", "movenet_multipose", {"people": "Identity"})
+    assert contract.input.multiple == 32 and len(contract.joints) == 17
