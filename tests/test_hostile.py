@@ -383,3 +383,24 @@ def test_fuse_and_export_on_a_full_disk(full_disk, tmp_path):
                     "-o", full_disk / "f.json", "--save-calibration", full_disk / "c.toml")
     assert r.returncode in (4, 5), r.stderr   # synthetic views may not fuse; never a traceback
     assert "Traceback" not in r.stderr and [p.name for p in full_disk.iterdir()] == ["filler"]
+
+
+@pytest.mark.parametrize("files, kind", [
+    ({"f_1.png": (8, 6), "f_2.png": (8, 6), "f_10.png": (8, 6)}, "sequence"),
+    ({"0001.jpg": (8, 6), "0002.jpg": (8, 6)}, "sequence"),
+    ({"f_1.png": (8, 6), "f_2.png": (9, 6)}, "photos"),           # sizes differ
+    ({"a.png": (8, 6), "b.png": (8, 6)}, "photos"),               # not numbered
+    ({"f_1.png": (8, 6), "g_2.png": (8, 6)}, "photos"),           # two prefixes
+    ({"f_1.png": (8, 6), "f_2.jpg": (8, 6)}, "photos"),           # two formats
+])
+def test_the_folder_rule(tmp_path, files, kind):
+    import cv2
+
+    from posecam.media import folder_kind
+
+    for name, (w, h) in files.items():
+        cv2.imwrite(str(tmp_path / name), np.zeros((h, w, 3), np.uint8))
+    got, paths = folder_kind(tmp_path)
+    assert got == kind
+    if kind == "sequence":
+        assert [p.name for p in paths] == sorted(files, key=lambda n: int("".join(c for c in n if c.isdigit())))
