@@ -5,6 +5,7 @@ Camera coordinates: millimetres, camera at the origin, x right, y down, z forwar
 
 from __future__ import annotations
 
+import re
 from dataclasses import asdict, dataclass, field
 
 import cv2
@@ -17,6 +18,8 @@ FILM_DIAGONAL_MM = 43.2666
 # Default lens when nothing better is known: a 28 mm-equivalent focal length,
 # i.e. a 75 degree diagonal field of view, typical of phone and action cameras.
 DEFAULT_FOCAL_35MM = 28.0
+# Plausible horizontal fields of view in degrees: a long telephoto to a fisheye.
+FOV_RANGE = (5.0, 170.0)
 
 
 @dataclass(frozen=True)
@@ -31,10 +34,29 @@ class Intrinsics:
 
     def __post_init__(self) -> None:
         values = (self.fx, self.fy, self.cx, self.cy)
+        if not all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
+                   for v in values):
+            raise InputError(f"intrinsics must be numbers, got {values}")
         if not all(np.isfinite(v) for v in values):
             raise InputError(f"intrinsics must be finite numbers, got {values}")
         if self.fx <= 0 or self.fy <= 0:
             raise InputError(f"focal lengths must be positive, got fx={self.fx}, fy={self.fy}")
+
+    def check_image(self, width: int, height: int) -> "Intrinsics":
+        """These intrinsics if they are plausible for a width x height image, else InputError:
+        a horizontal field of view within FOV_RANGE degrees, fy/fx within 1/4..4, and the
+        principal point on the image."""
+        fov = float(np.degrees(2 * np.arctan2(width / 2, self.fx)))
+        if not FOV_RANGE[0] <= fov <= FOV_RANGE[1]:
+            raise InputError(f"fx={self.fx:g} ({self.source}) gives a {width} px wide image a horizontal field "
+                             f"of view of {fov:.3g} degrees, outside {FOV_RANGE[0]:g}..{FOV_RANGE[1]:g}; "
+                             "is fx in pixels for this image size?")
+        if not 0.25 <= self.fy / self.fx <= 4:
+            raise InputError(f"fx={self.fx:g} and fy={self.fy:g} ({self.source}) differ by more than 4 times")
+        if not (0 <= self.cx <= width and 0 <= self.cy <= height):
+            raise InputError(f"principal point ({self.cx:g}, {self.cy:g}) from {self.source} lies outside the "
+                             f"{width}x{height} image")
+        return self
 
     @property
     def matrix(self) -> np.ndarray:
@@ -118,6 +140,42 @@ class CameraCalibration:
         out = cv2.undistortPoints(flat, k.matrix, self.distortion.astype(np.float64))
         return out.reshape(uv.shape)
 
+    def params(self) -> np.ndarray:
+        """(9,) the camera as a vector for optimisers: Rodrigues rotation (3), translation (3),
+        focal length f = sqrt(fx fy), cx, cy. `with_params` is the inverse."""
+        rvec = cv2.Rodrigues(np.asarray(self.rotation, dtype=np.float64))[0].ravel()
+        k = self.intrinsics
+        return np.r_[rvec, self.translation, np.sqrt(k.fx * k.fy), k.cx, k.cy]
+
+    def with_params(self, x: np.ndarray, source: str | None = None) -> "CameraCalibration":
+        """A copy with the parameters of `params` (the aspect fy / fx and the distortion kept)."""
+        k = self.intrinsics
+        aspect = np.sqrt(k.fy / k.fx)
+        f, cx, cy = float(x[6]), float(x[7]), float(x[8])
+        intr = Intrinsics(f / aspect, f * aspect, cx, cy, k.source if source is None else source)
+        return CameraCalibration(self.name, self.size, intr, cv2.Rodrigues(np.asarray(x[:3], float))[0],
+                                 np.array(x[3:6], dtype=float), self.distortion.copy())
+
+    def for_image(self, name: str, width: int, height: int) -> "CameraCalibration":
+        """This camera for an input `name` of width x height pixels: the policy every command uses.
+
+        The same size (within 2 %) is taken as a centred crop or pad (the principal point shifts
+        by half the difference: Qualisys's 1088-px field for a 1080-px video); a size with the
+        calibrated aspect is a resize (intrinsics scaled); anything else is refused.
+        """
+        cw, ch = self.size
+        k = self.intrinsics
+        sx, sy = width / cw, height / ch
+        if abs(sx - sy) <= 0.02 * max(sx, sy) and abs(sx - 1) > 0.02:
+            k = k.scaled(sx)
+            cw, ch = round(cw * sx), round(ch * sx)
+        dw, dh = width - cw, height - ch
+        if abs(dw) > 0.02 * cw or abs(dh) > 0.02 * ch:
+            raise InputError(f"camera {self.name} is calibrated for {self.size[0]}x{self.size[1]} images, "
+                             f"input {name} is {width}x{height}")
+        k = Intrinsics(k.fx, k.fy, k.cx + dw / 2, k.cy + dh / 2, k.source)
+        return CameraCalibration(name, (width, height), k, self.rotation, self.translation, self.distortion)
+
 
 @dataclass
 class Rig:
@@ -139,3 +197,69 @@ class Rig:
             if c.name == name:
                 return c
         raise InputError(f"the calibration has no camera named {name!r} (it has {', '.join(self.names)})")
+
+    def _named(self, name: str) -> CameraCalibration | None:
+        """The camera called `name`, or the one camera whose name contains it (None: no such one)."""
+        found = [c for c in self.cameras if c.name == name] or [c for c in self.cameras if name in c.name]
+        return found[0] if len(found) == 1 else None
+
+    def camera_for(self, name: str, width: int, height: int) -> CameraCalibration:
+        """The calibration's camera for one input (see `match`), sized to its images."""
+        cam = self._named(name)
+        if cam is None:
+            raise InputError(f"the calibration's cameras ({', '.join(self.names)}) do not match input {name!r}")
+        return cam.for_image(name, width, height)
+
+    def match(self, names: list[str], sizes: list[tuple[int, int]]) -> tuple[list[CameraCalibration], str | None]:
+        """The calibration's camera for each input, and a warning line when names did not say.
+
+        One policy, Pose2Sim's: inputs whose names all find their camera (the same name, or the
+        one camera whose name contains it) take it; otherwise, with as many cameras as inputs,
+        the cameras sorted by name go to the inputs sorted by name, in order. Each camera is then
+        sized to its input (`CameraCalibration.for_image`).
+        """
+        found = [self._named(n) for n in names]
+        note = None
+        if any(c is None for c in found) or len({id(c) for c in found}) < len(found):
+            if len(self.cameras) != len(names):
+                raise InputError(f"the calibration's cameras ({', '.join(self.names)}) do not match the inputs "
+                                 f"({', '.join(names)}) by name, and there are {len(self.cameras)} of them "
+                                 f"for {len(names)} inputs")
+            cams = sorted(self.cameras, key=lambda c: natural_key(c.name))
+            order = sorted(range(len(names)), key=lambda i: natural_key(names[i]))
+            found = [None] * len(names)
+            for i, cam in zip(order, cams):
+                found[i] = cam
+            note = ("calibration cameras matched to the inputs in sorted order (names differ): "
+                    + ", ".join(f"{names[i]}={found[i].name}" for i in order))
+        return [c.for_image(n, w, h) for c, n, (w, h) in zip(found, names, sizes)], note
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """(..., 3) points in the rig's frame -> (V, ..., 2) pixels in every camera."""
+        return np.stack([c.project(points) for c in self.cameras])
+
+    def triangulate(self, uv: np.ndarray, conf: np.ndarray, min_conf: float = 0.5) -> np.ndarray:
+        """(V, F, J, 2) keypoints and (V, F, J) confidences -> (F, J, 3) points (NaN: < 2 views)."""
+        from posecam.geometry.triangulate import triangulate
+
+        return triangulate(self.cameras, uv, conf, min_conf)
+
+    def reprojection_errors(self, points: np.ndarray, uv: np.ndarray, conf: np.ndarray,
+                            min_conf: float = 0.5) -> np.ndarray:
+        """(V, F, J) pixel distance of each keypoint to its projected point; NaN where unused."""
+        from posecam.geometry.triangulate import reprojection_errors
+
+        return reprojection_errors(self.cameras, points, uv, conf, min_conf)
+
+    def params(self) -> np.ndarray:
+        """(V, 9) every camera's `CameraCalibration.params`."""
+        return np.stack([c.params() for c in self.cameras])
+
+    def with_params(self, x: np.ndarray, source: str | None = None) -> "Rig":
+        """A copy with every camera's parameters from `x` (V, 9)."""
+        return Rig([c.with_params(p, source) for c, p in zip(self.cameras, x)], self.reference)
+
+
+def natural_key(name: str) -> list:
+    """Sort key that orders cam2 before cam10 (Pose2Sim's natural sort)."""
+    return [int(s) if s.isdigit() else s.lower() for s in re.split(r"(\d+)", name)]
