@@ -1,11 +1,13 @@
 """Frame sources: a still image, a video file, or a folder of images, read one frame at a time.
 
 A folder is one of two things (`folder_kind`):
-- a **sequence** (the frames of one video): every image has the same size and every name is
-  one prefix followed by a frame number (`frame_0001.png`, `img7.jpg`, ..., ordered by that
-  number); it is one input with one size, one set of intrinsics and a frame rate of 30 fps.
-- **photos**: anything else (sizes differ, or names are not numbered frames). Each photo is
-  an input of its own, with its own size, intrinsics and EXIF (`expand_inputs`).
+- a **sequence** (the frames of one video): every image has the same size, every name is one
+  prefix followed by a frame number (`frame_0001.png`, `img7.jpg`, ..., ordered by that
+  number) and the images carry no camera EXIF (frames cut from a video have none); it is one
+  input with one size, one set of intrinsics and a frame rate of 30 fps.
+- **photos**: anything else (sizes differ, names are not numbered frames, or a camera's EXIF,
+  as in a phone's IMG_0001.JPG, IMG_0002.JPG, ...). Each photo is an input of its own, with
+  its own size, intrinsics and EXIF (`expand_inputs`).
 
 Only regular files and folders are opened (a FIFO or a device would block forever), and
 OpenCV never sees a file name: images are decoded from their bytes, videos whose names
@@ -167,7 +169,10 @@ def image_size(path: Path) -> tuple[int, int]:
     """(width, height) of an image file, from its header when possible."""
     check_input(path)
     with open(path, "rb") as f:
-        size = header_size(f.read(1 << 18))
+        data = f.read(4096)
+        size = header_size(data)
+        if size is None and data[:2] == b"\xff\xd8":   # a JPEG's size may follow a long EXIF block
+            size = header_size(data + f.read(1 << 20))
     if size is None:
         h, w = read_image(path).shape[:2]
         size = (w, h)
@@ -214,6 +219,13 @@ def _image_files(folder: Path) -> list[Path]:
     return [p for p in entries if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file()]
 
 
+def _has_exif(path: Path) -> bool:
+    """True when a JPEG carries an Exif block (a camera's photo, not a frame cut from a video)."""
+    with open(path, "rb") as f:
+        data = f.read(1 << 16)
+    return data[:2] == b"\xff\xd8" and b"Exif\x00\x00" in data
+
+
 def folder_kind(folder: str | os.PathLike) -> tuple[str, list[Path]]:
     """("sequence", frames in frame order) or ("photos", files by name); see the module doc."""
     folder = Path(folder)
@@ -224,7 +236,7 @@ def folder_kind(folder: str | os.PathLike) -> tuple[str, list[Path]]:
     numbered = all(matches) and len({(m.group(1), p.suffix.lower()) for m, p in zip(matches, files)}) == 1
     if numbered:
         files = [p for _, p in sorted(zip((int(m.group(2)) for m in matches), files), key=lambda t: t[0])]
-        if len({image_size(p) for p in files}) == 1:
+        if not _has_exif(files[0]) and len({image_size(p) for p in files}) == 1:
             return "sequence", files
     return "photos", files
 

@@ -392,6 +392,7 @@ def test_fuse_and_export_on_a_full_disk(full_disk, tmp_path):
     ({"a.png": (8, 6), "b.png": (8, 6)}, "photos"),               # not numbered
     ({"f_1.png": (8, 6), "g_2.png": (8, 6)}, "photos"),           # two prefixes
     ({"f_1.png": (8, 6), "f_2.jpg": (8, 6)}, "photos"),           # two formats
+    ({"IMG_0001.jpg": (8, 6), "IMG_0002.jpg": (8, 6)}, "photos"),  # a camera's photos (EXIF)
 ])
 def test_the_folder_rule(tmp_path, files, kind):
     import cv2
@@ -400,6 +401,10 @@ def test_the_folder_rule(tmp_path, files, kind):
 
     for name, (w, h) in files.items():
         cv2.imwrite(str(tmp_path / name), np.zeros((h, w, 3), np.uint8))
+        if name.startswith("IMG_"):   # a minimal Exif block, as cameras write
+            data = (tmp_path / name).read_bytes()
+            body = b"Exif\x00\x00II*\x00\x08\x00\x00\x00\x00\x00"
+            (tmp_path / name).write_bytes(data[:2] + b"\xff\xe1" + struct.pack(">H", len(body) + 2) + body + data[2:])
     got, paths = folder_kind(tmp_path)
     assert got == kind
     if kind == "sequence":
