@@ -65,11 +65,11 @@ def refuse_alone(option: str, needs: str, given_with: bool) -> None:
         raise InputError(f"{flag} needs {needs}")
 
 
-def report_console(stdout_has_data: bool = False):
-    """Where summaries go: stdout, or stderr when stdout carries the poses themselves."""
+def report_console():
+    """Where summaries go: stdout (no command writes poses to stdout; errors and warnings go to stderr)."""
     from rich.console import Console
 
-    return Console(stderr=stdout_has_data, highlight=False)
+    return Console(highlight=False)
 
 
 def report_written(paths: list[str | None], console) -> None:
