@@ -79,4 +79,6 @@ def test_viz3d_refuses_several_inputs_and_other_suffixes(tmp_path):
     assert r.returncode == 2 and r.stderr.startswith("posecam: error: --viz3d holds one input")
     r = run_posecam("predict", DATA / "messi5.jpg", "--viz3d", tmp_path / "v.png")
     assert r.returncode == 2 and "--viz3d must end in .html" in r.stderr
+    r = run_posecam("predict", DATA / "messi5.jpg", "--out-dir", tmp_path / "many", "--viz3d", tmp_path / "v.html")
+    assert r.returncode == 2 and "--viz3d" in r.stderr and r.stderr.startswith("posecam: error:")
     assert not list(tmp_path.iterdir())

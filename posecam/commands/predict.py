@@ -129,8 +129,8 @@ def predict_command(inputs, output, viz, model, skeleton, detector, max_people, 
                             min_detection_score=min_detection_score, min_presence=min_presence, device=device,
                             intrinsics=IntrinsicsOptions(fx, fy, cx, cy, intrinsics_file, camera))
     if out_dir or jobs > 1 or ray_address is not None:
-        if output or viz:
-            raise InputError("--out-dir writes one file per input; it does not go with -o or --viz")
+        if output or viz or viz3d:
+            raise InputError("--out-dir writes one file per input; it does not go with -o, --viz or --viz3d")
         from posecam.commands.many import predict_many
 
         return predict_many(list(inputs), opts, out_dir, f".{out_format}", jobs, ray_address)
