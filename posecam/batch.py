@@ -18,6 +18,7 @@ from pathlib import Path
 
 from posecam.errors import InputError, OutputError, PosecamError
 from posecam.estimate import EstimatorOptions, PoseEstimator
+from posecam.filters import smooth_recording
 from posecam.io.poses import write_poses
 
 RAY_HINT = "--ray needs Ray: pip install 'ray>=2.9' (or pip install -e '.[ray]' in a checkout)"
@@ -53,13 +54,15 @@ def plan_predictions(inputs: list[str], out_dir: str | os.PathLike, suffix: str)
 _estimators: dict[str, PoseEstimator] = {}   # per process, by options
 
 
-def predict_task(task: PredictTask, options: EstimatorOptions) -> str:
-    """Run one task (in whichever process it lands) and return its output path."""
+def predict_task(task: PredictTask, options: EstimatorOptions, smooth: bool = True) -> str:
+    """Run one task (in whichever process it lands) and return its output path; videos are
+    smoothed as `posecam predict` smooths them."""
     key = repr(options)
     estimator = _estimators.get(key)
     if estimator is None:
         estimator = _estimators[key] = PoseEstimator(options)
-    write_poses(task.output, [estimator.predict_file(task.input)])
+    recording = estimator.predict_file(task.input)
+    write_poses(task.output, [smooth_recording(recording) if smooth else recording])
     return task.output
 
 
@@ -70,7 +73,7 @@ def _threads_per_worker(options: EstimatorOptions, workers: int) -> EstimatorOpt
 
 
 def run_tasks(tasks: list[PredictTask], options: EstimatorOptions, jobs: int = 1,
-              ray_address: str | None = None) -> Iterator[str]:
+              ray_address: str | None = None, smooth: bool = True) -> Iterator[str]:
     """Run the tasks and yield each output path as its task finishes (in any order).
 
     `jobs` > 1: that many local worker processes, the CPU threads shared between them.
@@ -79,17 +82,18 @@ def run_tasks(tasks: list[PredictTask], options: EstimatorOptions, jobs: int = 1
     written stay, and the next run skips them.
     """
     if ray_address is not None:
-        yield from _run_on_ray(tasks, options, ray_address)
+        yield from _run_on_ray(tasks, options, ray_address, smooth)
     elif jobs > 1 and len(tasks) > 1:
-        yield from _run_in_processes(tasks, _threads_per_worker(options, jobs), jobs)
+        yield from _run_in_processes(tasks, _threads_per_worker(options, jobs), jobs, smooth)
     else:
         for task in tasks:
-            yield predict_task(task, options)
+            yield predict_task(task, options, smooth)
 
 
-def _run_in_processes(tasks: list[PredictTask], options: EstimatorOptions, jobs: int) -> Iterator[str]:
+def _run_in_processes(tasks: list[PredictTask], options: EstimatorOptions, jobs: int,
+                      smooth: bool) -> Iterator[str]:
     with ProcessPoolExecutor(max_workers=min(jobs, len(tasks))) as pool:
-        pending = {pool.submit(predict_task, t, options) for t in tasks}
+        pending = {pool.submit(predict_task, t, options, smooth) for t in tasks}
         try:
             while pending:
                 done, pending = wait(pending, return_when=FIRST_COMPLETED)
@@ -100,7 +104,8 @@ def _run_in_processes(tasks: list[PredictTask], options: EstimatorOptions, jobs:
                 future.cancel()
 
 
-def _run_on_ray(tasks: list[PredictTask], options: EstimatorOptions, address: str) -> Iterator[str]:
+def _run_on_ray(tasks: list[PredictTask], options: EstimatorOptions, address: str,
+                smooth: bool) -> Iterator[str]:
     try:
         import ray
     except ImportError:
@@ -108,7 +113,7 @@ def _run_on_ray(tasks: list[PredictTask], options: EstimatorOptions, address: st
     ray.init(address=address or None, include_dashboard=False, log_to_driver=False,
              ignore_reinit_error=True, configure_logging=False)
     remote = ray.remote(num_cpus=options.threads or 1)(predict_task)
-    pending = [remote.remote(t, options) for t in tasks]
+    pending = [remote.remote(t, options, smooth) for t in tasks]
     try:
         while pending:
             done, pending = ray.wait(pending, num_returns=1)

@@ -11,7 +11,7 @@ from posecam.errors import InputError
 
 
 def predict_many(inputs: list[str], options, out_dir: str | None, suffix: str, jobs: int,
-                 ray_address: str | None) -> None:
+                 ray_address: str | None, smooth: bool) -> None:
     """Predict every input into DIR/<input name><suffix>, skipping those already written, with
     one progress bar over all of them."""
     from posecam.batch import plan_predictions, run_tasks
@@ -24,7 +24,7 @@ def predict_many(inputs: list[str], options, out_dir: str | None, suffix: str, j
         click.echo(f"posecam: {skipped} of {len(inputs)} inputs already done in {out_dir}, skipped", err=True)
     with progress_bar() as progress:
         bar = progress.add_task(f"{len(inputs)} inputs", total=len(inputs), completed=skipped)
-        for output in run_tasks(tasks, options, jobs, ray_address):
+        for output in run_tasks(tasks, options, jobs, ray_address, smooth):
             progress.advance(bar)
             progress.console.print(f"wrote {output}", highlight=False)
     click.echo(f"posecam: {len(tasks)} written, {skipped} skipped, in {Path(out_dir)}", err=True)
