@@ -98,6 +98,8 @@ def _native_stderr_silenced() -> Iterator[None]:
 
 def check_input(path: str | os.PathLike, what: str = "") -> Path:
     """An existing, readable regular file or folder, or InputError (FIFOs, devices, sockets)."""
+    if not os.fspath(path):
+        raise InputError(f"{what or 'input'}: an empty name is not a file")
     path = Path(path)
     name = f"{what} {path}".strip()
     try:

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import shlex
 import shutil
 import signal
 import struct
@@ -116,6 +117,7 @@ ROWS = [
     # inputs that are not what they claim
     ("fifo-input", "predict {in}/pipe.mp4 -o {out}/p.json", 2, "not a regular file", ()),
     ("device-input", "predict /dev/zero -o {out}/p.json", 2, "not a regular file", ()),
+    ("empty-name", "predict '' -o {out}/p.json", 2, "empty name", ()),
     ("empty-folder", "predict {in}/empty -o {out}/p.json", 2, "holds no images", ()),
     ("text-as-video", "predict {in}/notes.txt -o {out}/p.json", 2, "neither a readable image", ()),
     ("huge-png-header", "predict {in}/huge.png -o {out}/p.json", 2, "100000x100000", ()),
@@ -175,7 +177,7 @@ def test_hostile_input(env, row):
     _, command, code, word, models = row
     _models(env, *models)
     before_in, before_out = _snapshot(env["in"]), _snapshot(env["out"])
-    args = [a.format(**{k: str(v) for k, v in env.items()}) for a in command.split()]
+    args = [a.format(**{k: str(v) for k, v in env.items()}) for a in shlex.split(command)]
     check_promise(run_posecam(*args), code, word)
     assert _snapshot(env["out"]) == before_out, "an output or a temporary file was left behind"
     assert _snapshot(env["in"]) == before_in, "an input was changed"
