@@ -197,12 +197,18 @@ def score_camera(cam, rec_frames, reference, start: int, height: int) -> dict:
 
 
 def estimator(args, k=None):
+    """The estimator as configured; options an older posecam lacks (PYTHONPATH=its checkout, to
+    measure before/after) are left out."""
+    from dataclasses import fields
+
     from posecam import EstimatorOptions, IntrinsicsOptions, PoseEstimator
 
     intr = IntrinsicsOptions(k.fx, k.fy, k.cx, k.cy) if k else IntrinsicsOptions()
-    return PoseEstimator(EstimatorOptions(model=args.model, detector=args.detector, max_people=args.max_people,
-                                          redetect_every=args.redetect_every, detector_size=args.detector_size,
-                                          min_detection_score=args.min_detection_score, intrinsics=intr))
+    wanted = dict(model=args.model, detector=args.detector, max_people=args.max_people,
+                  redetect_every=args.redetect_every, detector_size=args.detector_size,
+                  min_detection_score=args.min_detection_score, intrinsics=intr)
+    known = {f.name for f in fields(EstimatorOptions)}
+    return PoseEstimator(EstimatorOptions(**{n: v for n, v in wanted.items() if n in known and v is not None}))
 
 
 def two_person(args) -> None:
@@ -276,9 +282,10 @@ def main() -> None:
     ap.add_argument("--detector", default="movenet")
     ap.add_argument("--reference-detector", default="movenet", help="MoveNet model for the cross-view reference")
     ap.add_argument("--detector-size", type=int)
-    ap.add_argument("--redetect-every", type=int, default=1)
+    ap.add_argument("--redetect-every", type=int, default=15)
     ap.add_argument("--min-detection-score", type=float, default=None)
     ap.add_argument("--max-people", type=int, default=6)
+    ap.add_argument("--tag", default="", help="a label for the printed table (e.g. before/after)")
     ap.add_argument("--model", default="full")
     ap.add_argument("--check-offsets", action="store_true")
     ap.add_argument("--skip-take", action="store_true")

@@ -17,6 +17,7 @@ import numpy as np
 
 from posecam.errors import InputError, ModelError
 from posecam.geometry.camera import Intrinsics
+from posecam.geometry.lift import solve_root_translation
 from posecam.inference.detector import Detection, load_detector
 from posecam.inference.pose_model import PoseCandidate, make_pose_model
 from posecam.inference.roi import Roi
@@ -98,7 +99,9 @@ class PoseEstimator:
     def _step(self, image_rgb: np.ndarray, k: Intrinsics, tracker: Tracker) -> Frame:
         """One frame: detect if the tracker asks for it, run the pose model on every track."""
         _check_image(image_rgb)
-        detections = self.detector(image_rgb) if tracker.needs_detection() else None
+        detections = self.detector(image_rgb, self.options.max_people) if tracker.needs_detection() else None
+        if detections and hasattr(self.detector, "detect_region"):
+            detections = self._look_closer(image_rgb, tracker, detections)
         tracks = tracker.begin_frame(detections)
         if not tracks:
             return Frame(0, 0.0, [])
@@ -115,6 +118,16 @@ class PoseEstimator:
             [c.next_roi if c is not None else t.roi for t, c in zip(tracks, candidates)])
         return Frame(0, 0.0, [self._to_person(tracks[i].id, candidates[i]) for i in kept],
                      dropped=[float(c.score) for c, ok in zip(candidates, found) if c is not None and not ok])
+
+    def _look_closer(self, image_rgb: np.ndarray, tracker: Tracker, detections: list[Detection]) -> list[Detection]:
+        """Where one detection may cover two followed people, detect again in that region alone
+        (at the detector's input size, so larger); its people replace the detection when the
+        closer look separates them."""
+        for i, region in reversed(tracker.crowded(detections)):
+            closer = [d for d in self.detector.detect_region(image_rgb, region) if d.score >= self.min_detection_score]
+            if len(closer) >= 2:
+                detections = detections[:i] + closer + detections[i + 1:]
+        return detections
 
     def _own_pose(self, image_rgb: np.ndarray, k: Intrinsics, track: Track, c: PoseCandidate,
                   detections: list[Detection]) -> tuple[PoseCandidate | None, bool]:
@@ -134,10 +147,11 @@ class PoseEstimator:
                 c, foreign = redo, again
         if foreign.sum() > (c.confidence[idx] >= 0.5).sum() / 2:
             return None, False
-        if foreign.any():
+        if foreign.any():   # the neighbour's joints leave the pose, and the root is placed without them
             conf = c.confidence.copy()
             conf[idx[foreign]] = 0.0
-            c = replace(c, confidence=conf)
+            shift = solve_root_translation(c.keypoints_3d, c.keypoints_2d, conf, k)
+            c = replace(c, confidence=conf, keypoints_3d=c.keypoints_3d + shift)
         area = float(np.prod(own.box[2:] - own.box[:2]))
         agrees = oks(c.keypoints_2d[idx], c.confidence[idx], own.keypoints, own.keypoint_scores, area) >= 0.5
         return c, c.score >= self.options.min_presence or agrees

@@ -17,33 +17,17 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
-from posecam.inference.detector import Detection
+from posecam.inference.detector import MIN_KEYPOINT_SCORE, Detection, oks
 from posecam.inference.roi import Roi
-
-# COCO keypoint sigmas (OKS), used when there are 17 keypoints; 0.07 for each otherwise.
-COCO_SIGMAS = np.array([.026, .025, .025, .035, .035, .079, .079, .072, .072, .062, .062,
-                        .107, .107, .087, .087, .089, .089])
-MIN_KEYPOINT_SCORE = 0.3
-
 
 def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """(N, 4) x (M, 4) boxes (x0, y0, x1, y1) -> (N, M) intersection over union."""
     lo = np.maximum(a[:, None, :2], b[None, :, :2])
     hi = np.minimum(a[:, None, 2:], b[None, :, 2:])
     inter = np.prod(np.clip(hi - lo, 0, None), axis=-1)
-    area = lambda x: np.prod(np.clip(x[:, 2:] - x[:, :2], 0, None), axis=-1)  # noqa: E731
-    return inter / np.maximum(area(a)[:, None] + area(b)[None, :] - inter, 1e-9)
-
-
-def oks(points_a: np.ndarray, conf_a: np.ndarray, points_b: np.ndarray, conf_b: np.ndarray,
-        area: float) -> float:
-    """Object keypoint similarity of two (K, 2) keypoint sets over the joints both see (0 if none)."""
-    both = (conf_a >= MIN_KEYPOINT_SCORE) & (conf_b >= MIN_KEYPOINT_SCORE)
-    if not both.any():
-        return 0.0
-    k = 2 * (COCO_SIGMAS if len(points_a) == len(COCO_SIGMAS) else np.full(len(points_a), 0.07))
-    d2 = np.sum((points_a - points_b) ** 2, axis=-1)
-    return float(np.mean(np.exp(-d2[both] / (2 * max(area, 1.0) * k[both] ** 2))))
+    area_a = np.prod(np.clip(a[:, 2:] - a[:, :2], 0, None), axis=-1)
+    area_b = np.prod(np.clip(b[:, 2:] - b[:, :2], 0, None), axis=-1)
+    return inter / np.maximum(area_a[:, None] + area_b[None, :] - inter, 1e-9)
 
 
 def foreign_joints(points: np.ndarray, conf: np.ndarray, own: Detection, others: list[Detection]) -> np.ndarray:
@@ -147,6 +131,24 @@ class Tracker:
 
     def active(self) -> list[Track]:
         return [t for t in self.tracks if t.lost == 0]
+
+    def crowded(self, detections: list[Detection]) -> list[tuple[int, np.ndarray]]:
+        """Detections that may cover two followed people at once (one behind the other): those
+        overlapping (IoU >= 0.3) the boxes where 2 or more tracks are expected now. Returns
+        (index, region): the region (x0, y0, x1, y1) holds the detection and those tracks."""
+        followed = [t for t in self.tracks if t.lost <= self.options.max_lost]
+        if len(followed) < 2 or not detections:
+            return []
+        expected = np.array([t.kalman.box + np.tile(t.kalman.x[4:6], 2) for t in followed])
+        iou = box_iou(np.array([d.box for d in detections]), expected)
+        out = []
+        for i, d in enumerate(detections):
+            near = iou[i] >= 0.3
+            # two tracks expected here, and between them fewer detections than tracks
+            if near.sum() >= 2 and ((iou[:, near] >= 0.3).any(axis=1)).sum() < near.sum():
+                boxes = np.vstack([d.box[None], expected[near]])
+                out.append((i, np.concatenate([boxes[:, :2].min(axis=0), boxes[:, 2:].max(axis=0)])))
+        return out
 
     def begin_frame(self, detections: list[Detection] | None) -> list[Track]:
         """Move every track on and, on a detector frame, match the detections; returns the

@@ -37,6 +37,14 @@ def test_people_counted_in_photos(people, image, count):
     assert len(people.predict_image(read_image(DATA / image)).people) == count
 
 
+def test_tiles_for_crowds_find_each_person_once():
+    # more people asked for than one MoveNet run returns: 4 overlapping tiles are searched too
+    crowd = PoseEstimator(EstimatorOptions(max_people=10))
+    for image, count in (("basketball2.png", 2), ("messi5.jpg", 1)):
+        frame = crowd.predict_image(read_image(DATA / image))
+        assert len(frame.people) == count, image
+
+
 def test_two_players_get_one_skeleton_each(people):
     frame = people.predict_image(read_image(DATA / "basketball2.png"))
     a, b = sorted(frame.people, key=lambda p: p.root[0])

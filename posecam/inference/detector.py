@@ -132,7 +132,8 @@ class MoveNetDetector:
     """MoveNet MultiPose: up to 6 people per run, each a box and 17 scored COCO keypoints.
 
     `input_size` is the long side the image is resized to (the contract's default when None);
-    larger finds smaller people, at a cost that grows with its square.
+    larger finds smaller people, at a cost that grows with its square. Asked for more people
+    than one run returns, it also searches 4 overlapping tiles (crowds, small people).
     """
 
     default_score = 0.25   # people seen from behind or half hidden score 0.3 to 0.5
@@ -144,6 +145,7 @@ class MoveNetDetector:
         self.multiple = spec.multiple or 32
         self.input_size = int(input_size or max(spec.size))
         self.joints = model.contract.joints
+        self.per_run = 6    # people one run returns (the output's second axis; read on each run)
         names = {n: i for i, n in enumerate(self.joints)}
         try:
             self._hips = (names["left_hip"], names["right_hip"])
@@ -164,24 +166,85 @@ class MoveNetDetector:
         return canvas, 1.0 / s
 
     def __call__(self, image_rgb: np.ndarray, max_people: int | None = None) -> list[Detection]:
+        """People in the image, most confident first. When `max_people` exceeds what one run
+        returns, 2 x 2 overlapping tiles are searched too (more and smaller people) and the
+        detections of one person merged."""
+        found = self._detect(image_rgb, np.zeros(2))
+        if max_people is not None and max_people > self.per_run:
+            h, w = image_rgb.shape[:2]
+            tw, th = round(w * 0.6), round(h * 0.6)   # 2 x 2 tiles overlapping by a fifth of the image
+            for x0 in (0, w - tw):
+                for y0 in (0, h - th):
+                    found += self._detect(image_rgb[y0:y0 + th, x0:x0 + tw], np.array([x0, y0], float))
+            found = _merge(found)
+        return sorted(found, key=lambda d: -d.score)[:max_people]
+
+    def detect_region(self, image_rgb: np.ndarray, region: np.ndarray, margin: float = 0.15) -> list[Detection]:
+        """People in a region (x0, y0, x1, y1) of the image, grown by `margin` of its size: a
+        closer look where one detection may hold two people."""
+        h, w = image_rgb.shape[:2]
+        pad = margin * (region[2:] - region[:2])
+        x0, y0 = np.maximum(np.floor(region[:2] - pad), 0).astype(int)
+        x1, y1 = np.minimum(np.ceil(region[2:] + pad), [w, h]).astype(int)
+        if x1 - x0 < 8 or y1 - y0 < 8:
+            return []
+        return self._detect(image_rgb[y0:y1, x0:x1], np.array([x0, y0], float))
+
+    def _detect(self, image_rgb: np.ndarray, offset: np.ndarray) -> list[Detection]:
         canvas, to_image = self.prepare(image_rgb)
         spec = self.model.contract.input
-        out = self.model.run({spec.name: to_input_tensor(canvas[None], spec)})["people"][0].astype(np.float64)
+        raw = self.model.run({spec.name: to_input_tensor(canvas[None], spec)})
+        self.model.check_shapes(raw, {"people": (1, None, 3 * len(self.joints) + 5)})
+        out = raw["people"][0].astype(np.float64)
+        self.per_run = len(out)
         in_h, in_w = canvas.shape[:2]
         k = len(self.joints)
-        order = np.argsort(-out[:, 3 * k + 4])
         result = []
-        for row in out[order]:
+        for row in out[np.argsort(-out[:, 3 * k + 4])]:
             score = float(row[3 * k + 4])
             if not np.isfinite(score) or score < self.min_score:
                 break
             kp = row[:3 * k].reshape(k, 3)
-            points = kp[:, [1, 0]] * [in_w, in_h] * to_image
-            box = row[3 * k:3 * k + 4][[1, 0, 3, 2]] * [in_w, in_h, in_w, in_h] * to_image
+            points = kp[:, [1, 0]] * [in_w, in_h] * to_image + offset
+            box = row[3 * k:3 * k + 4][[1, 0, 3, 2]] * [in_w, in_h, in_w, in_h] * to_image + np.tile(offset, 2)
             conf = np.clip(kp[:, 2], 0.0, 1.0)
             result.append(Detection(score, box, points, conf,
                                     body_roi(points, conf, box, self._hips, self._shoulders)))
-        return result[:max_people]
+        return result
+
+
+def _merge(detections: list[Detection], iou: float = 0.5, same: float = 0.5) -> list[Detection]:
+    """One detection per person: the most confident of those whose boxes overlap (IoU above
+    `iou`) or whose keypoints agree (OKS above `same`: a person cut by a tile's edge)."""
+    kept: list[Detection] = []
+    for d in sorted(detections, key=lambda d: -d.score):
+        boxes = np.array([k.box for k in kept]).reshape(-1, 4)
+        lo, hi = np.maximum(d.box[:2], boxes[:, :2]), np.minimum(d.box[2:], boxes[:, 2:])
+        inter = np.prod(np.clip(hi - lo, 0, None), axis=1)
+        overlap = inter / np.maximum(_area(d.box) + _area(boxes) - inter, 1e-9)
+        if not any(o > iou or oks(d.keypoints, d.keypoint_scores, k.keypoints, k.keypoint_scores,
+                                  float(_area(k.box))) > same for o, k in zip(overlap, kept)):
+            kept.append(d)
+    return kept
+
+
+# COCO keypoint sigmas (OKS), used when there are 17 keypoints; 0.07 for each otherwise.
+COCO_SIGMAS = np.array([.026, .025, .025, .035, .035, .079, .079, .072, .072, .062, .062,
+                        .107, .107, .087, .087, .089, .089])
+MIN_KEYPOINT_SCORE = 0.3
+
+
+def oks(points_a: np.ndarray, conf_a: np.ndarray, points_b: np.ndarray, conf_b: np.ndarray,
+        area: float) -> float:
+    """Object keypoint similarity of two (K, 2) keypoint sets over the joints both see (0 if none)."""
+    if len(points_a) != len(points_b):
+        return 0.0
+    both = (conf_a >= MIN_KEYPOINT_SCORE) & (conf_b >= MIN_KEYPOINT_SCORE)
+    if not both.any():
+        return 0.0
+    k = 2 * (COCO_SIGMAS if len(points_a) == len(COCO_SIGMAS) else np.full(len(points_a), 0.07))
+    d2 = np.sum((points_a - points_b) ** 2, axis=-1)
+    return float(np.mean(np.exp(-d2[both] / (2 * max(area, 1.0) * k[both] ** 2))))
 
 
 Detector = BlazePoseDetector | MoveNetDetector
