@@ -100,8 +100,6 @@ class PoseEstimator:
         """One frame: detect if the tracker asks for it, run the pose model on every track."""
         _check_image(image_rgb)
         detections = self.detector(image_rgb, self.options.max_people) if tracker.needs_detection() else None
-        if detections and hasattr(self.detector, "detect_region"):
-            detections = self._look_closer(image_rgb, tracker, detections)
         tracks = tracker.begin_frame(detections)
         if not tracks:
             return Frame(0, 0.0, [])
@@ -118,16 +116,6 @@ class PoseEstimator:
             [c.next_roi if c is not None else t.roi for t, c in zip(tracks, candidates)])
         return Frame(0, 0.0, [self._to_person(tracks[i].id, candidates[i]) for i in kept],
                      dropped=[float(c.score) for c, ok in zip(candidates, found) if c is not None and not ok])
-
-    def _look_closer(self, image_rgb: np.ndarray, tracker: Tracker, detections: list[Detection]) -> list[Detection]:
-        """Where one detection may cover two followed people, detect again in that region alone
-        (at the detector's input size, so larger); its people replace the detection when the
-        closer look separates them."""
-        for i, region in reversed(tracker.crowded(detections)):
-            closer = [d for d in self.detector.detect_region(image_rgb, region) if d.score >= self.min_detection_score]
-            if len(closer) >= 2:
-                detections = detections[:i] + closer + detections[i + 1:]
-        return detections
 
     def _own_pose(self, image_rgb: np.ndarray, k: Intrinsics, track: Track, c: PoseCandidate,
                   detections: list[Detection]) -> tuple[PoseCandidate | None, bool]:

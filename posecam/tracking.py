@@ -132,24 +132,6 @@ class Tracker:
     def active(self) -> list[Track]:
         return [t for t in self.tracks if t.lost == 0]
 
-    def crowded(self, detections: list[Detection]) -> list[tuple[int, np.ndarray]]:
-        """Detections that may cover two followed people at once (one behind the other): those
-        overlapping (IoU >= 0.3) the boxes where 2 or more tracks are expected now. Returns
-        (index, region): the region (x0, y0, x1, y1) holds the detection and those tracks."""
-        followed = [t for t in self.tracks if t.lost <= self.options.max_lost]
-        if len(followed) < 2 or not detections:
-            return []
-        expected = np.array([t.kalman.box + np.tile(t.kalman.x[4:6], 2) for t in followed])
-        iou = box_iou(np.array([d.box for d in detections]), expected)
-        out = []
-        for i, d in enumerate(detections):
-            near = iou[i] >= 0.3
-            # two tracks expected here, and between them fewer detections than tracks
-            if near.sum() >= 2 and ((iou[:, near] >= 0.3).any(axis=1)).sum() < near.sum():
-                boxes = np.vstack([d.box[None], expected[near]])
-                out.append((i, np.concatenate([boxes[:, :2].min(axis=0), boxes[:, 2:].max(axis=0)])))
-        return out
-
     def begin_frame(self, detections: list[Detection] | None) -> list[Track]:
         """Move every track on and, on a detector frame, match the detections; returns the
         tracks the pose model must run on now (each with its ROI, and its detection if any)."""

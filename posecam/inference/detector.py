@@ -179,17 +179,6 @@ class MoveNetDetector:
             found = _merge(found)
         return sorted(found, key=lambda d: -d.score)[:max_people]
 
-    def detect_region(self, image_rgb: np.ndarray, region: np.ndarray, margin: float = 0.15) -> list[Detection]:
-        """People in a region (x0, y0, x1, y1) of the image, grown by `margin` of its size: a
-        closer look where one detection may hold two people."""
-        h, w = image_rgb.shape[:2]
-        pad = margin * (region[2:] - region[:2])
-        x0, y0 = np.maximum(np.floor(region[:2] - pad), 0).astype(int)
-        x1, y1 = np.minimum(np.ceil(region[2:] + pad), [w, h]).astype(int)
-        if x1 - x0 < 8 or y1 - y0 < 8:
-            return []
-        return self._detect(image_rgb[y0:y1, x0:x1], np.array([x0, y0], float))
-
     def _detect(self, image_rgb: np.ndarray, offset: np.ndarray) -> list[Detection]:
         canvas, to_image = self.prepare(image_rgb)
         spec = self.model.contract.input
