@@ -1,8 +1,15 @@
-"""Multi-view benchmark on the Pose2Sim demo (4 real portrait cameras, 100 frames, 60 fps).
+"""Multi-view benchmark on Pose2Sim's two demo takes (4 real portrait cameras, 100 frames, 60 fps,
+unsynchronised; `pose2sim==0.10.49` wheel): Demo_SinglePerson and Demo_MultiPerson (two people).
 
-Prints the estimated rig (no calibration given) against the lab's Qualisys calibration, the
-estimated frame offsets, and how far single views and fused poses lie from the triangulation
-with the lab calibration.  Usage: python bench/bench_fuse.py [--cache DIR] (pose JSONs).
+Truth: the lab's Qualisys calibration (Calib.qca.txt), the frame offsets it implies (per camera,
+the offset under which the keypoints triangulated with it reproject best against cam01), and
+the lab triangulation of each person (2D keypoints through the lab rig at those offsets).
+Prints, with and without the calibration given: relative rotation error per camera pair and
+their median, focal error per camera, offsets found by --sync auto, and the distance of each
+fused pelvis to the nearest lab-triangulated pelvis in its frame (median and mean, mm).
+
+Usage: python bench/bench_fuse.py [--cache DIR] [--take single|multi]. Per-view predictions
+are cached as posecam JSON under DIR/<take>/camNN.json (predict once, fuse many times).
 """
 
 from __future__ import annotations
@@ -15,125 +22,136 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from export.assets import pose2sim_demo_path
+from export.assets import _extract
 from posecam import PoseEstimator, read_poses, write_poses
-from posecam.multiview.fuse import FuseOptions, fix_left_right, fuse_recordings, main_track
-from posecam.multiview.bundle import bundle_adjust
-from posecam.geometry.camera import CameraCalibration, Rig
-from posecam.io.calibration import read_qualisys
-from posecam.multiview.sync import shift
-from posecam.geometry.triangulate import triangulate
+from posecam.geometry.camera import Rig
+from posecam.io.calibration import read_calibration
+from posecam.multiview.fuse import FuseOptions, FusionResult, fuse_recordings, view_names
 
+TAKES = {"single": "Demo_SinglePerson", "multi": "Demo_MultiPerson"}
 NAMES = ("cam01", "cam02", "cam03", "cam04")
-LAB_OFFSETS = [0, -1, 4, 0]
+MAX_OFFSET = 10
 
 
-def load(cache: Path):
+def load(cache: Path, take: str):
+    """The take's per-view recordings (predicted once, then read from the cache) and lab rig."""
     recs = []
+    (cache / take).mkdir(parents=True, exist_ok=True)
     for name in NAMES:
-        path = cache / f"{name}.json"
+        path = cache / take / f"{name}.json"
         if not path.exists():
-            write_poses(path, [PoseEstimator().predict_file(pose2sim_demo_path(f"videos/{name}.mp4"))])
+            video = _extract("pose2sim", f"Pose2Sim/{take}/videos/{name}.mp4")
+            write_poses(path, [PoseEstimator().predict_file(video)])
         recs.append(read_poses(path)[0])
-    return recs
+    lab = read_calibration(_extract("pose2sim", f"Pose2Sim/{take}/calibration/Calib.qca.txt"))
+    cams, _ = lab.match(view_names(recs), [(r.width, r.height) for r in recs])
+    return recs, Rig(cams, None)
 
 
-def similarity(src: np.ndarray, dst: np.ndarray):
-    """Umeyama: s, R, t with dst ~ s R src + t."""
-    ms, md = src.mean(0), dst.mean(0)
-    u, d, vt = np.linalg.svd((dst - md).T @ (src - ms))
-    e = np.diag([1, 1, np.sign(np.linalg.det(u @ vt))])
-    r = u @ e @ vt
-    s = np.trace(np.diag(d) @ e) / ((src - ms) ** 2).sum()
-    return s, r, md - s * r @ ms
-
-
-def poses(result) -> np.ndarray:
-    """(F, 17, 3) the first fused person per frame, NaN where there is none."""
-    return np.stack([f.people[0].keypoints_3d if f.people else np.full((17, 3), np.nan)
-                     for f in result.recording.frames])
-
-
-def rotation_errors(cams, lab) -> list[float]:
-    """Angle (deg) between estimated and lab relative rotations, for every camera pair."""
-    out = []
-    for a, b in itertools.combinations(range(len(cams)), 2):
-        d = (cams[b].rotation @ cams[a].rotation.T) @ (lab[b].rotation @ lab[a].rotation.T).T
-        out.append(float(np.degrees(np.linalg.norm(cv2.Rodrigues(d)[0]))))
+def lab_offsets(recs, lab: Rig) -> list[int]:
+    """Per camera, the offset against cam01 under which the lab rig explains the pair best, free of
+    any association: per frame, the best-matching pair of people (smallest median reprojection
+    error of their two-view triangulation), then the median over frames."""
+    out = [0]
+    for v in range(1, len(recs)):
+        pair = Rig([lab.cameras[0], lab.cameras[v]])
+        cost = {}
+        for o in range(-MAX_OFFSET, MAX_OFFSET + 1):
+            per_frame = []
+            for i, f in enumerate(recs[0].frames):
+                if not 0 <= i + o < len(recs[v].frames):
+                    continue
+                best = np.inf
+                for p, q in itertools.product(f.people, recs[v].frames[i + o].people):
+                    uv = np.stack([p.keypoints_2d, q.keypoints_2d])[:, None]
+                    conf = np.stack([p.confidence, q.confidence])[:, None]
+                    err = pair.reprojection_errors(pair.triangulate(uv, conf), uv, conf)
+                    if np.isfinite(err).sum() > 10:
+                        best = min(best, float(np.nanmedian(err)))
+                if np.isfinite(best):
+                    per_frame.append(best)
+            cost[o] = np.median(per_frame) if len(per_frame) > 30 else np.inf
+        out.append(min(cost, key=cost.get))
     return out
 
 
-def median_rotation_error(cams, lab) -> float:
-    return float(np.median(rotation_errors(cams, lab)))
+def pelvis_errors(result: FusionResult, truth: FusionResult, to_world=None) -> np.ndarray:
+    """Distance (mm) of every fused pelvis to the nearest true pelvis of its frame."""
+    out = []
+    for f, t in zip(result.recording.frames, truth.recording.frames):
+        if not t.people:
+            continue
+        true = np.stack([p.keypoints_3d[0] for p in t.people])
+        for p in f.people:
+            x = p.keypoints_3d[0] if to_world is None else to_world(p.keypoints_3d[0])
+            if np.all(np.isfinite(x)):
+                out.append(np.min(np.linalg.norm(true - x, axis=1)))
+    return np.array(out)
+
+
+def rotation_errors(result: FusionResult, lab: Rig) -> dict[tuple[str, str], float]:
+    """Angle (deg) between estimated and lab relative rotations, for every kept camera pair."""
+    cams, truth = result.rig.cameras, [lab.cameras[v] for v in result.views]
+    out = {}
+    for a, b in itertools.combinations(range(len(cams)), 2):
+        d = (cams[b].rotation @ cams[a].rotation.T) @ (truth[b].rotation @ truth[a].rotation.T).T
+        out[(cams[a].name, cams[b].name)] = float(np.degrees(np.linalg.norm(cv2.Rodrigues(d)[0])))
+    return out
+
+
+def run(label: str, recs, opts: FuseOptions) -> FusionResult:
+    t0 = time.perf_counter()
+    result = fuse_recordings(recs, opts)
+    print(f"-- {label}: {time.perf_counter() - t0:.1f} s, cameras {', '.join(c.name for c in result.rig.cameras)}, "
+          f"offsets {result.offsets} (confidence {', '.join(f'{c.offset_confidence:.2f}' for c in result.cameras)}), "
+          f"people {max(len(f.people) for f in result.recording.frames)}")
+    for w in result.warnings:
+        print(f"   warning: {w}")
+    return result
+
+
+def report_rig(result: FusionResult, lab: Rig, truth: FusionResult) -> None:
+    rot = rotation_errors(result, lab)
+    print("   relative rotation error (deg): " + ", ".join(f"{a}-{b} {e:.1f}" for (a, b), e in rot.items())
+          + f"; MEDIAN {np.median(list(rot.values())):.2f}")
+    focal = [(c.name, 100 * (c.intrinsics.fx / lab.cameras[v].intrinsics.fx - 1))
+             for c, v in zip(result.rig.cameras, result.views)]
+    print("   focal error (%): " + ", ".join(f"{n} {e:+.1f}" for n, e in focal)
+          + f"; max |error| {max(abs(e) for _, e in focal):.1f}")
+    c1 = lab.cameras[result.views[0]]
+    err = pelvis_errors(result, truth, lambda x: (x - c1.translation) @ c1.rotation)
+    print(f"   fused pelvis vs lab triangulation: median {np.median(err):.0f} mm, mean {np.mean(err):.0f} mm "
+          f"({len(err)} pelvises)")
+
+
+def bench(cache: Path, take: str) -> None:
+    recs, lab = load(cache, take)
+    print(f"== {take}")
+    # truth: people associated and triangulated through the lab rig at the offsets it implies
+    offsets = lab_offsets(recs, lab)
+    truth = fuse_recordings(recs, FuseOptions(calibration=lab, offsets=offsets, method="triangulate"))
+    print(f"   offsets the lab calibration implies: {offsets}")
+
+    est = run("no calibration, lab offsets", recs, FuseOptions(offsets=offsets))
+    report_rig(est, lab, truth)
+    auto = run("no calibration, --sync auto", recs, FuseOptions(sync=True))
+    report_rig(auto, lab, truth)
+    for label, opts in (("lab calibration, lab offsets", FuseOptions(calibration=lab, offsets=offsets)),
+                        ("lab calibration, --sync auto", FuseOptions(calibration=lab, sync=True))):
+        res = run(label, recs, opts)
+        err = pelvis_errors(res, truth)
+        print(f"   fused pelvis vs lab triangulation: median {np.median(err):.0f} mm, mean {np.mean(err):.0f} mm "
+              f"({len(err)} pelvises)")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
-    ap.add_argument("--cache", type=Path, default=Path("/tmp/posecam_bench_fuse"))
+    ap.add_argument("--cache", type=Path, default=Path("/tmp/fuse_cache"))
+    ap.add_argument("--take", choices=[*TAKES, "both"], default="both")
     args = ap.parse_args()
-    args.cache.mkdir(parents=True, exist_ok=True)
-    recs = load(args.cache)
-    qca = read_qualisys(pose2sim_demo_path("calibration/Calib.qca.txt"))     # sorted: cam01..cam04
-    qca = read_qualisys(pose2sim_demo_path("calibration/Calib.qca.txt"),
-                        image_widths={c.name: r.width for c, r in zip(qca, recs)})
-    for c, name in zip(qca, NAMES):
-        c.name = name
-    lab = qca
-
-    t0 = time.perf_counter()
-    est = fuse_recordings(recs, FuseOptions(offsets=LAB_OFFSETS))
-    t_est = time.perf_counter() - t0
-    cams = est.rig.cameras
-    print(f"== uncalibrated rig (offsets {LAB_OFFSETS}), {t_est:.1f} s")
-    rot_err = rotation_errors(cams, lab)
-    for (a, b), e in zip(itertools.combinations(range(4), 2), rot_err):
-        print(f"  relative rotation {NAMES[a]}-{NAMES[b]}: {e:.2f} deg")
-    f_err = [100 * (c.intrinsics.fx / l.intrinsics.fx - 1) for c, l in zip(cams, lab)]
-    for n, c, l, e in zip(NAMES, cams, lab, f_err):
-        print(f"  focal {n}: {c.intrinsics.fx:.0f} px vs lab {l.intrinsics.fx:.0f} px ({e:+.1f} %)")
-    ce, cl = np.stack([c.centre for c in cams]), np.stack([c.centre for c in lab])
-    s, r, t = similarity(ce, cl)
-    c_err = np.linalg.norm(s * ce @ r.T + t - cl, axis=1)
-    print(f"  camera centres after similarity alignment: {', '.join(f'{e:.0f}' for e in c_err)} mm "
-          f"(metric scale factor to lab: {s:.3f})")
-    print(f"  MEDIAN relative rotation error {np.median(rot_err):.2f} deg, "
-          f"median |focal error| {np.median(np.abs(f_err)):.1f} %, median centre error {np.median(c_err):.0f} mm")
-
-    # The floor set by the keypoints themselves: bundle adjustment started from the lab rig,
-    # on keypoints whose left/right swaps were undone with the lab rig (as the reference below).
-    n = len(recs[0].frames)
-    fixed, swaps = fix_left_right(recs, lab, LAB_OFFSETS, 0)
-    tracks = [main_track(r) for r in fixed]
-    uv = np.stack([shift(t[0], o, n) for t, o in zip(tracks, LAB_OFFSETS)])
-    conf = np.stack([shift(t[2], o, n, 0.0) for t, o in zip(tracks, LAB_OFFSETS)])
-    r1, t1 = lab[0].rotation, lab[0].translation
-    lab_rel = [CameraCalibration(c.name, c.size, c.intrinsics, c.rotation @ r1.T, c.translation - c.rotation @ r1.T @ t1)
-               for c in lab]
-    from_lab = bundle_adjust(Rig(lab_rel, lab[0].name), uv, conf, None, recs[0].joints).rig.cameras
-    print(f"  (bundle adjustment started from the lab rig itself ends {median_rotation_error(from_lab, lab):.2f} deg "
-          "from it: the cross-view disagreement of the 2D keypoints sets this floor)")
-
-    auto = fuse_recordings(recs, FuseOptions(sync=True))
-    print(f"== --sync auto, uncalibrated: offsets {auto.offsets} (lab-calibration best: {LAB_OFFSETS})")
-    auto_lab = fuse_recordings(recs, FuseOptions(calibration=Rig(lab), sync=True))
-    print(f"== --sync auto, lab calibration: offsets {auto_lab.offsets}")
-
-    ref_pts = triangulate(lab, uv, conf)                                 # lab triangulation, world mm
-    print(f"  (reference: left/right swaps undone in {', '.join(map(str, swaps))} frames per camera)")
-    print("== distance to the lab triangulation (median over joints and frames, mm; world frame)")
-    rig = Rig(lab)
-    res = fuse_recordings(recs, FuseOptions(calibration=rig, offsets=LAB_OFFSETS))
-    print(f"  fused, lab calibration: {np.nanmedian(np.linalg.norm(poses(res) - ref_pts, axis=-1)):.0f}")
-    in_lab = (poses(est) - t1) @ r1             # estimated rig's frame = cam01's -> lab world, x = R1^T (x1 - t1)
-    print(f"  fused, estimated rig (its frame is cam01's): {np.nanmedian(np.linalg.norm(in_lab - ref_pts, axis=-1)):.0f}")
-    from posecam.multiview.fuse import camera_space
-    for v, (rec, o) in enumerate(zip(recs, LAB_OFFSETS)):
-        pts = np.full((n, 17, 3), np.nan)
-        for i in range(n):
-            if 0 <= i + o < n and rec.frames[i + o].people:
-                pts[i] = camera_space(lab[v], rec, rec.frames[i + o].people[0])
-        print(f"  single view {NAMES[v]} (its pose rebuilt with the lab intrinsics): "
-              f"{np.nanmedian(np.linalg.norm(pts - ref_pts, axis=-1)):.0f}")
+    for key, take in TAKES.items():
+        if args.take in (key, "both"):
+            bench(args.cache, take)
 
 
 if __name__ == "__main__":

@@ -30,14 +30,15 @@ def _rot(axis: str, angle: np.ndarray) -> np.ndarray:
     return np.moveaxis(np.array(m), (0, 1), (-2, -1))
 
 
-def skeleton_motion(n_frames: int, seed: int = 0, centre=(0.0, 0.0)) -> np.ndarray:
+def skeleton_motion(n_frames: int, seed: int = 0, centre=(0.0, 0.0), walk=(0.0, 0.0)) -> np.ndarray:
     """(F, 17, 3) world joints (mm, z up) of a person walking a loop, swinging arms and legs,
-    turning, bending and now and then raising an arm sideways."""
+    turning, bending and now and then raising an arm sideways; `walk` (mm/s) moves the loop
+    across the scene (people whose paths cross)."""
     rng = np.random.default_rng(seed)
     t = np.arange(n_frames) / 30.0
     phase = 2 * np.pi * 0.9 * t + rng.uniform(0, 2 * np.pi)
     yaw = 0.6 * t + rng.uniform(0, 2 * np.pi)                      # slowly turning body
-    root = np.stack([centre[0] + 700 * np.cos(0.35 * t), centre[1] + 500 * np.sin(0.5 * t),
+    root = np.stack([centre[0] + walk[0] * t + 700 * np.cos(0.35 * t), centre[1] + walk[1] * t + 500 * np.sin(0.5 * t),
                      950 + 30 * np.sin(2 * phase)], axis=-1)
     lean = 0.15 * np.sin(0.7 * t)                                   # bending forward and back
 
@@ -102,7 +103,9 @@ DEFAULT_SPECS = (
 )
 
 
-def make_rig(specs=DEFAULT_SPECS, seed: int = 1) -> list[CameraCalibration]:
+def make_rig(specs=DEFAULT_SPECS, seed: int = 1, principal_noise: float = 0.01) -> list[CameraCalibration]:
+    """Cameras looking at the scene centre; principal points off the image centre by about
+    `principal_noise` image sizes."""
     rng = np.random.default_rng(seed)
     cams = []
     for s in specs:
@@ -111,47 +114,64 @@ def make_rig(specs=DEFAULT_SPECS, seed: int = 1) -> list[CameraCalibration]:
         r, t = look_at(centre, np.array([0.0, 0.0, 1000.0]) + rng.normal(0, 150, 3))
         w, h = s.size
         k = Intrinsics(s.focal, s.focal * rng.uniform(0.99, 1.01),
-                       w / 2 + rng.normal(0, 0.01 * w), h / 2 + rng.normal(0, 0.01 * h))
+                       w / 2 + rng.normal(0, 0.01 * w) * principal_noise / 0.01,
+                       h / 2 + rng.normal(0, 0.01 * h) * principal_noise / 0.01)
         cams.append(CameraCalibration(s.name, s.size, k, r, t))
     return cams
 
 
 def monocular_views(cams: list[CameraCalibration], world: np.ndarray, seed: int = 2,
                     pixel_noise: float = 2.0, joint_noise: float = 25.0, depth_noise: float = 50.0,
-                    outlier_rate: float = 0.02, offsets: list[int] | None = None) -> list[Recording]:
+                    outlier_rate: float = 0.02, offsets: list[int] | None = None,
+                    visible: np.ndarray | None = None, id_switch: dict | None = None) -> list[Recording]:
     """What `posecam predict` would write for each camera, with default intrinsics.
 
-    offsets[c] = o means camera c's frame i + o shows the instant of the world's frame i
-    (its recording starts o frames earlier); frames that fall outside are dropped.
+    world: (F, J, 3) one person, or (P, F, J, 3) several. offsets[c] = o means camera c's frame
+    i + o shows the instant of the world's frame i (its recording starts o frames earlier);
+    frames that fall outside are dropped. visible (P, V, F) bool: who each camera detects when
+    (default: everyone always). id_switch {(person, view): frame}: that view's tracker gives the
+    person a new id (person + 10) from that frame on.
     """
     rng = np.random.default_rng(seed)
+    world = world[None] if world.ndim == 3 else world
+    n_people, n = world.shape[:2]
+    if visible is None:
+        visible = np.ones((n_people, len(cams), n), bool)
     recs = []
-    n = len(world)
     for ci, cam in enumerate(cams):
         o = offsets[ci] if offsets else 0
         k0 = Intrinsics.default(*cam.size)
         rec = Recording(cam.name, cam.size[0], cam.size[1], k0, H36M_JOINTS, model="synthetic", fps=30.0)
         for i in range(n + max(o, 0)):
             src = i - o
-            if not 0 <= src < n:
-                rec.frames.append(Frame(i, i / 30.0, []))
-                continue
-            pc = cam.to_camera(world[src])
-            uv = cam.project(world[src]) + rng.normal(0, pixel_noise, (len(pc), 2))
-            conf = rng.uniform(0.55, 1.0, len(pc))
-            low = rng.random(len(pc)) < 0.08
-            conf[low] = rng.uniform(0.05, 0.45, low.sum())
-            uv[low] += rng.normal(0, 40, (low.sum(), 2))          # unconfident joints are bad
-            bad = rng.random(len(pc)) < outlier_rate
-            uv[bad] += rng.normal(0, 60, (bad.sum(), 2))           # confident outliers
-            rel = pc - pc[0] + rng.normal(0, joint_noise, pc.shape)
-            t = solve_root_translation(rel, uv, conf, k0)
-            t *= 1 + rng.normal(0, depth_noise) / t[2]             # per-frame root depth noise
-            xyz = rel + t
-            box = np.concatenate([uv.min(axis=0), uv.max(axis=0)])
-            rec.frames.append(Frame(i, i / 30.0, [Person(0, 0.9, box, uv, xyz, conf)]))
+            people = []
+            for p in range(n_people):
+                if not 0 <= src < n or not visible[p, ci, src]:
+                    continue
+                switch = (id_switch or {}).get((p, ci))
+                pid = p + 10 if switch is not None and src >= switch else p
+                people.append(_observe(cam, world[p, src], pid, k0, rng, pixel_noise, joint_noise,
+                                       depth_noise, outlier_rate))
+            rec.frames.append(Frame(i, i / 30.0, people))
         recs.append(rec)
     return recs
+
+
+def _observe(cam, joints, pid, k0, rng, pixel_noise, joint_noise, depth_noise, outlier_rate) -> Person:
+    """One camera's monocular pose of one person in one frame."""
+    pc = cam.to_camera(joints)
+    uv = cam.project(joints) + rng.normal(0, pixel_noise, (len(pc), 2))
+    conf = rng.uniform(0.55, 1.0, len(pc))
+    low = rng.random(len(pc)) < 0.08
+    conf[low] = rng.uniform(0.05, 0.45, low.sum())
+    uv[low] += rng.normal(0, 40, (low.sum(), 2))          # unconfident joints are bad
+    bad = rng.random(len(pc)) < outlier_rate
+    uv[bad] += rng.normal(0, 60, (bad.sum(), 2))           # confident outliers
+    rel = pc - pc[0] + rng.normal(0, joint_noise, pc.shape)
+    t = solve_root_translation(rel, uv, conf, k0)
+    t *= 1 + rng.normal(0, depth_noise) / t[2]             # per-frame root depth noise
+    box = np.concatenate([uv.min(axis=0), uv.max(axis=0)])
+    return Person(pid, 0.9, box, uv, rel + t, conf)
 
 
 def relative_rotation_error_deg(r_est_a, r_est_b, r_true_a, r_true_b) -> float:
@@ -160,3 +180,24 @@ def relative_rotation_error_deg(r_est_a, r_est_b, r_true_a, r_true_b) -> float:
     rel_true = r_true_b @ r_true_a.T
     d = rel_est @ rel_true.T
     return float(np.degrees(np.linalg.norm(cv2.Rodrigues(d)[0])))
+
+
+def write_qca(path, cams: list[CameraCalibration]) -> None:
+    """A Qualisys .qca.txt holding these cameras (the inverse of posecam's reader)."""
+    flip = np.diag([1.0, -1.0, -1.0])
+    rows = []
+    for c in cams:
+        r = (flip @ c.rotation).ravel()                  # r11..r33, stored by column
+        x, y, z = c.centre
+        k, (w, h) = c.intrinsics, c.size
+        rows.append(
+            f'<camera active="1" avg-residual="0.4" model="none" serial="{c.name}" viewrotation="0">'
+            f'<fov_video left="0" top="0" right="{w - 1}" bottom="{h - 1}"/>'
+            f'<transform x="{x}" y="{y}" z="{z}" '
+            + " ".join(f'r{i}{j}="{r[3 * (i - 1) + (j - 1)]}"' for i in (1, 2, 3) for j in (1, 2, 3))
+            + "/>"
+            f'<intrinsic focalLengthU="{k.fx * 64}" focalLengthV="{k.fy * 64}" centerPointU="{k.cx * 64}" '
+            f'centerPointV="{k.cy * 64}" radialDistortion1="0" radialDistortion2="0" '
+            f'tangentalDistortion1="0" tangentalDistortion2="0"/></camera>')
+    with open(path, "w") as f:
+        f.write("<?xml version='1.0'?>\n<qca><cameras>" + "".join(rows) + "</cameras></qca>\n")

@@ -2,8 +2,10 @@ import numpy as np
 import pytest
 
 from posecam.errors import InputError
-from posecam.io.calibration import read_toml, write_toml
-from synth_rig import make_rig
+from posecam.geometry.camera import CameraCalibration, Intrinsics, Rig
+from posecam.io.calibration import read_calibration, read_toml, write_toml
+from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
+from synth_rig import make_rig, write_qca
 
 
 def test_toml_round_trip(tmp_path):
@@ -26,3 +28,69 @@ def test_bad_toml(tmp_path):
         read_toml(path)
     with pytest.raises(InputError, match="does not exist"):
         read_toml(tmp_path / "missing.toml")
+
+
+def test_qca_read_and_dispatch(tmp_path):
+    cams = make_rig()
+    qca = tmp_path / "Calib.qca.txt"
+    write_qca(qca, cams)
+    toml = tmp_path / "calib.toml"
+    write_toml(toml, cams)
+    for path in (qca, toml):
+        rig = read_calibration(path)
+        assert rig.names == sorted(c.name for c in cams) if path == qca else rig.names == [c.name for c in cams]
+        for c in cams:
+            back = rig.camera(c.name)
+            np.testing.assert_allclose(back.rotation, c.rotation, atol=1e-9)
+            np.testing.assert_allclose(back.translation, c.translation, atol=1e-6)
+            np.testing.assert_allclose(back.intrinsics.matrix, c.intrinsics.matrix, atol=1e-6)
+    with pytest.raises(InputError, match="does not exist"):
+        read_calibration(tmp_path / "missing.qca.txt")
+
+
+@pytest.mark.parametrize("size, expected", [
+    ((1088, 1920), (1675.0, 1675.0, 530.0, 950.0)),        # as calibrated
+    ((1080, 1920), (1675.0, 1675.0, 526.0, 950.0)),        # a few pixels narrower: centred crop
+    ((544, 960), (837.5, 837.5, 265.0, 475.0)),            # half size: resized
+])
+def test_camera_for_crop_or_resize(size, expected):
+    cam = CameraCalibration("cam01", (1088, 1920), Intrinsics(1675.0, 1675.0, 530.0, 950.0))
+    k = Rig([cam]).camera_for("cam01", *size).intrinsics
+    np.testing.assert_allclose((k.fx, k.fy, k.cx, k.cy), expected)
+
+
+def test_camera_for_refuses_other_shapes():
+    cam = CameraCalibration("cam01", (1088, 1920), Intrinsics(1675.0, 1675.0, 530.0, 950.0))
+    with pytest.raises(InputError, match="calibrated for 1088x1920"):
+        Rig([cam]).camera_for("cam01", 1920, 1080)
+
+
+def test_match_by_name_then_sorted_order():
+    cams = make_rig()                                      # front, right, back, left
+    rig = Rig(cams)
+    names = [c.name for c in cams][::-1]
+    matched, note = rig.match(names, [c.size for c in cams][::-1])
+    assert [c.name for c in matched] == names and note is None
+    # names that say nothing: sorted cameras to sorted inputs, with one warning line
+    videos = ["v4", "v2", "v1", "v3"]
+    by_name = sorted(cams, key=lambda c: c.name)           # back, front, left, right
+    sizes = {v: c.size for v, c in zip(sorted(videos), by_name)}
+    matched, note = rig.match(videos, [sizes[v] for v in videos])
+    assert "sorted order" in note and "\n" not in note
+    for v, c in zip(videos, matched):
+        np.testing.assert_allclose(c.rotation, by_name[sorted(videos).index(v)].rotation)
+    with pytest.raises(InputError, match="do not match"):
+        rig.match(["a", "b"], [(10, 10), (10, 10)])
+
+
+def test_predict_and_fuse_take_the_same_intrinsics(tmp_path):
+    """predict --intrinsics FILE --camera NAME and fuse --calibration FILE: one policy."""
+    cams = make_rig()
+    cams[1] = CameraCalibration(cams[1].name, (1088, 1920), cams[1].intrinsics, cams[1].rotation, cams[1].translation)
+    qca = tmp_path / "Calib.qca.txt"
+    write_qca(qca, cams)
+    name = cams[1].name
+    predict = resolve_intrinsics(IntrinsicsOptions(file=str(qca), camera=name), 1080, 1920)
+    fuse = read_calibration(qca).match([name], [(1080, 1920)])[0][0].intrinsics
+    assert (predict.fx, predict.fy, predict.cx, predict.cy) == (fuse.fx, fuse.fy, fuse.cx, fuse.cy)
+    assert fuse.cx == pytest.approx(cams[1].intrinsics.cx - 4)

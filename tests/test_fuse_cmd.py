@@ -5,7 +5,7 @@ import json
 from conftest import DATA, run_posecam
 from posecam.io.calibration import write_toml
 from posecam.io.poses import write_poses
-from synth_rig import make_rig, monocular_views, skeleton_motion
+from synth_rig import make_rig, monocular_views, skeleton_motion, write_qca
 
 
 def _inputs(tmp_path, n_frames=60, offsets=None):
@@ -46,7 +46,7 @@ def test_unreadable_video_and_calibration_mismatch(tmp_path):
     for c in cams:
         c.name = "other_" + c.name.upper()
     calib = tmp_path / "calib.toml"
-    write_toml(calib, cams)
+    write_toml(calib, cams[:3])                 # names say nothing and one camera is missing
     r = run_posecam("fuse", *paths, "--calibration", calib, "-o", tmp_path / "y.json")
     assert r.returncode == 2 and "do not match" in r.stderr
     assert not (tmp_path / "y.json").exists()
@@ -61,3 +61,21 @@ def test_views_of_different_lengths(tmp_path):
     assert r.returncode == 2 and "different lengths (60, 20 frames)" in r.stderr, r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "x.json").exists()
+
+
+def test_fuse_with_qualisys_calibration(tmp_path):
+    """`--calibration Calib.qca.txt`, the file Pose2Sim users have, whose camera names do not
+    name the views: cameras sorted go to views sorted (Pose2Sim's rule), said in one warning."""
+    cams, paths = _inputs(tmp_path, 40)                     # views front, right, back, left
+    for i, c in enumerate(sorted(cams, key=lambda c: c.name)):
+        c.name = f"cam{i + 1:02d}"                           # back=cam01, front=cam02, left=cam03, right=cam04
+    qca = tmp_path / "Calib.qca.txt"
+    write_qca(qca, cams)
+    out = tmp_path / "fused.json"
+    r = run_posecam("fuse", *paths, "--calibration", qca, "-o", out)
+    assert r.returncode == 0, r.stderr
+    warnings = [line for line in r.stderr.splitlines() if line.startswith("posecam: warning:")]
+    assert len(warnings) == 1 and "sorted order" in warnings[0] and "back=cam01" in warnings[0], r.stderr
+    assert json.loads(out.read_text())["inputs"][0]["frame"] == "world"
+    rows = [line for line in r.stdout.replace("│", "|").splitlines() if line.count("|") > 5 and "front" in line]
+    assert rows and float(rows[0].split("|")[3]) < 10, r.stdout        # error px: the right cameras

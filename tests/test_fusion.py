@@ -1,4 +1,4 @@
-"""Fusion with known cameras: offsets, averaging, triangulation."""
+"""Fusion with known cameras: offsets, averaging, triangulation, several people."""
 
 import numpy as np
 
@@ -40,3 +40,37 @@ def test_left_right_swaps_are_found_and_undone():
     assert [c.swaps_fixed for c in result.cameras] == [0, 0, len(swapped), 0][:len(cams)]
     clean = fuse_recordings(monocular_views(cams, world), FuseOptions(calibration=Rig(cams)))
     assert _mpjpe(result, cams, world) <= _mpjpe(clean, cams, world) + 1.0
+
+
+def _two_crossing(n):
+    return np.stack([skeleton_motion(n, seed=0, centre=(-1300.0, -300.0), walk=(650.0, 0.0)),
+                     skeleton_motion(n, seed=1, centre=(1300.0, 300.0), walk=(-650.0, 0.0))])
+
+
+def test_two_people_with_calibration_are_never_mixed():
+    """People crossing paths, missed detections and an id switch, unsynchronised views: each fused
+    person is one true person in every frame, and the offsets are found with a confidence."""
+    n = 80
+    cams = make_rig()
+    world = _two_crossing(n)
+    visible = np.ones((2, len(cams), n), bool)
+    visible[1, 2, 20:45] = False
+    visible[1, 3] = False                                  # one view sees only the first person
+    recs = monocular_views(cams, world, offsets=[0, 2, -3, 1], visible=visible, id_switch={(0, 1): 40})
+    result = fuse_recordings(recs, FuseOptions(calibration=Rig(cams), sync=True))
+    assert result.offsets == [0, 2, -3, 1]
+    assert all(c.offset_confidence > 0.3 for c in result.cameras), [c.offset_confidence for c in result.cameras]
+    ids = {p.id for f in result.recording.frames for p in f.people}
+    assert len(ids) == 2, ids
+    for i, f in enumerate(result.recording.frames[:n]):
+        for p in f.people:
+            d = np.median(np.linalg.norm(world[:, i] - p.keypoints_3d, axis=-1), axis=1)   # per true person
+            assert d.min() < 150 and d.max() > 500, (i, p.id, d)
+
+
+def test_offset_at_the_edge_of_the_range_is_a_warning():
+    cams = make_rig()
+    recs = monocular_views(cams, skeleton_motion(60), offsets=[0, 0, -7, 0])
+    result = fuse_recordings(recs, FuseOptions(calibration=Rig(cams), sync=True, max_offset=4))
+    assert result.offsets[2] == 0
+    assert len(result.warnings) == 1 and "search limit" in result.warnings[0] and cams[2].name in result.warnings[0]

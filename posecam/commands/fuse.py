@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import click
 
 from posecam.commands.common import (check_output, predict_with_progress, progress_bar, refuse_alone, report_console,
-                                     report_written)
+                                     report_written, warn)
 from posecam.errors import InputError
 
 if TYPE_CHECKING:
@@ -29,12 +29,14 @@ def load_views(inputs: list[str], model: str, calibration: tuple[str, Rig] | Non
     from posecam.media import open_media
 
     views = []                          # per input: its recordings, or the intrinsics to predict it with
+    videos = [p for p in inputs if Path(p).suffix.lower() != ".json"]
+    cameras = dict(zip(videos, calibration_file_cameras(calibration, [Path(p).stem for p in videos])))
     for path in inputs:
         if Path(path).suffix.lower() == ".json":
             views.append(read_poses(path))
         else:
             open_media(path)
-            views.append(IntrinsicsOptions(**calibration_file_camera(calibration, path)))
+            views.append(IntrinsicsOptions(**cameras[path]))
     recordings = []
     with progress_bar() as progress:
         for path, view in zip(inputs, views):
@@ -45,13 +47,13 @@ def load_views(inputs: list[str], model: str, calibration: tuple[str, Rig] | Non
     return recordings
 
 
-def calibration_file_camera(calibration: tuple[str, Rig] | None, path: str) -> dict:
-    """IntrinsicsOptions fields that take a video's intrinsics from its camera in the calibration."""
-    from posecam.multiview.fuse import calibration_camera
-
+def calibration_file_cameras(calibration: tuple[str, Rig] | None, names: list[str]) -> list[dict]:
+    """IntrinsicsOptions fields that take each video's intrinsics from its camera in the
+    calibration, matched as fusion matches them (Rig.match_names; fusion says how in a warning)."""
     if calibration is None:
-        return {}
-    return {"file": calibration[0], "camera": calibration_camera(calibration[1], Path(path).stem).name}
+        return [{} for _ in names]
+    cams, _ = calibration[1].match_names(names)
+    return [{"file": calibration[0], "camera": c} for c in cams]
 
 
 def print_report(result: FusionResult, console) -> None:
@@ -63,10 +65,11 @@ def print_report(result: FusionResult, console) -> None:
     for rep, cam in zip(result.cameras, result.rig.cameras):
         fx, fy, cx, cy = rep.intrinsics
         focal = f"{fx:.0f}" if abs(fx - fy) < 0.5 else f"{fx:.0f}/{fy:.0f}"
-        table.add_row(rep.name, str(rep.offset), f"{rep.reprojection_px:.1f}", str(rep.joints_used),
+        offset = str(rep.offset) if rep.offset_confidence >= 1 else f"{rep.offset} ({rep.offset_confidence:.2f})"
+        table.add_row(rep.name, offset, f"{rep.reprojection_px:.1f}", str(rep.joints_used),
                       str(rep.swaps_fixed), focal, f"{cx:.0f}, {cy:.0f}", " ".join(f"{v / 1000:.1f}" for v in cam.centre))
     console.print(table)
-    console.print("offset: frames against the first view; error px: median reprojection error of the fused "
+    console.print("offset: frames against the first view (found by --sync auto: its confidence, 0..1); error px: median reprojection error of the fused "
                   "joints; joints: joints used; L/R: frames with left and right swapped back; f px, cx, cy: "
                   "intrinsics; centre m: camera centre", style="dim")
 
@@ -83,7 +86,8 @@ def print_report(result: FusionResult, console) -> None:
                                                "as Pose2Sim turns it; a camera frame turned 180 degrees about x).")
 @click.option("--device", type=click.Choice(["cpu", "cuda"]), default="cpu", show_default=True,
               help="Run the pose model for video inputs on the CPU or on an NVIDIA GPU (needs onnxruntime-gpu).")
-@click.option("--calibration", type=click.Path(), help="Known cameras: an anipose/Pose2Sim calibration TOML.")
+@click.option("--calibration", type=click.Path(),
+              help="Known cameras: an anipose/Pose2Sim calibration TOML or a Qualisys .qca.txt.")
 @click.option("--save-calibration", type=click.Path(), help="Write the cameras to FILE.toml (anipose/Pose2Sim).")
 @click.option("--method", type=click.Choice(["average", "triangulate"]), default="average", show_default=True,
               help="Average the monocular poses, or triangulate the 2D keypoints.")
@@ -105,10 +109,9 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     """
     from rich.console import Console
 
-    from posecam.geometry.camera import Rig
     from posecam.io.atomic import OutputSet
     from posecam.media import check_input
-    from posecam.io.calibration import read_toml, write_toml
+    from posecam.io.calibration import read_calibration, write_toml
     from posecam.filters import smooth_recording
     from posecam.io.poses import write_poses
     from posecam.io.trc import check_markers_output, write_markers
@@ -134,12 +137,14 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     if calibration:
         check_input(calibration, "calibration")   # a pipe or a device would block the read
     staged = OutputSet([None if markers else output, save_calibration, viz, viz3d], [*inputs, calibration])  # checked before the work
-    rig = Rig(read_toml(calibration), None) if calibration else None
+    rig = read_calibration(calibration) if calibration else None
     recordings = load_views(list(inputs), model, (calibration, rig) if rig else None, device)
     opts = FuseOptions(calibration=rig, method=method, offsets=offset_list, sync=sync == "auto",
                        max_offset=max_offset)
     with err.status("fusing") as status:
         result = fuse_recordings(recordings, opts, progress=lambda msg: status.update(msg))
+    for line in result.warnings:
+        warn(line)
     fused = smooth_recording(result.recording) if smooth else result.recording
     with staged:  # every output or none
         written = write_markers(markers, fused, trc_y_up, staged) if markers else [output]
@@ -149,7 +154,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
             write_view3d(staged.path(viz3d), fused, result.rig)
         if save_calibration:
             write_toml(staged.path(save_calibration), result.rig.cameras,
-                       {"frame": result.recording.frame_of_reference, "offsets": ",".join(map(str, result.offsets))})
+                       {"frame": result.recording.frame_of_reference, "offsets": ",".join(str(result.offsets[v]) for v in result.views)})
         if viz:
             from posecam.viz.fusion_grid import write_grid
 

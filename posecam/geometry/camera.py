@@ -210,29 +210,31 @@ class Rig:
             raise InputError(f"the calibration's cameras ({', '.join(self.names)}) do not match input {name!r}")
         return cam.for_image(name, width, height)
 
-    def match(self, names: list[str], sizes: list[tuple[int, int]]) -> tuple[list[CameraCalibration], str | None]:
-        """The calibration's camera for each input, and a warning line when names did not say.
-
-        One policy, Pose2Sim's: inputs whose names all find their camera (the same name, or the
-        one camera whose name contains it) take it; otherwise, with as many cameras as inputs,
-        the cameras sorted by name go to the inputs sorted by name, in order. Each camera is then
-        sized to its input (`CameraCalibration.for_image`).
-        """
+    def match_names(self, names: list[str]) -> tuple[list[str], str | None]:
+        """The calibration's camera name for each input name, and a warning line when the names
+        did not say. One policy, Pose2Sim's: inputs whose names all find their camera (the same
+        name, or the one camera whose name contains it) take it; otherwise, with as many
+        cameras as inputs, the cameras sorted by name go to the inputs sorted by name, in order."""
         found = [self._named(n) for n in names]
-        note = None
-        if any(c is None for c in found) or len({id(c) for c in found}) < len(found):
-            if len(self.cameras) != len(names):
-                raise InputError(f"the calibration's cameras ({', '.join(self.names)}) do not match the inputs "
-                                 f"({', '.join(names)}) by name, and there are {len(self.cameras)} of them "
-                                 f"for {len(names)} inputs")
-            cams = sorted(self.cameras, key=lambda c: natural_key(c.name))
-            order = sorted(range(len(names)), key=lambda i: natural_key(names[i]))
-            found = [None] * len(names)
-            for i, cam in zip(order, cams):
-                found[i] = cam
-            note = ("calibration cameras matched to the inputs in sorted order (names differ): "
-                    + ", ".join(f"{names[i]}={found[i].name}" for i in order))
-        return [c.for_image(n, w, h) for c, n, (w, h) in zip(found, names, sizes)], note
+        if all(c is not None for c in found) and len({id(c) for c in found}) == len(found):
+            return [c.name for c in found], None
+        if len(self.cameras) != len(names):
+            raise InputError(f"the calibration's cameras ({', '.join(self.names)}) do not match the inputs "
+                             f"({', '.join(names)}) by name, and there are {len(self.cameras)} of them "
+                             f"for {len(names)} inputs")
+        cams = sorted(self.names, key=natural_key)
+        order = sorted(range(len(names)), key=lambda i: natural_key(names[i]))
+        out = [""] * len(names)
+        for i, cam in zip(order, cams):
+            out[i] = cam
+        return out, ("calibration cameras matched to the inputs in sorted order (names differ): "
+                     + ", ".join(f"{names[i]}={out[i]}" for i in order))
+
+    def match(self, names: list[str], sizes: list[tuple[int, int]]) -> tuple[list[CameraCalibration], str | None]:
+        """The calibration's camera for each input (`match_names`), sized to its images
+        (`CameraCalibration.for_image`), and the warning line of `match_names`."""
+        cams, note = self.match_names(names)
+        return [self.camera(c).for_image(n, w, h) for c, n, (w, h) in zip(cams, names, sizes)], note
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """(..., 3) points in the rig's frame -> (V, ..., 2) pixels in every camera."""

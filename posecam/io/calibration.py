@@ -18,7 +18,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from posecam.geometry.camera import CameraCalibration, Intrinsics
+from posecam.geometry.camera import CameraCalibration, Intrinsics, Rig, natural_key
 from posecam.errors import InputError
 from posecam.io.atomic import write_text
 
@@ -67,6 +67,21 @@ def read_toml(path: str | os.PathLike) -> list[CameraCalibration]:
     return cams
 
 
+def read_calibration(path: str | os.PathLike) -> Rig:
+    """The rig of a calibration file: anipose/Pose2Sim TOML, or Qualisys .qca.txt (XML),
+    told apart by content (a leading '<' is XML), not only by suffix."""
+    path = Path(path)
+    try:
+        head = path.read_bytes()[:512].lstrip()
+    except FileNotFoundError:
+        raise InputError(f"calibration file {path} does not exist") from None
+    except OSError as exc:
+        raise InputError(f"cannot read calibration file {path} ({exc.strerror})") from None
+    if head.startswith(b"<") or path.name.lower().endswith((".qca.txt", ".qca", ".xml")):
+        return Rig(read_qualisys(path), None)
+    return Rig(read_toml(path), None)
+
+
 def _toml_key(name: str) -> str:
     return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else json.dumps(name)
 
@@ -111,7 +126,7 @@ _QUALISYS_TO_CV = np.diag([1.0, -1.0, -1.0])
 
 
 def read_qualisys(path: str | os.PathLike, image_widths: dict[str, int] | None = None) -> list[CameraCalibration]:
-    """Cameras of a Qualisys .qca.txt calibration (read as Pose2Sim does), sorted by name.
+    """Video cameras of a Qualisys .qca.txt calibration (read as Pose2Sim does), in natural name order.
 
     Per camera: the rotation r11..r33 is stored by column and the position x, y, z (mm) is the
     camera centre, so world->camera R = Rq.T and t = -R @ position, both then pre-multiplied by
@@ -129,6 +144,8 @@ def read_qualisys(path: str | os.PathLike, image_widths: dict[str, int] | None =
         raise InputError(f"{path} is not a Qualisys calibration ({exc})") from None
     cams = []
     for cam in root.findall("cameras/camera"):
+        if not any(m in cam.attrib.get("model", "none").lower() for m in ("video", "none")):
+            continue                        # marker cameras: Pose2Sim keeps video cameras only
         try:
             name = cam.attrib["serial"]
             fov = {k: float(v) for k, v in cam.find("fov_video").attrib.items()}
@@ -154,4 +171,4 @@ def read_qualisys(path: str | os.PathLike, image_widths: dict[str, int] | None =
                                       Intrinsics(fx, fy, cx, cy, source=f"file:{path.name}"), r, t, dist))
     if not cams:
         raise InputError(f"{path} holds no camera")
-    return sorted(cams, key=lambda c: [int(s) if s.isdigit() else s for s in re.split(r"(\d+)", c.name)])
+    return sorted(cams, key=lambda c: natural_key(c.name))

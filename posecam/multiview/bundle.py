@@ -1,9 +1,9 @@
 """Bundle adjustment: refine a whole rig by minimising the 2D reprojection error of the fused
 joints over all views, so camera estimates do not stop at the accuracy of monocular depth.
 
-Unknowns: every camera's focal length (square pixels, fx = fy), optionally cx, cy (fixed at
-the image centre by default), every camera's rotation (Rodrigues) and translation
-but the reference's (R = I, t = 0), and one 3D point per frame and joint seen by two views
+Unknowns, as slots of each camera's parameter vector (`CameraCalibration.params`): every
+camera's focal length (its aspect fy / fx kept), optionally cx, cy (fixed at their start by
+default), every camera's rotation (Rodrigues) and translation but the reference's, and one 3D point per frame and joint seen by two views
 or more. Residuals: reprojection errors in units of `pixel_sigma`, weighted by confidence
 (joints below 0.5 are left out) under a robust soft-L1 loss, plus, when the principal point is
 free, a weak prior that keeps it near the image centre. Reprojection alone cannot tell the
@@ -15,14 +15,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 from scipy.optimize import least_squares
 from scipy.sparse import lil_matrix
 
-from posecam.geometry.camera import Intrinsics
 from posecam.errors import FusionError
-from posecam.geometry.camera import CameraCalibration, Rig
+from posecam.geometry.camera import Rig
 from posecam.skeleton import skeleton_of
 from posecam.geometry.triangulate import triangulate
 
@@ -84,57 +82,58 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     if n_m < 20:
         raise FusionError(f"bundle adjustment: only {n_m} joints are seen by two cameras or more")
 
-    others = [i for i in range(n_v) if i != ref]
-    ext0 = np.concatenate([np.r_[cv2.Rodrigues(cams[i].rotation)[0].ravel(), cams[i].translation]
-                           for i in others])
-    k0 = np.array([[c.intrinsics.fx, c.intrinsics.fy, c.intrinsics.cx, c.intrinsics.cy] for c in cams])
+    # free parameters of each camera's vector (posecam.geometry.camera.CameraCalibration.params):
+    # rotation and translation but the reference's, the focal length, the principal point if asked
+    p0 = rig.params()                                                     # (V, 9)
+    p0[:, 6] = np.log(p0[:, 6])                                           # optimised as log f
+    free = np.zeros(p0.shape, bool)
+    free[:, 6] = True
+    free[:, 7:9] = not opts.fix_principal_point
+    free[[i for i in range(n_v) if i != ref], :6] = True
+    slot = -np.ones(p0.shape, int)
+    slot[free] = np.arange(free.sum())
+    n_cam = int(free.sum())
     size = np.array([c.size for c in cams], dtype=float)
-    n_k = 1 if opts.fix_principal_point else 3      # per camera: log f (, cx, cy)
-    intr0 = np.c_[np.log(np.sqrt(k0[:, 0] * k0[:, 1])), k0[:, 2:]][:, :n_k]
-    x0 = np.concatenate([ext0, intr0.ravel(), points[used].ravel()])
-    n_ext, n_int = 6 * len(others), n_k * n_v
+    x0 = np.concatenate([p0[free], points[used].ravel()])
 
     def unpack(x):
-        rot = np.tile(np.eye(3), (n_v, 1, 1))
-        trans = np.zeros((n_v, 3))
-        ext = x[:n_ext].reshape(-1, 6)
-        rot[others], trans[others] = rodrigues(ext[:, :3]), ext[:, 3:]
-        intr = x[n_ext:n_ext + n_int].reshape(n_v, n_k)
-        c = intr[:, 1:] if n_k == 3 else size / 2
-        return rot, trans, np.exp(intr[:, [0, 0]]), c, x[n_ext + n_int:].reshape(n_m, 3)
+        p = p0.copy()
+        p[free] = x[:n_cam]
+        p[:, 6] = np.exp(p[:, 6])
+        return p, x[n_cam:].reshape(n_m, 3)
 
     def residuals(x):
-        rot, trans, f, c, pts = unpack(x)
-        pc = np.einsum("nij,nj->ni", rot[obs_v], pts[obs_m]) + trans[obs_v]
+        p, pts = unpack(x)
+        rot = rodrigues(p[:, :3])
+        pc = np.einsum("nij,nj->ni", rot[obs_v], pts[obs_m]) + p[obs_v, 3:6]
         z = np.maximum(pc[:, 2], 1.0)
-        proj = f[obs_v] * pc[:, :2] / z[:, None] + c[obs_v]
+        proj = p[obs_v, 6:7] * pc[:, :2] / z[:, None] + p[obs_v, 7:9]
         reproj = ((proj - obs_uv) * obs_w[:, None] / opts.pixel_sigma).ravel()
-        if n_k == 1:
+        if opts.fix_principal_point:
             return reproj
-        centre = ((c - size / 2) / (opts.centre_sigma * size)).ravel()
+        centre = ((p[:, 7:9] - size / 2) / (opts.centre_sigma * size)).ravel()
         return np.concatenate([reproj, centre])
 
-    sparsity = lil_matrix((2 * len(obs_v) + (2 * n_v if n_k == 3 else 0), len(x0)), dtype=int)
+    n_prior = 0 if opts.fix_principal_point else 2 * n_v
+    sparsity = lil_matrix((2 * len(obs_v) + n_prior, len(x0)), dtype=int)
     rows = np.arange(len(obs_v))
     for axis in (0, 1):
         r = 2 * rows + axis
-        ext_pos = np.array([others.index(v) if v != ref else -1 for v in range(n_v)])[obs_v]
-        has = ext_pos >= 0
-        for k in range(6):
-            sparsity[r[has], 6 * ext_pos[has] + k] = 1
-        for k in range(n_k):
-            sparsity[r, n_ext + n_k * obs_v + k] = 1
+        for k in range(9):
+            cols = slot[obs_v, k]
+            has = cols >= 0
+            sparsity[r[has], cols[has]] = 1
         for k in range(3):
-            sparsity[r, n_ext + n_int + 3 * obs_m + k] = 1
-    if n_k == 3:
+            sparsity[r, n_cam + 3 * obs_m + k] = 1
+    if n_prior:
         base = 2 * len(obs_v)
         for v in range(n_v):
-            sparsity[base + 2 * v, n_ext + 3 * v + 1] = 1
-            sparsity[base + 2 * v + 1, n_ext + 3 * v + 2] = 1
+            sparsity[base + 2 * v, slot[v, 7]] = 1
+            sparsity[base + 2 * v + 1, slot[v, 8]] = 1
 
     fit = least_squares(residuals, x0, jac_sparsity=sparsity, loss="soft_l1", f_scale=2.0,
                         x_scale="jac", method="trf", tr_solver="lsmr", max_nfev=opts.max_nfev)
-    rot, trans, f, c, pts = unpack(fit.x)
+    p, pts = unpack(fit.x)
     scale = 1.0
     if bones_mm is not None:
         skel = skeleton_of(joints)
@@ -144,11 +143,8 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
         lengths = np.linalg.norm(full[:, idx[:, 0]] - full[:, idx[:, 1]], axis=-1)     # (F, B)
         ratio = bones_mm[None] / lengths
         scale = float(np.nanmedian(ratio)) if np.isfinite(ratio).any() else 1.0
-    pts, trans = pts * scale, trans * scale
-    out = [CameraCalibration(cam.name, cam.size,
-                             Intrinsics(float(f[i, 0]), float(f[i, 1]), float(c[i, 0]), float(c[i, 1]),
-                                        source="bundle"), rot[i], trans[i])
-           for i, cam in enumerate(cams)]
+    pts, p[:, 3:6] = pts * scale, p[:, 3:6] * scale
+    out = rig.with_params(p, source="bundle").cameras
     err = np.full((n_v, n_m), np.nan)
     for i, cam in enumerate(out):
         sel = obs_v == i

@@ -72,6 +72,7 @@ class ConsensusOptions:
     max_iter: int = 100            # per stage
     tol: float = 1e-5              # largest change (rad, or relative) that counts as converged
     cauchy_scale: float = 2.5      # outlier scale, in robust standard deviations of the residuals
+    joint: bool = True             # stage 2 (all views at once); False: stage 1 only, quicker
 
 
 @dataclass
@@ -230,7 +231,7 @@ def estimate_rig(views: list[View], options: ConsensusOptions | None = None) -> 
                               f"in fewer than {MIN_SHARED_JOINTS} confident joints")
         s.translation[i] = (p[i][both] - p[ref][both]).mean(axis=0)
     it1, _ = _run_stage(views, s, w0, opts, joint=False)
-    it2, converged = _run_stage(views, s, w0, opts, joint=True)
+    it2, converged = _run_stage(views, s, w0, opts, joint=True) if opts.joint else (0, True)
 
     _, x = _points(views, s)
     target = fuse_points(x, s.rotation, w0, leave_one_out=True)
@@ -246,3 +247,20 @@ def estimate_rig(views: list[View], options: ConsensusOptions | None = None) -> 
         iterations=it1 + it2,
         converged=converged,
     )
+
+
+def stretch_residuals(rig: Rig, views: list[View], bounds: np.ndarray, min_conf: float = MIN_CONFIDENCE) -> np.ndarray:
+    """(V, S) median distance (mm) of each view's joints to the other views' consensus, per
+    stretch of frames bounds[s] .. bounds[s + 1] (NaN where the view sees nothing there)."""
+    rot = np.stack([c.rotation for c in rig.cameras])
+    pts = np.stack([c.to_world(camera_points(v, np.array([c.intrinsics.fx, c.intrinsics.fy,
+                                                            c.intrinsics.cx, c.intrinsics.cy])))
+                    for v, c in zip(views, rig.cameras)])
+    w = np.stack([v.weights(min_conf) for v in views])
+    dist = np.where(w > 0, np.linalg.norm(pts - fuse_points(pts, rot, w, leave_one_out=True), axis=-1), np.nan)
+    out = np.full((len(views), len(bounds) - 1), np.nan)
+    for k in range(len(bounds) - 1):
+        d = dist[:, bounds[k]:bounds[k + 1]].reshape(len(views), -1)
+        seen = np.isfinite(d).any(axis=1)
+        out[seen, k] = np.nanmedian(d[seen], axis=1)
+    return out

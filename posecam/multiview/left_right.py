@@ -58,6 +58,17 @@ def find_swaps(cams: list[CameraCalibration], uv: np.ndarray, conf: np.ndarray, 
     return swaps
 
 
+def fix_swaps(cams: list[CameraCalibration], uv: np.ndarray, xyz: np.ndarray, conf: np.ndarray,
+              flip: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """One person's (V, F, J, ...) arrays with each view's swapped frames exchanged back, and the
+    (V,) number of frames fixed per view."""
+    swaps = find_swaps(cams, uv, conf, flip)
+    uv, xyz, conf = uv.copy(), xyz.copy(), conf.copy()
+    v, f = np.nonzero(swaps)
+    uv[v, f], xyz[v, f], conf[v, f] = uv[v, f][:, flip], xyz[v, f][:, flip], conf[v, f][:, flip]
+    return uv, xyz, conf, swaps.sum(axis=1)
+
+
 def unswap(rec: Recording, frames: np.ndarray, person_id: int, flip: np.ndarray) -> Recording:
     """A copy of `rec` where the person `person_id` has left and right exchanged in `frames`."""
     frames = set(int(i) for i in frames)

@@ -41,7 +41,8 @@ def write_grid(path: str | os.PathLike, result: FusionResult, recordings: list[R
     candidates = [k for k in seen_by_all if len(frames[k].people) == most]
     i = candidates[len(candidates) // 2]
     tiles = []
-    for cam, rec, o in zip(result.rig.cameras, recordings, result.offsets):
+    for cam, v in zip(result.rig.cameras, result.views):     # the cameras fusion kept
+        rec, o = recordings[v], result.offsets[v]
         # each pose in this camera's coordinates, so the label gives its depth from this camera
         people = [dataclasses.replace(p, keypoints_2d=cam.project(p.keypoints_3d),
                                       keypoints_3d=cam.to_camera(p.keypoints_3d))

@@ -1,0 +1,384 @@
+"""Association across views: which tracks of different cameras show the same person.
+
+Works on tracks (a person id followed over a view's frames), not on single frames; people per
+view are few, so hypotheses are enumerated and the best consistent one is kept. Tracks of one
+view that do not overlap in time (an id switch) may join the same person; two that overlap
+never do.
+- Without a calibration (`associate_by_consensus`): a hypothesis pairs tracks of one view with
+  tracks of another; it holds when ONE rigid transform and focal length (the consensus of
+  posecam.multiview.consensus, run on all its pairs' common frames together) explain every pair.
+  Scoring all pairs under one transform is what tells two people apart: a single pair is
+  explained by some transform even when it is two different people standing alike.
+- With a calibration (`associate` with `pair_cost_calibrated`): a pair of tracks is scored by
+  the median reprojection error of their triangulation through the rig over their common
+  frames, as an angle (px / focal length), and pairs are linked from the cheapest up.
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from scipy.optimize import least_squares
+
+from posecam.errors import FusionError
+from posecam.geometry.camera import CameraCalibration, Intrinsics, Rig
+from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
+from posecam.multiview.consensus import ConsensusOptions, View, camera_points, estimate_rig, fuse_points
+from posecam.multiview.sync import shift
+from posecam.results import Recording
+
+MIN_TRACK_FRAMES = 8            # shorter tracks are left out (detector flicker)
+MIN_COMMON_FRAMES = 10          # a pair of tracks needs this many frames seen by both
+MAX_PAIR_MM = 300.0             # consensus residual above which a track is not that person
+MAX_PAIR_ANGLE = 0.03           # rad (50 px at f = 1700): calibrated pair gate
+FOCAL_RANGE = (0.25, 4.0)       # focal / assumed focal a pair may imply
+MAX_SHARED = 2                  # frames two tracks of one view may share and still join
+
+
+@dataclass
+class Track:
+    """One person id of one view, over that view's own frames (NaN / conf 0 where unseen)."""
+
+    view: int
+    ids: tuple[int, ...]        # person ids in the view's recording (several after an id switch)
+    uv: np.ndarray              # (F_view, J, 2) pixels
+    xyz: np.ndarray             # (F_view, J, 3) camera coordinates, mm
+    conf: np.ndarray            # (F_view, J)
+    score: np.ndarray           # (F_view,) detection score, 0 where unseen
+
+    @property
+    def seen(self) -> np.ndarray:
+        """(F_view,) frames where the track has at least one joint."""
+        return self.conf.max(axis=1) > 0
+
+
+@dataclass
+class Person:
+    """One person across views: its tracks (at most one per view at any frame)."""
+
+    tracks: list[Track]
+
+    @property
+    def views(self) -> list[int]:
+        return sorted({t.view for t in self.tracks})
+
+    def view_arrays(self, view: int, n_frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(uv, xyz, conf, score) of this person in `view`'s own frames (its tracks merged)."""
+        j = self.tracks[0].conf.shape[1]
+        uv, xyz = np.full((n_frames, j, 2), np.nan), np.full((n_frames, j, 3), np.nan)
+        conf, score = np.zeros((n_frames, j)), np.zeros(n_frames)
+        for t in self.tracks:
+            if t.view == view:
+                s = t.seen & (conf.max(axis=1) == 0)
+                uv[s], xyz[s], conf[s], score[s] = t.uv[s], t.xyz[s], t.conf[s], t.score[s]
+        return uv, xyz, conf, score
+
+
+@dataclass
+class Observations:
+    """One person seen by all V views, in the reference camera's frames (offsets applied)."""
+
+    uv: np.ndarray              # (V, F, J, 2)
+    xyz: np.ndarray             # (V, F, J, 3) each view's camera coordinates
+    conf: np.ndarray            # (V, F, J), 0 where the view does not see the person
+    score: np.ndarray           # (V, F)
+
+    def __post_init__(self) -> None:
+        v, f, j = self.conf.shape
+        for name, a, shape in (("uv", self.uv, (v, f, j, 2)), ("xyz", self.xyz, (v, f, j, 3)),
+                               ("score", self.score, (v, f))):
+            if a.shape != shape:
+                raise ValueError(f"Observations.{name}: expected {shape}, got {a.shape}")
+
+    @classmethod
+    def of(cls, person: Person, lengths: list[int], offsets: list[int], n: int) -> "Observations":
+        parts = [person.view_arrays(v, length) for v, length in enumerate(lengths)]
+        return cls(*(np.stack([shift(p[k], o, n, fill) for p, o in zip(parts, offsets)])
+                     for k, fill in ((0, np.nan), (1, np.nan), (2, 0.0), (3, 0.0))))
+
+    def take(self, views: list[int]) -> "Observations":
+        return Observations(self.uv[views], self.xyz[views], self.conf[views], self.score[views])
+
+
+@dataclass
+class ViewInfo:
+    """What the estimation needs of one view."""
+
+    name: str
+    size: tuple[int, int]
+    intrinsics: Intrinsics      # those its monocular poses were made with
+
+
+@dataclass
+class Association:
+    people: list[Person]
+    links: list[tuple[float, Track, Track]] = field(default_factory=list)   # kept pair costs
+
+
+def tracks_of(rec: Recording, view: int, min_frames: int = MIN_TRACK_FRAMES) -> list[Track]:
+    """Every person id of `rec` seen in at least `min_frames` frames, longest first."""
+    n, j = len(rec.frames), len(rec.joints)
+    ids: dict[int, list[int]] = {}
+    for i, f in enumerate(rec.frames):
+        for k, p in enumerate(f.people):
+            ids.setdefault(p.id, []).append(i)
+    tracks = []
+    for pid, frames in ids.items():
+        if len(frames) < min_frames:
+            continue
+        uv, xyz = np.full((n, j, 2), np.nan), np.full((n, j, 3), np.nan)
+        conf, score = np.zeros((n, j)), np.zeros(n)
+        for i in frames:
+            p = next(q for q in rec.frames[i].people if q.id == pid)
+            uv[i], xyz[i], conf[i], score[i] = p.keypoints_2d, p.keypoints_3d, p.confidence, p.score
+        tracks.append(Track(view, (pid,), uv, xyz, conf, score))
+    return sorted(tracks, key=lambda t: -int(t.seen.sum()))
+
+
+@dataclass
+class PairFit:
+    cost: float                 # np.inf: not the same person
+
+
+PairCost = Callable[[Track, Track], PairFit]
+
+
+def _common(a: Track, b: Track, offsets: list[int], n: int, min_conf: float):
+    """Both tracks in the reference's frames, restricted to frames where both are seen."""
+    arrays = []
+    for t in (a, b):
+        o = offsets[t.view]
+        arrays.append((shift(t.uv, o, n), shift(t.xyz, o, n), shift(t.conf, o, n, 0.0)))
+    both = (observation_weights(arrays[0][0], arrays[0][2], min_conf).sum(axis=1) > 0) & \
+           (observation_weights(arrays[1][0], arrays[1][2], min_conf).sum(axis=1) > 0)
+    return [tuple(x[both] for x in arr) for arr in arrays], int(both.sum())
+
+
+def pair_cost_calibrated(cams: list[CameraCalibration], offsets: list[int], n: int,
+                         min_conf: float = MIN_CONFIDENCE) -> PairCost:
+    """Cost of two tracks with a calibration: median reprojection angle of their triangulation."""
+
+    def cost(a: Track, b: Track) -> PairFit:
+        (pa, pb), common = _common(a, b, offsets, n, min_conf)
+        if common < MIN_COMMON_FRAMES:
+            return PairFit(np.inf)
+        rig = Rig([cams[a.view], cams[b.view]])
+        uv, conf = np.stack([pa[0], pb[0]]), np.stack([pa[2], pb[2]])
+        err = rig.reprojection_errors(rig.triangulate(uv, conf, min_conf), uv, conf, min_conf)
+        focal = np.array([cams[a.view].intrinsics.fx, cams[b.view].intrinsics.fx])[:, None, None]
+        per_frame = np.nanmedian(np.where(np.isfinite(err), err / focal, np.nan).reshape(2 * common, -1), axis=1)
+        if not np.isfinite(per_frame).any():
+            return PairFit(np.inf)
+        return PairFit(float(np.nanmedian(per_frame)))
+
+    return cost
+
+
+def _overlap(a: Track, b: Track) -> int:
+    return int((a.seen & b.seen).sum())
+
+
+def associate(tracks: list[list[Track]], pair_cost: PairCost, max_cost: float) -> Association:
+    """Association with a calibration: every cross-view pair of tracks scored by `pair_cost`,
+    linked from the cheapest up while the link keeps each person's tracks of one view apart in
+    time; every track ends in exactly one person, unlinked tracks alone."""
+    flat = [t for view in tracks for t in view]
+    pairs = sorted(((pair_cost(a, b).cost, a, b) for i, a in enumerate(flat) for b in flat[i + 1:]
+                    if a.view != b.view), key=lambda p: p[0])
+    groups = {id(t): [t] for t in flat}
+    links = []
+    for c, a, b in pairs:
+        if c > max_cost:
+            break
+        merged = _merged(groups, [(a, b)])
+        if merged is not None and groups[id(a)] is not groups[id(b)]:
+            groups = merged
+            links.append((c, a, b))
+    return Association(_people(flat, groups), links)
+
+def _merged(groups: dict[int, list[Track]], pairs: list[tuple[Track, Track]]) -> dict[int, list[Track]] | None:
+    """The groups after linking `pairs`, or None when a person would hold two tracks of one
+    view that overlap in time."""
+    groups = dict(groups)
+    for s, t in pairs:
+        ga, gb = groups[id(s)], groups[id(t)]
+        if ga is gb:
+            continue
+        if any(x.view == y.view and _overlap(x, y) > MAX_SHARED for x in ga for y in gb):
+            return None
+        merged = ga + gb
+        for x in merged:
+            groups[id(x)] = merged
+    return groups
+
+
+def _fused(people: list[Person], core: list[int], rig: Rig, info: list[ViewInfo], lengths: list[int],
+           offsets: list[int], reference: int, min_conf: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each person's (F, J, 3) consensus fusion of the `core` views (reference frame, mm) and
+    (F, J) confidence."""
+    n = lengths[reference]
+    rot = np.stack([c.rotation for c in rig.cameras])
+    out = []
+    for person in people:
+        obs = Observations.of(person, lengths, offsets, n).take(core)
+        views = [View(info[v].name, info[v].size, info[v].intrinsics, obs.uv[i], obs.xyz[i], obs.conf[i])
+                 for i, v in enumerate(core)]
+        pts = np.stack([c.to_world(camera_points(view, _k(c))) for view, c in zip(views, rig.cameras)])
+        w = np.stack([view.weights(min_conf) for view in views])
+        out.append((fuse_points(pts, rot, w), np.where(w.sum(axis=0) > 0, obs.conf.max(axis=0), 0.0)))
+    return out
+
+
+def _k(cam: CameraCalibration) -> np.ndarray:
+    k = cam.intrinsics
+    return np.array([k.fx, k.fy, k.cx, k.cy])
+
+
+def _hypothesis_cost(pairs: list[tuple[int, Track]], fused: list[tuple[np.ndarray, np.ndarray]], ref_cam: CameraCalibration,
+                     info: list[ViewInfo], offsets: list[int], min_conf: float) -> float:
+    """Sum over the pairs (person, track of the new view) of frames x (residual - MAX_PAIR_MM)
+    under ONE consensus of all the pairs: negative when one camera explains them all."""
+    n = len(fused[0][0])
+    v = pairs[0][1].view
+    a_parts, b_parts, bounds = [], [], [0]
+    for p, t in pairs:
+        pts, conf = fused[p]
+        uv, xyz, c = shift(t.uv, offsets[v], n), shift(t.xyz, offsets[v], n), shift(t.conf, offsets[v], n, 0.0)
+        both = (np.isfinite(pts).all(axis=-1) & (conf >= min_conf)).sum(axis=1) >= 6
+        both &= (c >= min_conf).sum(axis=1) >= 6
+        both[1::2] = False                                          # every other frame is enough
+        if both.sum() < MIN_COMMON_FRAMES // 2:
+            return np.inf
+        a_parts.append((ref_cam.project(pts[both]), pts[both], conf[both]))
+        b_parts.append((uv[both], xyz[both], c[both]))
+        bounds.append(bounds[-1] + int(both.sum()))
+    views = [View("people", ref_cam.size, ref_cam.intrinsics, *(np.concatenate([x[i] for x in a_parts]) for i in range(3))),
+             View(info[v].name, info[v].size, info[v].intrinsics, *(np.concatenate([x[i] for x in b_parts]) for i in range(3)))]
+    try:
+        fit = estimate_rig(views, ConsensusOptions(min_conf=min_conf, max_iter=30, joint=False))
+    except FusionError:
+        return np.inf
+    if not FOCAL_RANGE[0] < fit.focal_scale[1] < FOCAL_RANGE[1]:
+        return np.inf
+    a = ref_cam.normalise(views[0].uv)
+    b = fit.rig.cameras[1].normalise(views[1].uv)
+    w = np.minimum(views[0].weights(min_conf), views[1].weights(min_conf))
+    err = epipolar_errors(a, b, fit.rig.cameras[1].rotation, w)                          # (F, J) rad
+    per_frame = np.array([np.nanmedian(np.where(w[i] > 0, err[i], np.nan)) if (w[i] > 0).sum() >= 3 else np.nan
+                          for i in range(len(w))])
+    residual = np.array([np.nanmedian(per_frame[lo:hi]) if np.isfinite(per_frame[lo:hi]).any() else np.inf
+                         for lo, hi in zip(bounds[:-1], bounds[1:])])
+    if not np.all(np.isfinite(residual)):
+        return np.inf
+    return float(np.sum(np.diff(bounds) * (residual / MAX_PAIR_ANGLE - 1.0)))
+
+
+def epipolar_errors(a: np.ndarray, b: np.ndarray, rotation: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(...) distance (rad) of each normalised point b (..., 2) to the epipolar line of its
+    point a, for x_b = R x_a + t with R (started at `rotation`) and the direction of t fitted
+    to the correspondences weighted by w (robust loss). Depth-free, so one person's wrong
+    monocular depth does not count, while a different person breaks the geometry."""
+    ah = np.concatenate([a, np.ones(a.shape[:-1] + (1,))], axis=-1)
+    bh = np.concatenate([b, np.ones(b.shape[:-1] + (1,))], axis=-1)
+    ok = np.isfinite(ah).all(axis=-1) & np.isfinite(bh).all(axis=-1) & (w > 0)
+    pa, pb, sw = ah[ok], bh[ok], np.sqrt(w[ok])
+
+    def errors(x, pa, pb):
+        r = cv2.Rodrigues(x[:3])[0] @ rotation
+        line = np.cross(x[3:] / np.linalg.norm(x[3:]), pa @ r.T)            # epipolar lines in b
+        return np.sum(line * pb, axis=-1) / np.maximum(np.linalg.norm(line[:, :2], axis=1), 1e-12)
+
+    # the translation direction for the starting rotation: t . (R a x b) = 0, least squares
+    rows = np.cross(pa @ rotation.T, pb) * sw[:, None]
+    t0 = np.linalg.svd(rows, full_matrices=False)[2][-1]
+    fit = least_squares(lambda x: sw * errors(x, pa, pb), np.r_[0.0, 0.0, 0.0, t0], loss="soft_l1",
+                        f_scale=MAX_PAIR_ANGLE / 3, max_nfev=50)
+    out = np.full(w.shape, np.nan)
+    out[ok] = np.abs(errors(fit.x, pa, pb))
+    return out
+
+
+def _best_hypothesis(tracks: list[Track], people: list[Person], fused, ref_cam, info, offsets,
+                     min_conf: float) -> tuple[float, list[tuple[int, Track]]]:
+    """The cheapest assignment of a new view's tracks to the people (or to nobody)."""
+    single = {(p, id(t)): _hypothesis_cost([(p, t)], fused, ref_cam, info, offsets, min_conf)
+              for p in range(len(people)) for t in tracks}
+    options = [[None] + [p for p in range(len(people)) if single[(p, id(t))] < 0] for t in tracks]
+    best, best_pairs = 0.0, []
+    for choice in itertools.product(*options):
+        pairs = [(p, t) for p, t in zip(choice, tracks) if p is not None]
+        if not pairs or any(p == q and _overlap(s, t) > MAX_SHARED
+                            for (p, s), (q, t) in itertools.combinations(pairs, 2)):
+            continue
+        cost = single[(pairs[0][0], id(pairs[0][1]))] if len(pairs) == 1 else \
+            _hypothesis_cost(pairs, fused, ref_cam, info, offsets, min_conf)
+        if cost < best:
+            best, best_pairs = cost, pairs
+    return best, best_pairs
+
+
+def associate_by_consensus(tracks: list[list[Track]], info: list[ViewInfo], lengths: list[int],
+                           offsets: list[int], reference: int = 0, min_conf: float = MIN_CONFIDENCE) -> Association:
+    """Association without a calibration, view by view: the people start as the reference
+    view's tracks; each round, every view not yet placed scores every assignment of its tracks
+    to the people (or to nobody) with `_hypothesis_cost` against the people fused from the views
+    placed so far, and the view with the cheapest hypothesis joins: its links are made, its
+    unassigned tracks become new people, and the placed views' cameras are estimated again by
+    consensus. A view with no hypothesis that holds joins no one."""
+    flat = [t for view in tracks for t in view]
+    groups = {id(t): [t] for t in flat}
+    core = [reference]
+    rig = Rig([CameraCalibration(info[reference].name, info[reference].size, info[reference].intrinsics)],
+              info[reference].name)
+    pending = [v for v in range(len(tracks)) if v != reference and tracks[v]]
+    links = []
+    while pending:
+        people = _people([t for v in core for t in tracks[v]], groups)
+        fused = _fused(people, core, rig, info, lengths, offsets, reference, min_conf)
+        ref_cam = rig.cameras[core.index(reference)]
+        best, best_v, best_pairs = 0.0, None, []
+        for v in pending:
+            cost, pairs = _best_hypothesis(tracks[v], people, fused, ref_cam, info, offsets, min_conf)
+            if cost < best:
+                best, best_v, best_pairs = cost, v, pairs
+        if best_v is None:
+            break
+        pending.remove(best_v)
+        trial = groups
+        for p, t in best_pairs:
+            trial = _merged(trial, [(people[p].tracks[0], t)])
+        placed = _place(core + [best_v], _people([t for v in core + [best_v] for t in tracks[v]], trial),
+                        info, lengths, offsets, reference, min_conf)
+        if placed is None:
+            continue
+        groups, core, rig = trial, core + [best_v], placed
+        links += [(best, people[p].tracks[0], t) for p, t in best_pairs]
+    return Association(_people(flat, groups), links)
+
+
+def _place(core: list[int], people: list[Person], info: list[ViewInfo], lengths: list[int], offsets: list[int],
+           reference: int, min_conf: float) -> Rig | None:
+    """The consensus cameras of the `core` views (their order) from the people, None if it fails."""
+    obs = [Observations.of(p, lengths, offsets, lengths[reference]).take(core) for p in people]
+    uv, xyz, conf = (np.concatenate([getattr(o, k) for o in obs], axis=1) for k in ("uv", "xyz", "conf"))
+    views = [View(info[v].name, info[v].size, info[v].intrinsics, uv[i], xyz[i], conf[i]) for i, v in enumerate(core)]
+    try:
+        return estimate_rig(views, ConsensusOptions(reference=core.index(reference), min_conf=min_conf,
+                                                    max_iter=40)).rig
+    except FusionError:
+        return None
+
+
+def _people(flat: list[Track], groups: dict[int, list[Track]]) -> list[Person]:
+    people, seen = [], set()
+    for t in flat:
+        g = groups[id(t)]
+        if id(g) not in seen:
+            seen.add(id(g))
+            people.append(Person(g))
+    people.sort(key=lambda p: (-len(p.views), -sum(int(t.seen.sum()) for t in p.tracks)))
+    return people

@@ -1,0 +1,165 @@
+"""The rig from the people themselves: consensus (posecam.multiview.consensus) then bundle
+adjustment (posecam.multiview.bundle) on the associated people, then a quality gate.
+
+Every person seen by two views or more is one more stretch of frames for the estimation (the
+people are stacked along the frame axis). Inliers only: after a first consensus, a view's
+stretch of a person that sits far from the others' consensus (a wrong association, a person
+mistaken for another) is left out, and the consensus runs again.
+
+The quality gate drops, with one warning line each, a camera that the data cannot pin down:
+too few frames shared with the others, a reprojection error too high, geometry that tells
+nothing (its rays meet the others' at a tiny angle) or fused points behind it, or a focal
+length out of any lens's range. What is left is estimated again without it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from posecam.errors import FusionError
+from posecam.geometry.camera import Rig
+from posecam.multiview.associate import Observations, ViewInfo
+from posecam.multiview.bundle import BundleOptions, bundle_adjust
+from posecam.multiview.consensus import ConsensusOptions, View, estimate_rig, stretch_residuals
+from posecam.skeleton import skeleton_of
+
+MIN_FRAMES = 15                 # frames a camera must share with the others (>= 6 confident joints)
+MIN_JOINTS_PER_FRAME = 6
+MAX_ERROR_PX = 40.0             # median bundle-adjustment reprojection error per camera
+# median angle between this camera's rays and the best other's: below it, distance along the
+# common axis trades against focal length (a dolly zoom) and the fit settles anywhere
+MIN_RAY_ANGLE_DEG = 8.0
+MAX_BEHIND = 0.05               # fraction of the fused points that may lie behind a camera
+FOCAL_WIDTHS = (0.2, 10.0)      # plausible focal lengths, in image widths
+OUTLIER_FACTOR = 3.0            # a person's stretch this many times the median residual: outlier
+
+
+@dataclass
+class RigEstimate:
+    rig: Rig                    # the kept cameras only
+    views: list[int]            # indices (into the inputs) of the kept cameras
+    reprojection_px: np.ndarray  # (len(views),) bundle-adjustment median error
+    warnings: list[str]
+
+
+def stack(people: list[Observations], views: list[int]) -> Observations:
+    """The people of `views` side by side along the frame axis."""
+    parts = [p.take(views) for p in people]
+    return Observations(*(np.concatenate([getattr(p, k) for p in parts], axis=1)
+                          for k in ("uv", "xyz", "conf", "score")))
+
+
+def _bone_lengths(obs: Observations, joints: tuple[str, ...], min_conf: float) -> np.ndarray:
+    """(B,) median metric bone lengths of the monocular poses."""
+    idx = skeleton_of(joints).bone_indices
+    ok = (obs.conf[..., idx[:, 0]] >= min_conf) & (obs.conf[..., idx[:, 1]] >= min_conf)
+    lengths = np.linalg.norm(obs.xyz[..., idx[:, 0], :] - obs.xyz[..., idx[:, 1], :], axis=-1)
+    return np.nanmedian(np.where(ok, lengths, np.nan).reshape(-1, len(idx)), axis=0)
+
+
+def _consensus(info: list[ViewInfo], people: list[Observations], views: list[int], ref: int,
+               min_conf: float) -> Rig:
+    """Consensus on the people, a second time without the outlier stretches of the first."""
+    obs = stack(people, views)
+    conf = obs.conf.copy()
+    lengths = np.cumsum([0] + [p.conf.shape[1] for p in people])
+    for _ in range(2):
+        vs = [View(info[v].name, info[v].size, info[v].intrinsics, obs.uv[i], obs.xyz[i], conf[i])
+              for i, v in enumerate(views)]
+        fit = estimate_rig(vs, ConsensusOptions(reference=views.index(ref), min_conf=min_conf))
+        res = stretch_residuals(fit.rig, vs, lengths, min_conf)          # (V, P) mm
+        bad = res > OUTLIER_FACTOR * np.nanmedian(res)
+        if not bad.any():
+            break
+        for i, p in zip(*np.nonzero(bad)):
+            conf[i, lengths[p]:lengths[p + 1]] = 0.0
+    return fit.rig
+
+
+def _gate(rig: Rig, points: np.ndarray, errors: np.ndarray, obs: Observations, min_conf: float) -> list[str | None]:
+    """Per camera, why it cannot be trusted (None: it can)."""
+    pts = points.reshape(-1, 3)
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    centres = np.stack([c.centre for c in rig.cameras])
+    reasons = []
+    for i, cam in enumerate(rig.cameras):
+        frames = int(((obs.conf[i] >= min_conf).sum(axis=1) >= MIN_JOINTS_PER_FRAME).sum())
+        depth = cam.to_camera(pts)[:, 2]
+        rays = pts[:, None] - centres[None]                                    # (N, V, 3)
+        rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
+        cos = np.clip(np.einsum("nk,nvk->nv", rays[:, i], rays), -1, 1)
+        angles = [np.degrees(np.median(np.arccos(cos[:, j]))) for j in range(len(centres)) if j != i]
+        f, w = cam.intrinsics.fx, cam.size[0]
+        if frames < MIN_FRAMES:
+            reasons.append(f"it sees the people in only {frames} usable frames")
+        elif not np.isfinite(errors[i]) or errors[i] > MAX_ERROR_PX:
+            reasons.append(f"its reprojection error is {errors[i]:.0f} px")
+        elif np.mean(depth <= 0) > MAX_BEHIND:
+            reasons.append(f"{100 * np.mean(depth <= 0):.0f} % of the fused joints lie behind it")
+        elif not FOCAL_WIDTHS[0] * w < f < FOCAL_WIDTHS[1] * w:
+            reasons.append(f"its focal length ({f:.0f} px) is implausible")
+        elif max(angles, default=0.0) < MIN_RAY_ANGLE_DEG:
+            reasons.append(f"its view differs from the others by only {max(angles, default=0.0):.1f} deg "
+                           "(degenerate geometry)")
+        else:
+            reasons.append(None)
+    return reasons
+
+
+def _usable_frames(people: list[Observations], n_views: int, min_conf: float) -> np.ndarray:
+    """(V,) frames in which each view sees a person (>= MIN_JOINTS_PER_FRAME confident joints)
+    that another view sees too."""
+    out = np.zeros(n_views, int)
+    for p in people:
+        seen = (p.conf >= min_conf).sum(axis=-1) >= MIN_JOINTS_PER_FRAME          # (V, F)
+        out += (seen & (seen.sum(axis=0) >= 2)).sum(axis=1)
+    return out
+
+
+def estimate_cameras(info: list[ViewInfo], people: list[Observations], joints: tuple[str, ...], reference: int,
+                     min_conf: float, bundle: bool = True, bundle_options: BundleOptions | None = None) -> RigEstimate:
+    """Cameras of the views that the people allow; FusionError when fewer than two are left."""
+    views = list(range(len(info)))
+    warnings = []
+    people = [p for p in people if ((p.conf.max(axis=-1) > 0).sum(axis=0) >= 2).any()]   # seen twice
+    usable = _usable_frames(people, len(info), min_conf)
+    for v in list(views):
+        if v != reference and usable[v] < MIN_FRAMES:
+            warnings.append(f"camera {info[v].name} dropped: it sees people that another camera sees "
+                            f"in only {usable[v]} frames")
+            views.remove(v)
+    while True:
+        if len(views) < 2:
+            raise FusionError("fewer than two cameras can be estimated from the poses"
+                              + (": " + "; ".join(warnings) if warnings else ""))
+        obs = stack(people, views)
+        try:
+            rig = _consensus(info, people, views, reference, min_conf)
+            if bundle:
+                fit = bundle_adjust(rig, obs.uv, obs.conf, _bone_lengths(obs, joints, min_conf), joints,
+                                    bundle_options)
+                rig, med, points = fit.rig, fit.median_error_px, fit.points
+            else:
+                points = rig.triangulate(obs.uv, obs.conf, min_conf)
+                errors = rig.reprojection_errors(points, obs.uv, obs.conf, min_conf)
+                med = np.array([np.nanmedian(e) if np.isfinite(e).any() else np.nan for e in errors])
+        except FusionError as exc:
+            if len(views) == 2:
+                raise
+            weakest = min((v for v in views if v != reference), key=lambda v: usable[v])
+            warnings.append(f"camera {info[weakest].name} dropped: the estimation failed with it ({exc})")
+            views.remove(weakest)
+            continue
+        reasons = _gate(rig, points, med, obs, min_conf)
+        bad = [i for i, r in enumerate(reasons) if r is not None and views[i] != reference]
+        if reasons[views.index(reference)] is not None and not bad:
+            raise FusionError(f"reference camera {info[reference].name} cannot be estimated: "
+                              f"{reasons[views.index(reference)]}")
+        if not bad:
+            return RigEstimate(rig, views, med, warnings)
+        worst = max(bad, key=lambda i: np.nan_to_num(med[i], nan=np.inf))
+        warnings.append(f"camera {info[views[worst]].name} dropped: {reasons[worst]}")
+        views.pop(worst)
+

@@ -1,0 +1,100 @@
+"""Fusion of one associated person, frame by frame, in the rig's frame of reference.
+
+Before fusing, each frame is checked: a view whose keypoints miss the triangulation of the
+person's other views by more than MAX_VIEW_ANGLE (median over joints) shows someone else in
+that frame (an id switch, a wrong association) and is left out of it, so no fused pose is
+made of two people's joints. With two views that disagree, the one with the lower detection
+score is left out.
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from posecam.geometry.camera import Intrinsics, Rig
+from posecam.multiview.associate import Observations
+from posecam.multiview.consensus import fuse_points
+
+MAX_VIEW_ANGLE = 0.04           # rad, about 70 px at f = 1700
+
+
+@dataclass
+class FusedPerson:
+    points: np.ndarray          # (F, J, 3) rig frame, mm; NaN in frames where nobody was fused
+    conf: np.ndarray            # (F, J)
+    score: np.ndarray           # (F,)
+    used: np.ndarray            # (V, F) views fused in each frame
+
+    @property
+    def frames(self) -> np.ndarray:
+        return np.nonzero(self.used.any(axis=0))[0]
+
+
+def camera_space(rig: Rig, assumed: list[Intrinsics], obs: Observations) -> np.ndarray:
+    """(V, F, J, 3) each view's monocular poses rebuilt under its camera's intrinsics (the root
+    depth scales with f / f_assumed: posecam.multiview.consensus), in the rig's frame."""
+    out = []
+    for cam, k0, uv, xyz, conf in zip(rig.cameras, assumed, obs.uv, obs.xyz, obs.conf):
+        k = cam.intrinsics
+        g = np.sqrt(k.fx * k.fy / (k0.fx * k0.fy))
+        w = np.where(conf > 0, conf, 1e-6)
+        root = np.sum(w * np.nan_to_num(xyz[..., 2]), axis=-1, keepdims=True) / np.sum(w, axis=-1, keepdims=True)
+        z = xyz[..., 2] + (g - 1.0) * root
+        xy = cam.normalise(np.nan_to_num(uv)) * z[..., None]
+        out.append(cam.to_world(np.concatenate([xy, z[..., None]], axis=-1)))
+    return np.stack(out)
+
+
+def consistent_views(rig: Rig, obs: Observations, min_conf: float) -> np.ndarray:
+    """(V, F) the views that see the person in each frame and agree with its other views."""
+    seen = (obs.conf >= min_conf).sum(axis=-1) >= 3
+    keep = seen.copy()
+    focal = np.array([c.intrinsics.fx for c in rig.cameras])[:, None]
+    frames = np.arange(seen.shape[1])
+    for _ in range(len(rig.cameras) - 1):
+        conf = np.where(keep[..., None], obs.conf, 0.0)
+        errors = rig.reprojection_errors(rig.triangulate(obs.uv, conf, min_conf), obs.uv, conf, min_conf)
+        with warnings.catch_warnings():                  # views that see nothing give NaN
+            warnings.simplefilter("ignore", RuntimeWarning)
+            angle = np.nanmedian(errors, axis=-1) / focal                       # (V, F)
+        angle = np.where(keep & np.isfinite(angle), angle, -np.inf)
+        worst = np.argmax(angle, axis=0)
+        bad = angle[worst, frames] > MAX_VIEW_ANGLE
+        if not bad.any():
+            break
+        pair = keep.sum(axis=0) == 2
+        # two views that disagree: the lower detection score goes
+        lower = np.argmin(np.where(keep, obs.score, np.inf), axis=0)
+        drop = np.where(pair, lower, worst)
+        keep[drop[bad], frames[bad]] = False
+    return keep
+
+
+def fuse_person(rig: Rig, assumed: list[Intrinsics], obs: Observations, method: str,
+                min_conf: float) -> FusedPerson:
+    """Confidence-weighted fusion of the person's consistent views, frame by frame.
+
+    method "average": the monocular poses (depth trusted less than the image plane);
+    "triangulate": the 2D keypoints, the average where fewer than two views see a joint.
+    """
+    used = consistent_views(rig, obs, min_conf)
+    conf = np.where(used[..., None], obs.conf, 0.0)                            # (V, F, J)
+    pts = camera_space(rig, assumed, obs)
+    # views below min_conf count only where no view reaches it, so every joint has a value
+    w = np.where(conf >= min_conf, conf, 1e-3 * conf)
+    w = np.where(used[..., None], w + 1e-12, 0.0)
+    rot = np.stack([c.rotation for c in rig.cameras])
+    fused = fuse_points(pts, rot, w)
+    if method == "triangulate":
+        tri = rig.triangulate(obs.uv, conf, min_conf)
+        fused = np.where(np.isfinite(tri), tri, fused)
+    weight = np.where(conf >= min_conf, conf, 0.0)
+    total = weight.sum(axis=0)
+    out_conf = np.where(total > 0, (weight * conf).sum(axis=0) / np.maximum(total, 1e-9), conf.max(axis=0))
+    n_used = used.sum(axis=0)
+    score = np.where(n_used > 0, (obs.score * used).sum(axis=0) / np.maximum(n_used, 1), 0.0)
+    fused[~used.any(axis=0)] = np.nan
+    return FusedPerson(fused, out_conf, score, used)
