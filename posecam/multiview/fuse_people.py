@@ -33,9 +33,13 @@ class FusedPerson:
         return np.nonzero(self.used.any(axis=0))[0]
 
 
-def camera_space(rig: Rig, assumed: list[Intrinsics], obs: Observations) -> np.ndarray:
-    """(V, F, J, 3) each view's monocular poses rebuilt under its camera's intrinsics (the root
-    depth scales with f / f_assumed: posecam.multiview.consensus), in the rig's frame."""
+def camera_space(rig: Rig, assumed: list[Intrinsics], obs: Observations, anchor: np.ndarray | None = None,
+                 min_conf: float = 0.5) -> np.ndarray:
+    """(V, F, J, 3) each view's monocular poses rebuilt under its camera's intrinsics, in the
+    rig's frame. The depth of a monocular pose is its least certain part: where `anchor`
+    (F, J, 3, the triangulation of the views' 2D keypoints) gives three joints or more, each
+    view's pose is moved along its depth axis onto it; elsewhere its root depth scales with
+    f / f_assumed (posecam.multiview.consensus)."""
     out = []
     for cam, k0, uv, xyz, conf in zip(rig.cameras, assumed, obs.uv, obs.xyz, obs.conf):
         k = cam.intrinsics
@@ -43,6 +47,12 @@ def camera_space(rig: Rig, assumed: list[Intrinsics], obs: Observations) -> np.n
         w = np.where(conf > 0, conf, 1e-6)
         root = np.sum(w * np.nan_to_num(xyz[..., 2]), axis=-1, keepdims=True) / np.sum(w, axis=-1, keepdims=True)
         z = xyz[..., 2] + (g - 1.0) * root
+        if anchor is not None:
+            target = cam.to_camera(anchor)[..., 2]                                   # (F, J)
+            wa = np.where(np.isfinite(target) & np.isfinite(z) & (conf >= min_conf), conf, 0.0)
+            shift = np.sum(wa * np.nan_to_num(target - z), axis=-1, keepdims=True) / np.maximum(
+                np.sum(wa, axis=-1, keepdims=True), 1e-9)
+            z = z + np.where((wa > 0).sum(axis=-1, keepdims=True) >= 3, shift, 0.0)
         xy = cam.normalise(np.nan_to_num(uv)) * z[..., None]
         out.append(cam.to_world(np.concatenate([xy, z[..., None]], axis=-1)))
     return np.stack(out)
@@ -77,19 +87,20 @@ def fuse_person(rig: Rig, assumed: list[Intrinsics], obs: Observations, method: 
                 min_conf: float) -> FusedPerson:
     """Confidence-weighted fusion of the person's consistent views, frame by frame.
 
-    method "average": the monocular poses (depth trusted less than the image plane);
+    method "average": the monocular poses, each moved along its depth axis onto the views'
+    triangulation (depth trusted less than the image plane);
     "triangulate": the 2D keypoints, the average where fewer than two views see a joint.
     """
     used = consistent_views(rig, obs, min_conf)
     conf = np.where(used[..., None], obs.conf, 0.0)                            # (V, F, J)
-    pts = camera_space(rig, assumed, obs)
+    tri = rig.triangulate(obs.uv, conf, min_conf)
+    pts = camera_space(rig, assumed, obs, tri, min_conf)
     # views below min_conf count only where no view reaches it, so every joint has a value
     w = np.where(conf >= min_conf, conf, 1e-3 * conf)
     w = np.where(used[..., None], w + 1e-12, 0.0)
     rot = np.stack([c.rotation for c in rig.cameras])
     fused = fuse_points(pts, rot, w)
     if method == "triangulate":
-        tri = rig.triangulate(obs.uv, conf, min_conf)
         fused = np.where(np.isfinite(tri), tri, fused)
     weight = np.where(conf >= min_conf, conf, 0.0)
     total = weight.sum(axis=0)
