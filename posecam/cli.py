@@ -35,7 +35,7 @@ from posecam.errors import PosecamError  # noqa: E402
 
 if _MAIN_THREAD:
     for _signum, _handler in _saved.items():
-        signal.signal(_signum, _handler)
+        signal.signal(_signum, _handler if _handler is not None else signal.SIG_DFL)
 
 
 _NO_ARGS = getattr(click.exceptions, "NoArgsIsHelpError", ())   # click >= 8.2
