@@ -27,7 +27,8 @@ def intrinsics_options(f: Callable) -> Callable:
         click.option("--cx", type=float, help="Principal point x in pixels; defaults to the image centre."),
         click.option("--cy", type=float, help="Principal point y in pixels; defaults to the image centre."),
         click.option("--intrinsics", "intrinsics_file", type=click.Path(),
-                     help="JSON with fx, fy, cx, cy (or a 3x3 matrix), or an anipose/Pose2Sim calibration TOML."),
+                     help="JSON with fx, fy, cx, cy (or a 3x3 matrix), or a calibration: anipose/Pose2Sim TOML "
+                          "or Qualisys .qca.txt (with --camera)."),
         click.option("--camera", help="Camera name inside the --intrinsics calibration (needs --intrinsics)."),
     ]):
         f = opt(f)
