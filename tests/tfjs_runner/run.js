@@ -91,7 +91,12 @@ async function main() {
   for (const file of inputs) {
     const x = readNpy(file);
     const t0 = Date.now();
-    let ys = await model.executeAsync(x, outputNames);
+    let ys;
+    try {
+      ys = model.execute(x, outputNames); // these graphs have no control flow
+    } catch (err) {
+      ys = await model.executeAsync(x, outputNames);
+    }
     const ms = Date.now() - t0;
     if (!Array.isArray(ys)) ys = [ys];
     const stem = path.basename(file, '.npy');
