@@ -3,7 +3,7 @@
 The reference runtime is @tensorflow/tfjs (pure JavaScript, CPU backend) in node, driven by
 tests/tfjs_runner/run.js; its exact version is pinned in tests/tfjs_runner/package.json and
 package-lock.json and installed into .cache/tfjs_runner on first use (`npm ci`, from npm's
-cache afterwards). Without `node` these tests skip.
+cache afterwards). Without `node` the comparisons skip.
 
 Tolerance: every value of MoveNet MultiPose's output is a normalised coordinate or a score in
 [0, 1]. The two runtimes differ by float32 rounding only (other convolution algorithms and
@@ -27,8 +27,6 @@ import onnx
 import pytest
 from conftest import DATA
 
-pytestmark = pytest.mark.skipif(shutil.which("node") is None,
-                                reason="node is not installed: the reference runtime, @tensorflow/tfjs, runs in node")
 ort = pytest.importorskip("onnxruntime")
 build = pytest.importorskip("export.convert.build_models", reason="install the export extra")
 
@@ -41,6 +39,8 @@ TOLERANCE = 1e-4
 @pytest.fixture(scope="module")
 def node_modules() -> Path:
     """The pinned @tensorflow/tfjs installed in .cache/tfjs_runner (npm ci on first use)."""
+    if shutil.which("node") is None:
+        pytest.skip("node is not installed: the reference runtime, @tensorflow/tfjs, runs in node")
     pinned = json.loads((RUNNER / "package.json").read_text())["dependencies"]["@tensorflow/tfjs"]
     installed = PREFIX / "node_modules" / "@tensorflow" / "tfjs" / "package.json"
     if not installed.exists() or json.loads(installed.read_text())["version"] != pinned:
