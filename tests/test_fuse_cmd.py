@@ -72,8 +72,10 @@ def test_fuse_with_qualisys_calibration(tmp_path):
     qca = tmp_path / "Calib.qca.txt"
     write_qca(qca, cams)
     out = tmp_path / "fused.json"
-    r = run_posecam("fuse", *paths, "--calibration", qca, "-o", out)
+    grid = tmp_path / "grid.png"
+    r = run_posecam("fuse", *paths, "--calibration", qca, "-o", out, "--viz", grid)
     assert r.returncode == 0, r.stderr
+    assert grid.stat().st_size > 0
     warnings = [line for line in r.stderr.splitlines() if line.startswith("posecam: warning:")]
     assert len(warnings) == 1 and "sorted order" in warnings[0] and "back=cam01" in warnings[0], r.stderr
     assert json.loads(out.read_text())["inputs"][0]["frame"] == "world"
