@@ -144,3 +144,44 @@ def test_movenet_file_format_and_metadata():
     contract = ModelContract.from_metadata({p.key: p.value for p in model.metadata_props}, "movenet_multipose.onnx")
     assert (contract.kind, contract.decoder, contract.outputs) == ("detector", "movenet_multipose", {"people": "Identity"})
     assert contract.input.multiple == 32 and len(contract.joints) == 17
+
+
+def _node(name: str, op: str, inputs: list[str] = (), **attr) -> dict:
+    return {"name": name, "op": op, "input": list(inputs), "attr": attr}
+
+
+def test_quantised_weights_are_read_as_tfjs_reads_them(node_modules, tmp_path):
+    """uint8, uint16 (affine) and float16 weights, and a uint8-quantised int32 one: a small
+    synthetic graph adds each to the input, in TF.js and in the converted ONNX model."""
+    rng = np.random.default_rng(0)
+    shape = [2, 3]
+    weights = {  # name: (dtype, quantization, stored values)
+        "w_u8": ("float32", {"dtype": "uint8", "scale": 0.0123, "min": -1.5}, rng.integers(0, 256, shape, np.uint8)),
+        "w_u16": ("float32", {"dtype": "uint16", "scale": 3.1e-5, "min": -0.7}, rng.integers(0, 65536, shape, np.uint16)),
+        "w_f16": ("float32", {"dtype": "float16"}, rng.standard_normal(shape).astype(np.float16)),
+        "w_i32": ("int32", {"dtype": "uint8", "scale": 0.5, "min": -20.0}, rng.integers(0, 256, shape, np.uint8)),
+    }
+    dtypes = {"float32": {"type": "DT_FLOAT"}, "int32": {"type": "DT_INT32"}}
+    dims = {"dim": [{"size": str(d)} for d in shape]}
+    nodes = [_node("x", "Placeholder", dtype=dtypes["float32"], shape={"shape": dims})]
+    for name, (dtype, _, _) in weights.items():
+        nodes.append(_node(name, "Const", dtype=dtypes[dtype], value={"tensor": {"dtype": dtypes[dtype]["type"],
+                                                                                 "tensorShape": dims}}))
+    nodes.append(_node("w_i32_f", "Cast", ["w_i32"], SrcT=dtypes["int32"], DstT=dtypes["float32"]))
+    for name in ("w_u8", "w_u16", "w_f16", "w_i32_f"):
+        nodes.append(_node(f"out_{name}", "AddV2", ["x", name], T=dtypes["float32"]))
+    manifest = [{"paths": ["w.bin"], "weights": [
+        {"name": n, "shape": shape, "dtype": d, "quantization": {**q, "original_dtype": d}} for n, (d, q, _) in weights.items()]}]
+    (tmp_path / "w.bin").write_bytes(b"".join(v.tobytes() for _, _, v in weights.values()))
+    model_json = tmp_path / "model.json"
+    model_json.write_text(json.dumps({"format": "graph-model", "modelTopology": {"node": nodes, "versions": {}},
+                                      "weightsManifest": manifest}))
+    from export.convert.tfjs_onnx import convert
+
+    x = rng.standard_normal(shape).astype(np.float32)
+    ref = run_tfjs(node_modules, model_json, {"x": x}, tmp_path)["x"]
+    sess = ort.InferenceSession(convert(model_json).SerializeToString(), providers=["CPUExecutionProvider"])
+    ours = dict(zip([o.name for o in sess.get_outputs()], sess.run(None, {"x": x})))
+    assert sorted(ours) == sorted(ref) == ["out_w_f16", "out_w_i32_f", "out_w_u16", "out_w_u8"]
+    for name, r in ref.items():
+        np.testing.assert_array_equal(ours[name], r, err_msg=name)

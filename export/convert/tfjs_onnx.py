@@ -3,8 +3,9 @@
 A TF.js graph model is a `model.json` holding a TensorFlow GraphDef as JSON (`modelTopology`)
 and a `weightsManifest` describing the binary shards next to it. Every Const node's value is
 in the shards, possibly quantised: float16, or uint8/uint16 with an affine scale and min; they
-are dequantised to float32 (int32 for int32 originals) here, except that float16 weights are
-by default kept as float16 initializers read through a Cast (exact, half the file). The graph is rebuilt with
+are dequantised to float32 (int32 for int32 originals) as TF.js does it, except that float16
+weights are by default kept as float16 initializers read through a Cast (exact, half the file).
+The graph is rebuilt with
 `onnx.helper`, node by node, in the style of `tflite_onnx.py`: 4-D activations are held in NCHW
 inside the ONNX graph (convolutions, pooling, resizing and the elementwise ops between them),
 while the graph inputs and outputs keep the TF.js layout. Everything else (shape arithmetic,
@@ -72,9 +73,9 @@ def _decode_group(group: dict, directory: Path, keep_float16: bool) -> dict[str,
         offset += count * stored.itemsize
         if quant and quant["dtype"] == "float16":
             values = raw.copy() if keep_float16 and dtype == np.float32 else raw.astype(dtype)
-        elif quant:  # affine uint8 / uint16: value = q * scale + min, rounded for int32 originals
-            values = raw.astype(np.float32) * np.float32(quant["scale"]) + np.float32(quant["min"])
-            values = np.round(values).astype(dtype) if dtype.kind == "i" else values.astype(dtype)
+        elif quant:  # affine uint8 / uint16: q * scale + min in double precision, as tfjs does;
+            values = raw.astype(np.float64) * quant["scale"] + quant["min"]  # int32: JS Math.round
+            values = np.floor(values + 0.5).astype(dtype) if dtype.kind == "i" else values.astype(dtype)
         else:
             values = raw.copy()
         out[spec["name"]] = values
