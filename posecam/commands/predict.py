@@ -133,7 +133,7 @@ def predict_command(inputs, output, viz, model, skeleton, detector, max_people, 
             raise InputError("--out-dir writes one file per input; it does not go with -o, --viz or --viz3d")
         from posecam.commands.many import predict_many
 
-        return predict_many(list(inputs), opts, out_dir, f".{out_format}", jobs, ray_address)
+        return predict_many(list(inputs), opts, out_dir, f".{out_format}", jobs, ray_address, smooth)
     first = open_media(inputs[0])
     for path in inputs[1:]:  # fail on a bad input before spending time on the good ones
         open_media(path)
