@@ -106,9 +106,6 @@ def _commit(tmp: Path, target: Path) -> None:
     """Flush `tmp` to disk and rename it onto `target`; a full disk shows here at the latest."""
     if not tmp.is_file():
         raise OutputError(f"cannot write {target}: the writer produced no file")
-    if tmp.suffix.lower() in VIDEO_SUFFIXES and not readable_video(tmp):
-        # FFmpeg drops write errors: a video that does not read back was not written
-        raise OutputError(f"cannot write {target}: the video does not read back (disk full or file too large?)")
     with open(tmp, "rb+") as f:
         os.fsync(f.fileno())
     stats = os.statvfs(tmp)
@@ -116,6 +113,9 @@ def _commit(tmp: Path, target: Path) -> None:
     if free == 0 and stats.f_blocks > 0:
         # Some writers (FFmpeg's) drop write errors; a disk left with no free block lost data.
         raise OSError(28, os.strerror(28))
+    if tmp.suffix.lower() in VIDEO_SUFFIXES and not readable_video(tmp):
+        # the same for other failures (a file size limit): a video that does not read back
+        raise OutputError(f"cannot write {target}: the video does not read back (disk full or file too large?)")
     os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual permissions
     os.replace(tmp, target)
 
