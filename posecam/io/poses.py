@@ -1,6 +1,6 @@
 """Pose files: the JSON document and the long-form CSV that `posecam predict` and `fuse` write.
 
-JSON: {"posecam", "model", "joints", "inputs": [{"source", "width", "height", "frame",
+JSON: {"posecam", "model", "joints", "root_joint", "inputs": [{"source", "width", "height", "frame",
 "intrinsics": {"fx", "fy", "cx", "cy", "source"}, "fps", "frames": [{"index", "time",
 "people": [{"id", "score", "bbox", "keypoints_2d", "keypoints_3d", "confidence", "root"}]}]}]}
 CSV: one row per joint, header exactly CSV_HEADER.
@@ -85,7 +85,7 @@ def write_json(out: TextIO, recordings: list[Recording]) -> None:
     """The JSON document, one frame per line, written as it is made."""
     first = recordings[0]
     out.write(f'{{"posecam": {_dumps(__version__)}, "model": {_dumps(first.model)},\n'
-              f' "joints": {_dumps(list(first.joints))},\n "inputs": [')
+              f' "joints": {_dumps(list(first.joints))}, "root_joint": {_dumps(first.root_joint)},\n "inputs": [')
     for i, r in enumerate(recordings):
         out.write(("," if i else "") + "\n  " + _dumps(_header(r))[:-1] + ', "frames": [')
         for j, f in enumerate(r.frames):
