@@ -7,21 +7,20 @@ from pathlib import Path
 
 import numpy as np
 
-from posecam.inference.detector import PersonDetector
+from posecam.inference.detector import load_detector
 from posecam.errors import InputError
 from posecam.media import open_media
 from posecam.inference.roi import Roi
-from posecam.inference.session import load_model
 
 
 def person_crops(paths: list[str | os.PathLike], size: int, max_crops: int = 16,
                  frames_per_video: int = 4) -> tuple[np.ndarray, np.ndarray]:
-    """Upright square crops around the people the bundled detector finds, as the runtime makes them.
+    """Upright square crops around the people the default detector finds, as the runtime makes them.
 
     Returns (N, size, size, 3) uint8 RGB crops and (N, 4) boxes (cx/W, cy/H, s/W, s/H).
     Videos contribute `frames_per_video` evenly spaced frames.
     """
-    detector = PersonDetector(load_model("detector", kind="detector"))
+    detector = load_detector("movenet")
     crops, boxes = [], []
     for path in paths:
         media = open_media(path)

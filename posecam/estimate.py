@@ -64,7 +64,8 @@ class PoseEstimator:
 
     def __init__(self, options: EstimatorOptions | None = None):
         self.options = opts = options or EstimatorOptions()
-        self.detector = load_detector(opts.detector, opts.threads, opts.min_detection_score, opts.detector_size)
+        self.detector = load_detector(opts.detector, opts.threads, opts.min_detection_score, opts.detector_size,
+                                      opts.device)
         self.min_detection_score = opts.min_detection_score if opts.min_detection_score is not None \
             else self.detector.default_score
         pose = load_model(opts.model, opts.threads, device=opts.device)

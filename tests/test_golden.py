@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
-from posecam.inference.detector import PersonDetector
+from posecam.inference.detector import load_detector
 from posecam.inference.roi import Roi
 from posecam.inference.session import load_model, to_input_tensor
 from posecam.media import read_image
@@ -39,14 +39,14 @@ def landmarks_on_photo(variant: str) -> dict:
             "presence": round(float(out["presence"].ravel()[0]), 4)}
 
 
-def detections_on_photo() -> dict:
-    detector = PersonDetector(load_model("detector", kind="detector"))
+def detections_on_photo(name: str) -> dict:
+    detector = load_detector(name)
     found = detector(read_image(PHOTO), 4)
     return {"boxes": [d.box.round(2).tolist() for d in found], "scores": [round(d.score, 4) for d in found]}
 
 
 CASES = {"lite": lambda: landmarks_on_photo("lite"), "full": lambda: landmarks_on_photo("full"),
-         "detector": detections_on_photo}
+         "detector": lambda: detections_on_photo("blazepose"), "movenet": lambda: detections_on_photo("movenet")}
 
 
 def _save_failure(name: str, points: np.ndarray, expected: np.ndarray) -> Path:
@@ -65,7 +65,7 @@ def _save_failure(name: str, points: np.ndarray, expected: np.ndarray) -> Path:
 def test_bundled_model_matches_its_golden_output(name):
     golden = json.loads((GOLDEN / f"{name}_balance.json").read_text())
     got = CASES[name]()
-    if name == "detector":
+    if name in ("detector", "movenet"):
         assert len(got["boxes"]) == len(golden["boxes"])
         ours, theirs = np.array(got["boxes"]), np.array(golden["boxes"])
         assert np.allclose(got["scores"], golden["scores"], atol=PRESENCE_MARGIN)

@@ -237,11 +237,8 @@ def oks(points_a: np.ndarray, conf_a: np.ndarray, points_b: np.ndarray, conf_b: 
 
 
 Detector = BlazePoseDetector | MoveNetDetector
-PersonDetector = BlazePoseDetector   # its earlier name (golden tests, export/crops.py)
-
-
 def load_detector(name_or_path: str, threads: int | None = None, min_score: float | None = None,
-                  input_size: int | None = None) -> Detector:
+                  input_size: int | None = None, device: str = "cpu") -> Detector:
     """A bundled detector by name (see DETECTORS) or a detector .onnx file, decoded as its
     metadata says. `min_score` is the score that starts a track (None: the detector's
     `default_score`); MoveNet's detections down to a third of it are kept too (they keep
@@ -249,8 +246,8 @@ def load_detector(name_or_path: str, threads: int | None = None, min_score: floa
     path = str(MODELS_DIR / DETECTORS[name_or_path]) if name_or_path in DETECTORS else name_or_path
     if name_or_path in DETECTORS and not Path(path).is_file():
         raise ModelError(f"detector '{name_or_path}' is not built in this install ({path}); "
-                         "build it with: pip install '.[export]' && python -m export.convert.build_models")
-    model = load_model(path, threads, kind="detector")
+                         "build it with: pip install -e '.[export,test]' && python -m export.convert.build_models")
+    model = load_model(path, threads, kind="detector", device=device)
     if model.contract.decoder == "movenet_multipose":
         score = MoveNetDetector.default_score if min_score is None else min_score
         return MoveNetDetector(model, score / 3, input_size)
