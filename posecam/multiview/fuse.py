@@ -148,6 +148,61 @@ def _to_recording(fused: list[FusedPerson], rig: Rig, ref_index: int, ref: Recor
                      rig.frame_of_reference)
 
 
+@dataclass
+class _RigStage:
+    """Where the rig stage leaves the views: who is who, the cameras, the offsets."""
+
+    association: Association
+    rig: Rig                    # the cameras of `views`
+    views: list[int]
+    offsets: list[int]
+    confidence: list[float]     # per input view
+    warnings: list[str]
+
+
+def _given_rig(recordings: list[Recording], tracks, names: list[str], offsets: list[int], opts: FuseOptions,
+               say: Callable[[str], None]) -> _RigStage:
+    """A calibration matched to the views (Rig.match); association by triangulation; sync."""
+    n = len(recordings[opts.reference].frames)
+    cams, note = opts.calibration.match(names, [(r.width, r.height) for r in recordings])
+    rig, views = Rig(cams, None), list(range(len(recordings)))
+    stage = _RigStage(associate(tracks, pair_cost_calibrated(cams, offsets, n, opts.min_conf), MAX_PAIR_ANGLE),
+                      rig, views, offsets, [1.0] * len(recordings), [note] if note else [])
+    if opts.sync:
+        say("synchronising")
+        sync = _sync(rig, views, stage.association, recordings, offsets, opts)
+        stage.offsets, stage.confidence, stage.warnings = sync.offsets, sync.confidence, stage.warnings + sync.warnings
+        stage.association = associate(tracks, pair_cost_calibrated(cams, sync.offsets, n, opts.min_conf),
+                                      MAX_PAIR_ANGLE)
+    return stage
+
+
+def _estimated_rig(recordings: list[Recording], tracks, info: list[ViewInfo], offsets: list[int],
+                   opts: FuseOptions, say: Callable[[str], None]) -> _RigStage:
+    """Association by consensus hypotheses, then the cameras (posecam.multiview.calibrate),
+    alternated with sync until the offsets settle."""
+    ref = opts.reference
+    association = associate_by_consensus(tracks, info, [len(r.frames) for r in recordings], offsets, ref,
+                                         opts.min_conf)
+
+    def estimate(offsets: list[int]) -> RigEstimate:
+        say("estimating the cameras")
+        people = _observations(association, recordings, offsets, list(range(len(recordings))), ref)
+        return estimate_cameras(info, people, recordings[ref].joints, ref, opts.min_conf, opts.bundle,
+                                opts.bundle_options)
+
+    est, confidence, sync_warnings = estimate(offsets), [1.0] * len(recordings), []
+    for _ in range(SYNC_ROUNDS if opts.sync else 0):
+        say("synchronising")
+        sync = _sync(est.rig, est.views, association, recordings, offsets, opts)
+        confidence, sync_warnings = sync.confidence, sync.warnings
+        if sync.offsets == offsets:
+            break
+        offsets = sync.offsets
+        est = estimate(offsets)
+    return _RigStage(association, est.rig, est.views, offsets, confidence, est.warnings + sync_warnings)
+
+
 def fuse_recordings(recordings: list[Recording], options: FuseOptions | None = None,
                     progress: Callable[[str], None] | None = None) -> FusionResult:
     """Fuse time-overlapping recordings of static cameras into one recording of 3D poses."""
@@ -157,48 +212,18 @@ def fuse_recordings(recordings: list[Recording], options: FuseOptions | None = N
     names = view_names(recordings)
     ref = opts.reference
     offsets = list(opts.offsets) if opts.offsets is not None else [0] * len(recordings)
-    confidence = [1.0] * len(recordings)
-    warnings: list[str] = []
     tracks = [tracks_of(r, v) for v, r in enumerate(recordings)]
-    n = len(recordings[ref].frames)
+    info = [ViewInfo(name, (r.width, r.height), r.intrinsics) for name, r in zip(names, recordings)]
 
     say("associating people across views")
     if opts.calibration is not None:
-        cams, note = opts.calibration.match(names, [(r.width, r.height) for r in recordings])
-        warnings += [note] if note else []
-        rig, views = Rig(cams, None), list(range(len(recordings)))
-        association = associate(tracks, pair_cost_calibrated(cams, offsets, n, opts.min_conf), MAX_PAIR_ANGLE)
-        if opts.sync:
-            say("synchronising")
-            sync = _sync(rig, views, association, recordings, offsets, opts)
-            offsets, confidence, warnings = sync.offsets, sync.confidence, warnings + sync.warnings
-            association = associate(tracks, pair_cost_calibrated(cams, offsets, n, opts.min_conf), MAX_PAIR_ANGLE)
+        stage = _given_rig(recordings, tracks, names, offsets, opts, say)
     else:
-        info = [ViewInfo(name, (r.width, r.height), r.intrinsics) for name, r in zip(names, recordings)]
-        association = associate_by_consensus(tracks, info, [len(r.frames) for r in recordings], offsets, ref,
-                                             opts.min_conf)
-        every = list(range(len(recordings)))
-
-        def estimate(offsets: list[int]) -> RigEstimate:
-            say("estimating the cameras")
-            people = _observations(association, recordings, offsets, every, ref)
-            return estimate_cameras(info, people, recordings[ref].joints, ref, opts.min_conf, opts.bundle,
-                                    opts.bundle_options)
-
-        est = estimate(offsets)
-        for _ in range(SYNC_ROUNDS if opts.sync else 0):
-            say("synchronising")
-            sync = _sync(est.rig, est.views, association, recordings, offsets, opts)
-            confidence = sync.confidence
-            if sync.offsets == offsets:
-                break
-            offsets = sync.offsets
-            est = estimate(offsets)
-        rig, views = est.rig, est.views
-        warnings += est.warnings + (sync.warnings if opts.sync else [])
+        stage = _estimated_rig(recordings, tracks, info, offsets, opts, say)
+    rig, views, offsets, warnings = stage.rig, stage.views, stage.offsets, stage.warnings
 
     say("checking left and right")
-    people = _observations(association, recordings, offsets, views, ref)
+    people = _observations(stage.association, recordings, offsets, views, ref)
     people, swaps = _fix_left_right(rig, people, recordings[ref].joints)
     if swaps.any() and opts.calibration is None:
         say("estimating the cameras without the swaps")
@@ -209,9 +234,9 @@ def fuse_recordings(recordings: list[Recording], options: FuseOptions | None = N
             [views[i] for i in again.views]
 
     say("fusing")
-    assumed = [recordings[v].intrinsics for v in views]
-    fused = [fuse_person(rig, assumed, obs, opts.method, opts.min_conf) for obs in people]
-    recording = _to_recording(fused, rig, views.index(ref), recordings[ref])
-    reports = camera_reports(rig, [offsets[v] for v in views], [confidence[v] for v in views], swaps,
+    fused = [fuse_person(rig, [recordings[v].intrinsics for v in views], obs, opts.method, opts.min_conf)
+             for obs in people]
+    reports = camera_reports(rig, [offsets[v] for v in views], [stage.confidence[v] for v in views], swaps,
                              people, fused, opts.min_conf)
-    return FusionResult(recording, rig, offsets, reports, views, warnings)
+    return FusionResult(_to_recording(fused, rig, views.index(ref), recordings[ref]), rig, offsets, reports,
+                        views, warnings)
