@@ -4,8 +4,10 @@
     smoothed = smooth_recording(rec, SmoothOptions(cutoff_hz=6.0))
 
 Two standard filters over (F, ...) arrays whose missing frames are NaN:
-- `butterworth`: zero-phase low-pass (scipy `filtfilt`, forward and backward, as Pose2Sim
-  filters its trajectories); each unbroken run of frames is filtered on its own.
+- `butterworth`: zero-phase low-pass (forward and backward, as Pose2Sim filters its
+  trajectories with scipy's `butter` + `filtfilt`; written here in numpy with the same
+  design, padding and initial conditions, because importing scipy.signal costs a third of a
+  second per run); each unbroken run of frames is filtered on its own.
 - `one_euro`: the One-Euro filter (Casiez et al., CHI 2012), causal and speed-adaptive.
 A run too short for the filter's padding is filtered with shorter padding; runs of 1-3
 frames are left as they are.
@@ -17,7 +19,6 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import butter, filtfilt
 
 from posecam.errors import InputError
 from posecam.results import Recording
@@ -50,6 +51,43 @@ def runs(valid: np.ndarray) -> list[slice]:
     return [slice(a, b) for a, b in zip(edges[::2], edges[1::2])]
 
 
+def butter_lowpass(order: int, cutoff: float) -> tuple[np.ndarray, np.ndarray]:
+    """Digital Butterworth low-pass (b, a) of `order`, `cutoff` as a fraction of the Nyquist
+    rate: the analog prototype's poles, pre-warped, through the bilinear transform (scipy's
+    `butter(order, cutoff)`)."""
+    m = np.arange(-order + 1, order, 2)
+    warped = 4.0 * np.tan(np.pi * cutoff / 2.0)
+    poles = -warped * np.exp(1j * np.pi * m / (2 * order))          # analog, s-plane
+    gain = warped ** order / np.real(np.prod(4.0 - poles))
+    a = np.real(np.poly((4.0 + poles) / (4.0 - poles)))             # bilinear transform, fs = 2
+    b = gain * np.real(np.poly(-np.ones(order)))                     # all zeros at z = -1
+    return b, a
+
+
+def _lfilter(b: np.ndarray, a: np.ndarray, x: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """IIR filter along axis 0 (direct form II transposed) from the state `z` (n-1, ...)."""
+    y = np.empty_like(x)
+    z = z.copy()
+    for i in range(len(x)):
+        y[i] = b[0] * x[i] + z[0]
+        z[:-1] = b[1:-1, None] * x[i] + z[1:] - a[1:-1, None] * y[i]
+        z[-1] = b[-1] * x[i] - a[-1] * y[i]
+    return y
+
+
+def _filtfilt(b: np.ndarray, a: np.ndarray, x: np.ndarray, padlen: int) -> np.ndarray:
+    """Forward-backward filtering of (F, C) `x`, odd extension by `padlen` frames at each end and
+    steady-state initial conditions (scipy's `filtfilt(b, a, x, axis=0, padlen=padlen)`)."""
+    n = len(a)
+    companion = np.eye(n - 1, k=-1)
+    companion[0] = -a[1:]
+    zi = np.linalg.solve(np.eye(n - 1) - companion.T, b[1:] - a[1:] * b[0])[:, None]
+    ext = np.concatenate([2 * x[:1] - x[padlen:0:-1], x, 2 * x[-1:] - x[-2:-padlen - 2:-1]])
+    y = _lfilter(b, a, ext, zi * ext[0])
+    y = _lfilter(b, a, y[::-1], zi * y[-1])[::-1]
+    return y[padlen:len(y) - padlen]
+
+
 def butterworth(x: np.ndarray, fps: float, cutoff_hz: float = 6.0, order: int = 4) -> np.ndarray:
     """Zero-phase low-pass of (F, ...) `x` along frames; NaN frames split it into runs."""
     x = np.asarray(x, dtype=float)
@@ -57,7 +95,7 @@ def butterworth(x: np.ndarray, fps: float, cutoff_hz: float = 6.0, order: int = 
     nyquist = fps / 2.0
     if cutoff_hz >= nyquist:
         return out
-    b, a = butter(order // 2, cutoff_hz / nyquist)
+    b, a = butter_lowpass(order // 2, cutoff_hz / nyquist)
     flat, res = x.reshape(len(x), -1), out.reshape(len(x), -1)
     valid = np.isfinite(flat)
     masks, group = np.unique(valid, axis=1, return_inverse=True)    # columns missing in the same frames
@@ -66,7 +104,7 @@ def butterworth(x: np.ndarray, fps: float, cutoff_hz: float = 6.0, order: int = 
         for run in runs(masks[:, g]):
             n = run.stop - run.start
             if n >= MIN_RUN:
-                res[run, cols] = filtfilt(b, a, flat[run][:, cols], axis=0, padlen=min(3 * max(len(a), len(b)), n - 1))
+                res[run, cols] = _filtfilt(b, a, flat[run][:, cols], min(3 * len(a), n - 1))
     return out
 
 

@@ -101,3 +101,19 @@ def test_cli_smooths_videos_by_default(tmp_path):
     assert run_posecam("predict", DATA / "balance_cam01_30f.mp4", "-o", default).returncode == 0
     kp = np.array([f["people"][0]["keypoints_3d"] for f in json.loads(default.read_text())["inputs"][0]["frames"]])
     np.testing.assert_allclose(kp, roots["--smooth"])
+
+
+@pytest.mark.parametrize("order, cutoff, padlen", [(2, 0.2, 9), (1, 0.1, 3), (3, 0.45, 0), (2, 6 / 30, 12)])
+def test_numpy_butterworth_is_scipys(order, cutoff, padlen):
+    """posecam's own design and filtfilt give scipy.signal's numbers (scipy is the reference)."""
+    from scipy.signal import butter, filtfilt
+
+    from posecam.filters import _filtfilt, butter_lowpass
+
+    b, a = butter(order, cutoff)
+    ours_b, ours_a = butter_lowpass(order, cutoff)
+    np.testing.assert_allclose(ours_b, b, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(ours_a, a, rtol=1e-12, atol=1e-15)
+    x = np.cumsum(np.random.default_rng(order).normal(size=(150, 5)), axis=0)
+    np.testing.assert_allclose(_filtfilt(b, a, x, padlen), filtfilt(b, a, x, axis=0, padlen=padlen),
+                               rtol=1e-10, atol=1e-10)

@@ -25,3 +25,14 @@ def test_import_posecam_loads_no_heavy_module():
                        env={**os.environ, "PYTHONPATH": str(ROOT)})
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == "", f"imported eagerly: {r.stdout.strip()}"
+
+
+def test_the_predict_path_does_not_import_scipy():
+    """scipy costs a third of a second to import; predict (estimator, tracker, smoothing) runs
+    without it, only multi-view fusion uses it."""
+    code = ("import sys, posecam.estimate, posecam.filters, posecam.batch, posecam.commands.predict; "
+            "print(','.join(m for m in sys.modules if m.split('.')[0] == 'scipy'))")
+    r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                       env={**os.environ, "PYTHONPATH": str(ROOT)})
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "", f"imported: {r.stdout.strip()[:200]}"

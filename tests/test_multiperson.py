@@ -136,3 +136,19 @@ def test_joints_on_a_neighbour_are_found():
     foreign = foreign_joints(pose, np.ones(k), own, [other])
     assert foreign.tolist() == [False] * 13 + [True] * 4
     assert not foreign_joints(own_kp, np.ones(k), own, [other]).any()
+
+
+def test_min_cost_assignment_matches_scipy_on_random_matrices():
+    """The tracker's own Hungarian method finds assignments as cheap as scipy's (the reference)."""
+    from scipy.optimize import linear_sum_assignment
+
+    from posecam.tracking import min_cost_assignment
+
+    rng = np.random.default_rng(7)
+    for trial in range(400):
+        n, m = rng.integers(1, 9, size=2)
+        cost = rng.random((n, m)) if trial % 2 else rng.integers(0, 3, size=(n, m)).astype(float)
+        rows, cols = min_cost_assignment(cost)
+        ref_rows, ref_cols = linear_sum_assignment(cost)
+        assert len(rows) == min(n, m) and len(set(rows)) == len(rows) and len(set(cols)) == len(cols)
+        assert np.isclose(cost[rows, cols].sum(), cost[ref_rows, ref_cols].sum())
