@@ -1,17 +1,18 @@
 """Many inputs, one task each: in this process, in local worker processes, or on a Ray cluster.
 
     tasks = plan_predictions(["a.mp4", "b.mp4"], "out/", ".json")   # finished outputs are skipped
-    for output in run_tasks(tasks, EstimatorOptions(), jobs=2):     # or ray_address="auto"
+    for output in run_tasks(tasks, partial(predict_task, options=EstimatorOptions()), jobs=2):
         print("wrote", output)
 
-Every task writes its own output file atomically, so an interrupted run leaves only complete
-files and running it again does only what is missing.
+A task is one input for `posecam predict` or one take (a folder holding one video, or pose
+JSON file, per camera) for `posecam fuse`. Every task writes its own output file atomically, so
+an interrupted run leaves only complete files and running it again does only what is missing.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -20,80 +21,110 @@ from posecam.errors import InputError, OutputError, PosecamError
 from posecam.estimate import EstimatorOptions, PoseEstimator
 from posecam.filters import smooth_recording
 from posecam.io.poses import write_poses
+from posecam.multiview.fuse import FuseOptions, fuse_recordings
+from posecam.views import load_views
 
 RAY_HINT = "--ray needs Ray: pip install 'ray>=2.9' (or pip install -e '.[ray]' in a checkout)"
+TAKE_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".json")   # a take folder's views
 
 
 @dataclass(frozen=True)
-class PredictTask:
-    """One input and the file its poses go to."""
+class Task:
+    """The inputs of one task (one file for predict; a take's views for fuse) and its output."""
 
-    input: str
+    inputs: tuple[str, ...]
     output: str
 
 
-def plan_predictions(inputs: list[str], out_dir: str | os.PathLike, suffix: str) -> list[PredictTask]:
-    """One task per input, named after it in `out_dir`; inputs whose output exists are skipped
-    (outputs are written atomically, so an existing one is complete)."""
+def _plan(names: list[str], inputs: list[tuple[str, ...]], out_dir: str | os.PathLike, suffix: str) -> list[Task]:
     folder = Path(out_dir)
     if not folder.is_dir():
         raise OutputError(f"output folder {folder} does not exist")
-    stems = [Path(p).stem or "input" for p in inputs]
     tasks, seen = [], set()
-    for path, stem in zip(inputs, stems):
-        name = stem if stems.count(stem) == 1 else f"{Path(path).parent.name}_{stem}"
+    for name, views in zip(names, inputs):
         if name in seen:
             raise InputError(f"two inputs would both write {name}{suffix}; give them different names")
         seen.add(name)
         target = folder / f"{name}{suffix}"
-        if not target.exists():
-            tasks.append(PredictTask(str(path), str(target)))
+        if not target.exists():   # written atomically, so an existing output is complete
+            tasks.append(Task(views, str(target)))
     return tasks
+
+
+def plan_predictions(inputs: list[str], out_dir: str | os.PathLike, suffix: str) -> list[Task]:
+    """One task per input, named after it in `out_dir`; inputs whose output exists are skipped."""
+    stems = [Path(p).stem or "input" for p in inputs]
+    names = [s if stems.count(s) == 1 else f"{Path(p).parent.name}_{s}" for p, s in zip(inputs, stems)]
+    return _plan(names, [(p,) for p in inputs], out_dir, suffix)
+
+
+def plan_fusions(takes: list[str], out_dir: str | os.PathLike, suffix: str) -> list[Task]:
+    """One task per take folder (its videos or pose JSON files, sorted by name), named after
+    the folder in `out_dir`; takes whose output exists are skipped."""
+    views = []
+    for take in takes:
+        folder = Path(take)
+        if not folder.is_dir():
+            raise InputError(f"with --out-dir, each input of fuse is a take: a folder of views; {take} is not one")
+        files = sorted(str(p) for p in folder.iterdir() if p.is_file() and p.suffix.lower() in TAKE_SUFFIXES)
+        if len(files) < 2:
+            raise InputError(f"take {take} holds {len(files)} view(s); fusion needs two or more "
+                             f"({', '.join(TAKE_SUFFIXES)} files)")
+        views.append(tuple(files))
+    return _plan([Path(t).resolve().name for t in takes], views, out_dir, suffix)
 
 
 _estimators: dict[str, PoseEstimator] = {}   # per process, by options
 
 
-def predict_task(task: PredictTask, options: EstimatorOptions, smooth: bool = True) -> str:
-    """Run one task (in whichever process it lands) and return its output path; videos are
-    smoothed as `posecam predict` smooths them."""
+def predict_task(task: Task, options: EstimatorOptions, smooth: bool = True) -> str:
+    """Predict one input into its output; videos are smoothed as `posecam predict` smooths them."""
     key = repr(options)
     estimator = _estimators.get(key)
     if estimator is None:
         estimator = _estimators[key] = PoseEstimator(options)
-    recording = estimator.predict_file(task.input)
+    recording = estimator.predict_file(task.inputs[0])
     write_poses(task.output, [smooth_recording(recording) if smooth else recording])
     return task.output
 
 
-def _threads_per_worker(options: EstimatorOptions, workers: int) -> EstimatorOptions:
+def fuse_task(task: Task, options: FuseOptions, model: str = "full", calibration: str | None = None,
+              device: str = "cpu", smooth: bool = True) -> str:
+    """Fuse one take's views into its output, as `posecam fuse` does."""
+    recordings = load_views(list(task.inputs), model, calibration, options.calibration, device)
+    fused = fuse_recordings(recordings, options).recording
+    write_poses(task.output, [smooth_recording(fused) if smooth else fused])
+    return task.output
+
+
+def threads_per_worker(options: EstimatorOptions, workers: int) -> EstimatorOptions:
+    """The options with the CPU threads shared between `workers` processes (unless set)."""
     if options.threads is not None:
         return options
     return replace(options, threads=max(1, (os.cpu_count() or 1) // workers))
 
 
-def run_tasks(tasks: list[PredictTask], options: EstimatorOptions, jobs: int = 1,
-              ray_address: str | None = None, smooth: bool = True) -> Iterator[str]:
-    """Run the tasks and yield each output path as its task finishes (in any order).
+def run_tasks(tasks: list[Task], work: Callable[[Task], str], jobs: int = 1,
+              ray_address: str | None = None) -> Iterator[str]:
+    """Run `work` on each task and yield each output path as its task finishes (in any order).
 
-    `jobs` > 1: that many local worker processes, the CPU threads shared between them.
-    `ray_address`: a Ray cluster ("auto", "ray://host:10001", or "" for a local instance),
-    one Ray task per input. A task that fails stops the run with its error; outputs already
-    written stay, and the next run skips them.
+    `jobs` > 1: that many local worker processes (`work` must pickle: a module-level function
+    or a functools.partial of one). `ray_address`: a Ray cluster ("auto", "ray://host:10001",
+    or "" for a local instance), one Ray task per task. A task that fails stops the run with
+    its error; outputs already written stay, and the next run skips them.
     """
     if ray_address is not None:
-        yield from _run_on_ray(tasks, options, ray_address, smooth)
+        yield from _run_on_ray(tasks, work, ray_address)
     elif jobs > 1 and len(tasks) > 1:
-        yield from _run_in_processes(tasks, _threads_per_worker(options, jobs), jobs, smooth)
+        yield from _run_in_processes(tasks, work, jobs)
     else:
         for task in tasks:
-            yield predict_task(task, options, smooth)
+            yield work(task)
 
 
-def _run_in_processes(tasks: list[PredictTask], options: EstimatorOptions, jobs: int,
-                      smooth: bool) -> Iterator[str]:
+def _run_in_processes(tasks: list[Task], work: Callable[[Task], str], jobs: int) -> Iterator[str]:
     with ProcessPoolExecutor(max_workers=min(jobs, len(tasks))) as pool:
-        pending = {pool.submit(predict_task, t, options, smooth) for t in tasks}
+        pending = {pool.submit(work, t) for t in tasks}
         try:
             while pending:
                 done, pending = wait(pending, return_when=FIRST_COMPLETED)
@@ -104,16 +135,19 @@ def _run_in_processes(tasks: list[PredictTask], options: EstimatorOptions, jobs:
                 future.cancel()
 
 
-def _run_on_ray(tasks: list[PredictTask], options: EstimatorOptions, address: str,
-                smooth: bool) -> Iterator[str]:
+def _call(work: Callable[[Task], str], task: Task) -> str:
+    return work(task)
+
+
+def _run_on_ray(tasks: list[Task], work: Callable[[Task], str], address: str) -> Iterator[str]:
     try:
         import ray
     except ImportError:
         raise InputError(RAY_HINT) from None
     ray.init(address=address or None, include_dashboard=False, log_to_driver=False,
              ignore_reinit_error=True, configure_logging=False)
-    remote = ray.remote(num_cpus=options.threads or 1)(predict_task)
-    pending = [remote.remote(t, options, smooth) for t in tasks]
+    remote = ray.remote(num_cpus=1)(_call)
+    pending = [remote.remote(work, t) for t in tasks]
     try:
         while pending:
             done, pending = ray.wait(pending, num_returns=1)

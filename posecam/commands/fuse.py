@@ -13,47 +13,7 @@ from posecam.commands.common import (check_output, predict_with_progress, progre
 from posecam.errors import InputError
 
 if TYPE_CHECKING:
-    from posecam.geometry.camera import Rig
     from posecam.multiview.fuse import FusionResult
-    from posecam.results import Recording
-
-
-def load_views(inputs: list[str], model: str, calibration: tuple[str, Rig] | None,
-               device: str = "cpu") -> list[Recording]:
-    """Recordings from pose JSON files as they are, and from videos/sequences by predicting them
-    (with the calibration's intrinsics when given, else posecam's default). Every input is
-    checked before anything is predicted."""
-    from posecam.estimate import EstimatorOptions, PoseEstimator
-    from posecam.io.intrinsics import IntrinsicsOptions
-    from posecam.io.poses import read_poses
-    from posecam.media import open_media
-
-    views = []                          # per input: its recordings, or the intrinsics to predict it with
-    videos = [p for p in inputs if Path(p).suffix.lower() != ".json"]
-    cameras = dict(zip(videos, calibration_file_cameras(calibration, [Path(p).stem for p in videos])))
-    for path in inputs:
-        if Path(path).suffix.lower() == ".json":
-            views.append(read_poses(path))
-        else:
-            open_media(path)
-            views.append(IntrinsicsOptions(**cameras[path]))
-    recordings = []
-    with progress_bar() as progress:
-        for path, view in zip(inputs, views):
-            if isinstance(view, IntrinsicsOptions):
-                estimator = PoseEstimator(EstimatorOptions(model=model, intrinsics=view, device=device))
-                view = [predict_with_progress(estimator, path, progress)]
-            recordings += view
-    return recordings
-
-
-def calibration_file_cameras(calibration: tuple[str, Rig] | None, names: list[str]) -> list[dict]:
-    """IntrinsicsOptions fields that take each video's intrinsics from its camera in the
-    calibration, matched as fusion matches them (Rig.match_names; fusion says how in a warning)."""
-    if calibration is None:
-        return [{} for _ in names]
-    cams, _ = calibration[1].match_names(names)
-    return [{"file": calibration[0], "camera": c} for c in cams]
 
 
 def print_report(result: FusionResult, console) -> None:
@@ -100,12 +60,22 @@ def print_report(result: FusionResult, console) -> None:
 @click.option("--model", default="full", show_default=True,
               help="Pose model for video inputs: lite, full, heavy or a posecam .onnx file.")
 @click.option("--viz", type=click.Path(), help="FILE.png or FILE.jpg: the fused pose projected into every view.")
+@click.option("--out-dir", type=click.Path(), help="Many takes: each INPUT is a folder holding one video (or pose "
+              "JSON file) per camera, fused into DIR/<take name>.json or .csv; takes already there are skipped.")
+@click.option("--format", "out_format", type=click.Choice(["json", "csv"]), default="json", show_default=True,
+              help="File format with --out-dir.")
+@click.option("--jobs", type=click.IntRange(1, 64), default=1, show_default=True,
+              help="Local worker processes with --out-dir, one take each at a time.")
+@click.option("--ray", "ray_address", is_flag=False, flag_value="", default=None,
+              help="Run one task per take on a Ray cluster at ADDRESS (or a local instance when no address "
+                   "is given); needs --out-dir and `pip install 'ray>=2.9'`.")
 def fuse_command(inputs, output, calibration, save_calibration, method, sync, offsets, max_offset, model, viz,
-                 viz3d=None, smooth=True, trc_y_up=False, device="cpu") -> None:
+                 viz3d=None, smooth=True, trc_y_up=False, device="cpu", out_dir=None, out_format="json",
+                 jobs=1, ray_address=None) -> None:
     """Fuse several cameras' views of one scene.
 
     INPUTS are 2 or more videos, image folders or `posecam predict` JSON files, one per
-    static camera.
+    static camera; with --out-dir, folders of takes, each holding its cameras' videos.
     """
     from rich.console import Console
 
@@ -117,6 +87,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     from posecam.io.trc import check_markers_output, write_markers
     from posecam.multiview.fuse import FuseOptions, fuse_recordings
     from posecam.viz.view3d import write_view3d
+    from posecam.views import load_views
 
     err = Console(stderr=True, highlight=False)
     check_output(output, (".json", ".csv", ".trc", ".c3d"), "output")
@@ -136,11 +107,22 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
         raise InputError(f"--offsets must be integers separated by commas, got {offsets!r}") from None
     if calibration:
         check_input(calibration, "calibration")   # a pipe or a device would block the read
+    refuse_alone("out_format", "--out-dir", bool(out_dir))
+    many = out_dir is not None or jobs > 1 or ray_address is not None
+    if many and (output or viz or viz3d or save_calibration):
+        raise InputError("--out-dir writes one file per take; it does not go with -o, --viz, --viz3d or --save-calibration")
     staged = OutputSet([None if markers else output, save_calibration, viz, viz3d], [*inputs, calibration])  # checked before the work
     rig = read_calibration(calibration) if calibration else None
-    recordings = load_views(list(inputs), model, (calibration, rig) if rig else None, device)
     opts = FuseOptions(calibration=rig, method=method, offsets=offset_list, sync=sync == "auto",
                        max_offset=max_offset)
+    if many:
+        from posecam.commands.many import fuse_many
+
+        return fuse_many(list(inputs), opts, model, calibration, device, out_dir, f".{out_format}", jobs,
+                         ray_address, smooth)
+    with progress_bar() as progress:
+        recordings = load_views(list(inputs), model, calibration, rig, device,
+                                predict=lambda estimator, path: predict_with_progress(estimator, path, progress))
     with err.status("fusing") as status:
         result = fuse_recordings(recordings, opts, progress=lambda msg: status.update(msg))
     for line in result.warnings:

@@ -1,7 +1,9 @@
-"""`posecam predict --out-dir DIR [--jobs N | --ray [ADDRESS]]`: one output file per input."""
+"""`--out-dir DIR [--jobs N | --ray [ADDRESS]]`: one output file per input (predict) or per
+take (fuse), finished ones skipped, one progress bar over all of them."""
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
 
 import click
@@ -10,21 +12,43 @@ from posecam.commands.common import progress_bar
 from posecam.errors import InputError
 
 
-def predict_many(inputs: list[str], options, out_dir: str | None, suffix: str, jobs: int,
-                 ray_address: str | None, smooth: bool) -> None:
-    """Predict every input into DIR/<input name><suffix>, skipping those already written, with
-    one progress bar over all of them."""
-    from posecam.batch import plan_predictions, run_tasks
+def _run(tasks: list, total: int, work, out_dir: str, jobs: int, ray_address: str | None, what: str) -> None:
+    from posecam.batch import run_tasks
 
-    if out_dir is None:
-        raise InputError("--jobs and --ray write one file per input: give the folder with --out-dir")
-    tasks = plan_predictions(inputs, out_dir, suffix)
-    skipped = len(inputs) - len(tasks)
+    skipped = total - len(tasks)
     if skipped:
-        click.echo(f"posecam: {skipped} of {len(inputs)} inputs already done in {out_dir}, skipped", err=True)
+        click.echo(f"posecam: {skipped} of {total} {what} already done in {out_dir}, skipped", err=True)
     with progress_bar() as progress:
-        bar = progress.add_task(f"{len(inputs)} inputs", total=len(inputs), completed=skipped)
-        for output in run_tasks(tasks, options, jobs, ray_address, smooth):
+        bar = progress.add_task(f"{total} {what}", total=total, completed=skipped)
+        for output in run_tasks(tasks, work, jobs, ray_address):
             progress.advance(bar)
             progress.console.print(f"wrote {output}", highlight=False)
     click.echo(f"posecam: {len(tasks)} written, {skipped} skipped, in {Path(out_dir)}", err=True)
+
+
+def _need_out_dir(out_dir: str | None) -> None:
+    if out_dir is None:
+        raise InputError("--jobs and --ray write one file per input: give the folder with --out-dir")
+
+
+def predict_many(inputs: list[str], options, out_dir: str | None, suffix: str, jobs: int,
+                 ray_address: str | None, smooth: bool) -> None:
+    """Predict every input into DIR/<input name><suffix>."""
+    from posecam.batch import plan_predictions, predict_task, threads_per_worker
+
+    _need_out_dir(out_dir)
+    tasks = plan_predictions(inputs, out_dir, suffix)
+    options = threads_per_worker(options, jobs) if jobs > 1 else options
+    _run(tasks, len(inputs), partial(predict_task, options=options, smooth=smooth), out_dir, jobs, ray_address,
+         "inputs")
+
+
+def fuse_many(takes: list[str], options, model: str, calibration: str | None, device: str,
+              out_dir: str | None, suffix: str, jobs: int, ray_address: str | None, smooth: bool) -> None:
+    """Fuse every take folder into DIR/<take name><suffix>."""
+    from posecam.batch import fuse_task, plan_fusions
+
+    _need_out_dir(out_dir)
+    tasks = plan_fusions(takes, out_dir, suffix)
+    work = partial(fuse_task, options=options, model=model, calibration=calibration, device=device, smooth=smooth)
+    _run(tasks, len(takes), work, out_dir, jobs, ray_address, "takes")
