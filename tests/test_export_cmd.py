@@ -163,3 +163,17 @@ def test_paper_default_model_exports_and_verifies_on_the_bundled_photos(tmp_path
     line = next(ln for ln in r.stdout.splitlines() if "largest |onnxruntime - torch|" in ln)
     values = dict(re.findall(r"(uv|depth|z_root) ([0-9.e+-]+)", line))
     assert float(values["uv"]) < 1e-3 and float(values["depth"]) < 1.0 and float(values["z_root"]) < 1.0, line
+
+
+def test_export_verify_refuses_a_model_with_nan_weights(tmp_path):
+    """--verify on NaN weights fails with exit 3 and leaves no model behind (not 'nan' and exit 0)."""
+    m = ResNetU(ResNetUConfig(backbone="mobilenetv2", input_size=SIZE, head_channels=32))
+    with torch.no_grad():
+        for p in m.parameters():
+            p.fill_(float("nan"))
+    save_checkpoint(m, tmp_path / "nan.pt")
+    out = tmp_path / "nan.onnx"
+    r = run_posecam("export", tmp_path / "nan.pt", "-o", out, "--verify", "--images", DATA / "messi5.jpg")
+    assert r.returncode == 3, r.stderr
+    assert f"{out}: output 'uv' holds NaN" in r.stderr and "Traceback" not in r.stderr   # the user's file named
+    assert not out.exists() and not list(tmp_path.glob(".posecam*"))

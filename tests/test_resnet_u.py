@@ -115,3 +115,15 @@ def test_training_loss_falls(tmp_path):
     m = load_checkpoint(tmp_path / "ck.pt")
     assert 270 <= m.config.train_image_width <= 272             # the fixture's frames, downscaled 4x
     assert 400 < m.config.train_focal < 440
+
+
+@pytest.mark.parametrize("changes, words", [
+    ({"input_size": 100_000}, "input size"), ({"input_size": 0}, "input size"),
+    ({"head_channels": -4}, "head_channels"), ({"head_channels": 1 << 20}, "head_channels"),
+    ({"u_blocks": 0}, "u_blocks"), ({"u_blocks": 1000}, "u_blocks"),
+    ({"joints": ()}, "joints"), ({"train_focal": float("inf")}, "train_focal"),
+])
+def test_configs_that_ask_for_absurd_sizes_are_refused(changes, words):
+    """A checkpoint's config is untrusted: sizes that would exhaust memory are refused up front."""
+    with pytest.raises(InputError, match=words):
+        ResNetUConfig.from_dict({**SMALL.to_dict(), **changes})

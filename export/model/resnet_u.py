@@ -27,6 +27,10 @@ DEPTH_RANGE_MM = 2_000.0   # eq. 1: relative depths span 2 m around the root
 FC_UNITS = 256             # the z_a network's width
 
 
+# Bounds on what a checkpoint's config may ask for (checkpoints are untrusted input).
+MAX_INPUT_SIZE, MAX_HEAD_CHANNELS, MAX_U_BLOCKS, MAX_JOINTS = 1024, 1024, 8, 200
+
+
 @dataclass
 class ResNetUConfig:
     """Everything needed to rebuild a ResNet-U and interpret its outputs."""
@@ -43,10 +47,16 @@ class ResNetUConfig:
         self.joints = tuple(self.joints)
         if self.backbone not in BACKBONES:
             raise InputError(f"unknown backbone {self.backbone!r}; choose one of {', '.join(BACKBONES)}")
-        if self.input_size <= 0 or self.input_size % 32:
-            raise InputError(f"input size must be a positive multiple of 32, got {self.input_size}")
-        if self.train_focal <= 0 or self.train_image_width <= 0:
-            raise InputError("train_focal and train_image_width must be positive")
+        if not 32 <= self.input_size <= MAX_INPUT_SIZE or self.input_size % 32:
+            raise InputError(f"input size must be a multiple of 32 from 32 to {MAX_INPUT_SIZE}, got {self.input_size}")
+        if not 8 <= self.head_channels <= MAX_HEAD_CHANNELS:
+            raise InputError(f"head_channels must be from 8 to {MAX_HEAD_CHANNELS}, got {self.head_channels}")
+        if not 1 <= self.u_blocks <= MAX_U_BLOCKS:
+            raise InputError(f"u_blocks must be from 1 to {MAX_U_BLOCKS}, got {self.u_blocks}")
+        if not 1 <= len(self.joints) <= MAX_JOINTS:
+            raise InputError(f"a ResNet-U needs 1 to {MAX_JOINTS} joints, got {len(self.joints)}")
+        if not (0 < self.train_focal < float("inf") and 0 < self.train_image_width < float("inf")):
+            raise InputError("train_focal and train_image_width must be positive numbers")
 
     def to_dict(self) -> dict:
         d = asdict(self)

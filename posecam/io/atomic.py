@@ -22,7 +22,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from types import TracebackType
 
-from posecam.errors import OutputError
+from posecam.errors import OutputError, PosecamError
 from posecam.media import VIDEO_SUFFIXES, readable_video
 
 _MAX_SUFFIX = 16   # longer "extensions" are not kept in temporary names
@@ -187,11 +187,12 @@ class OutputSet:
         try:
             if kind is None:
                 self._commit_all()
-            elif issubclass(kind, OutputError):   # name the user's file, not its temporary one
+            elif issubclass(kind, PosecamError):   # name the user's file, not its temporary one
                 message = str(exc)
                 for target, tmp in self._staged.items():
                     message = message.replace(str(tmp), str(target))
-                raise OutputError(message) from None
+                if message != str(exc):
+                    raise kind(message) from None
         finally:
             for stage in self._folders.values():
                 shutil.rmtree(stage, ignore_errors=True)
