@@ -16,13 +16,15 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from posecam.errors import InputError, OutputError, PosecamError
 from posecam.estimate import EstimatorOptions, PoseEstimator
 from posecam.filters import smooth_recording
 from posecam.io.poses import write_poses
-from posecam.multiview.fuse import FuseOptions, fuse_recordings
-from posecam.views import load_views
+
+if TYPE_CHECKING:
+    from posecam.multiview.fuse import FuseOptions
 
 RAY_HINT = "--ray needs Ray: pip install 'ray>=2.9' (or pip install -e '.[ray]' in a checkout)"
 TAKE_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".json")   # a take folder's views
@@ -91,6 +93,8 @@ def predict_task(task: Task, options: EstimatorOptions, smooth: bool = True) -> 
 def fuse_task(task: Task, options: FuseOptions, model: str = "full", calibration: str | None = None,
               device: str = "cpu", smooth: bool = True) -> str:
     """Fuse one take's views into its output, as `posecam fuse` does."""
+    from posecam.multiview.fuse import fuse_recordings   # scipy: only where fusion runs
+    from posecam.views import load_views
     recordings = load_views(list(task.inputs), model, calibration, options.calibration, device)
     fused = fuse_recordings(recordings, options).recording
     write_poses(task.output, [smooth_recording(fused) if smooth else fused])

@@ -55,6 +55,15 @@ class EstimatorOptions:
                 raise InputError(f"{name} must lie in [0, 1], got {getattr(self, name)}")
 
 
+@dataclass
+class FileStream:
+    """An opened input: its Recording's header, the media, and its frames as they are predicted."""
+
+    recording: Recording
+    media: Media
+    frames: Iterator[tuple[Frame, np.ndarray]]
+
+
 # Called after each frame of predict_file: the frame's result, its RGB image, the opened input.
 OnFrame = Callable[[Frame, np.ndarray, Media], None]
 
@@ -167,21 +176,32 @@ class PoseEstimator:
             frame.index = index
             yield frame
 
-    def predict_file(self, path: str | Path, on_frame: OnFrame | None = None) -> Recording:
-        """Poses for every frame of an image, a video or a folder of images; each frame is
-        decoded once and handed to `on_frame` (progress bars, overlays) with its result."""
+    def stream_file(self, path: str | Path) -> FileStream:
+        """Open an image, a video or a folder of images: its Recording (no frames yet), and its
+        frames, predicted one at a time as they are read (people tracked in a video)."""
         media = open_media(path)
         k = resolve_intrinsics(self.options.intrinsics, media.width, media.height,
                                image_path=media.path if media.kind == "image" else None)
         rec = Recording(str(path), media.width, media.height, k, self.joints, model=self.model_name, fps=media.fps)
-        tracker = self._tracker()
-        for index, time, rgb in media.frames():
-            frame = self._step(rgb, k, tracker if media.kind != "image" else self._tracker())
-            frame.index, frame.time = index, time
-            rec.frames.append(frame)
+
+        def frames() -> Iterator[tuple[Frame, np.ndarray]]:
+            tracker = self._tracker()
+            for index, time, rgb in media.frames():
+                frame = self._step(rgb, k, tracker if media.kind != "image" else self._tracker())
+                frame.index, frame.time = index, time
+                yield frame, rgb
+
+        return FileStream(rec, media, frames())
+
+    def predict_file(self, path: str | Path, on_frame: OnFrame | None = None) -> Recording:
+        """Poses for every frame of an image, a video or a folder of images; each frame is
+        decoded once and handed to `on_frame` (progress bars, overlays) with its result."""
+        stream = self.stream_file(path)
+        for frame, rgb in stream.frames:
+            stream.recording.frames.append(frame)
             if on_frame:
-                on_frame(frame, rgb, media)
-        return rec
+                on_frame(frame, rgb, stream.media)
+        return stream.recording
 
 
 def _overlap(a: np.ndarray, b: np.ndarray) -> bool:

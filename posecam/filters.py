@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from posecam.errors import InputError
-from posecam.results import Recording
+from posecam.results import Frame, Recording
 
 METHODS = ("butterworth", "one_euro")
 MIN_RUN = 4                     # frames; shorter runs are not filtered
@@ -163,3 +163,35 @@ def smooth_recording(rec: Recording, options: SmoothOptions | None = None) -> Re
         for i, k in where:
             frames[i].people[k] = dataclasses.replace(frames[i].people[k], **{a: t[i] for a, t in smoothed.items()})
     return dataclasses.replace(rec, frames=frames)
+
+
+class StreamingSmoother:
+    """`smooth_recording` for a stream of frames, in bounded memory: push each frame as it comes,
+    take the smoothed frames that come back (`margin` to `block + margin` frames late), and
+    `flush()` at the end. Each frame is smoothed inside a window reaching at least `margin`
+    frames before and after it (or to the ends of the video); the filters forget faster than
+    that (2 s at 60 fps), so the result is the whole video's smoothing to float precision."""
+
+    def __init__(self, rec: Recording, options: SmoothOptions | None = None, block: int = 600, margin: int = 120):
+        self.rec, self.options, self.block, self.margin = rec, options, block, margin
+        self._frames: list[Frame] = []    # the window: raw frames, the first `_done` already given out
+        self._done = 0
+
+    def push(self, frame: Frame) -> list[Frame]:
+        self._frames.append(frame)
+        if len(self._frames) - self._done < self.block + self.margin:
+            return []
+        return self._emit(self.block)
+
+    def flush(self) -> list[Frame]:
+        return self._emit(len(self._frames) - self._done)
+
+    def _emit(self, n: int) -> list[Frame]:
+        if n <= 0:
+            return []
+        smoothed = smooth_recording(dataclasses.replace(self.rec, frames=self._frames), self.options).frames
+        out = smoothed[self._done:self._done + n]
+        keep_from = max(0, self._done + n - self.margin)   # the past context of the next window
+        self._frames = self._frames[keep_from:]
+        self._done = self._done + n - keep_from
+        return out

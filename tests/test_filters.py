@@ -117,3 +117,36 @@ def test_numpy_butterworth_is_scipys(order, cutoff, padlen):
     x = np.cumsum(np.random.default_rng(order).normal(size=(150, 5)), axis=0)
     np.testing.assert_allclose(_filtfilt(b, a, x, padlen), filtfilt(b, a, x, axis=0, padlen=padlen),
                                rtol=1e-10, atol=1e-10)
+
+
+@pytest.mark.parametrize("method", ["butterworth", "one_euro"])
+def test_streaming_smoother_equals_smoothing_the_whole_video(method):
+    """Frames pushed one by one through windows of bounded size come out as the whole video's
+    smoothing: two people, one leaving for a while, over several blocks."""
+    from posecam.filters import StreamingSmoother
+    from posecam.geometry.camera import Intrinsics
+    from posecam.results import Frame, Person, Recording
+
+    rng = np.random.default_rng(3)
+    n, j = 700, 17
+    walk = np.cumsum(rng.normal(0, 5, size=(2, n, j, 3)), axis=1) + [0, 0, 3000]
+    frames = []
+    for i in range(n):
+        people = [Person(pid, 0.9, np.zeros(4), walk[pid, i, :, :2] / 10, walk[pid, i], np.full(j, 0.9))
+                  for pid in (0, 1) if not (pid == 1 and 250 <= i < 300)]
+        frames.append(Frame(i, i / 60, people))
+    rec = Recording("v.mp4", 640, 480, Intrinsics(500, 500, 320, 240), tuple(f"j{k}" for k in range(j)), frames, fps=60.0)
+    options = SmoothOptions(method=method)
+    whole = smooth_recording(rec, options).frames
+    smoother = StreamingSmoother(dataclasses.replace(rec, frames=[]), options, block=150, margin=120)
+    streamed, window = [], 0
+    for frame in frames:
+        streamed += smoother.push(frame)
+        window = max(window, len(smoother._frames))
+    streamed += smoother.flush()
+    assert [f.index for f in streamed] == list(range(n))
+    for a, b in zip(whole, streamed):
+        assert [p.id for p in a.people] == [p.id for p in b.people]
+        for p, q in zip(a.people, b.people):
+            np.testing.assert_allclose(q.keypoints_3d, p.keypoints_3d, atol=1e-3)   # mm
+    assert window <= 150 + 2 * 120          # memory: the window, not the video

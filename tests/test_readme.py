@@ -227,14 +227,16 @@ def test_summary_with_output_names_every_file_and_leaves_no_blank_lines(tmp_path
 
 
 def test_warning_names_the_stage_that_dropped_people() -> None:
-    from posecam.commands.predict import explain_empty
+    from posecam.commands.predict import InputSummary, explain_empty
     from posecam.results import Frame, Recording
     from posecam.skeleton import H36M_JOINTS
 
-    rec = Recording("x.png", 10, 10, None, H36M_JOINTS, [Frame(0, 0.0, [], dropped=[0.31])])
-    assert "presence was below --min-presence 0.5 (highest 0.31)" in explain_empty(rec, 0.25, 0.5)
-    rec.frames[0].dropped = []
-    assert "detector found nobody above --min-detection-score 0.25" in explain_empty(rec, 0.25, 0.5)
+    dropped = InputSummary(Recording("x.png", 10, 10, None, H36M_JOINTS))
+    dropped.add(Frame(0, 0.0, [], dropped=[0.31]))
+    assert "presence was below --min-presence 0.5 (highest 0.31)" in explain_empty(dropped, 0.25, 0.5)
+    nobody = InputSummary(Recording("x.png", 10, 10, None, H36M_JOINTS))
+    nobody.add(Frame(0, 0.0, []))
+    assert "detector found nobody above --min-detection-score 0.25" in explain_empty(nobody, 0.25, 0.5)
     run = run_posecam("predict", ROOT / "tests" / "data" / "fruits.jpg")
     assert "detector found nobody" in run.stderr and run.returncode == 0
 

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import click
 
-from posecam.commands.common import (check_output, intrinsics_options, predict_with_progress, progress_bar,
-                                     refuse_alone, report_console, report_written, warn)
+from posecam.commands.common import (check_output, intrinsics_options, progress_bar, refuse_alone, report_console,
+                                     report_written, warn)
 from posecam.errors import InputError
 from posecam.inference.contract import DETECTORS
 
@@ -17,28 +17,44 @@ VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv")
 MARKER_SUFFIXES = (".trc", ".c3d")
 
 
-def print_summary(recordings, console) -> None:
-    import numpy as np
+class InputSummary:
+    """Running totals of one input's people, kept as the frames stream past (memory stays flat)."""
+
+    def __init__(self, rec) -> None:
+        self.rec = rec
+        self.frames = 0
+        self.people: dict[int, list] = {}      # id -> [frames, sum of root (3,), sum of mean confidence]
+        self.dropped = 0                       # people the pose model dropped (presence too low) ...
+        self.best_dropped = 0.0                # ... and the highest presence among them
+
+    def add(self, frame) -> None:
+        self.frames += 1
+        self.dropped += len(frame.dropped)
+        self.best_dropped = max([self.best_dropped, *frame.dropped])
+        for p in frame.people:
+            totals = self.people.setdefault(p.id, [0, 0.0, 0.0])
+            totals[0] += 1
+            totals[1] = totals[1] + p.root
+            totals[2] += float(p.confidence.mean())
+
+
+def print_summary(summaries: list[InputSummary], console) -> None:
     from rich.table import Table
 
-    root = recordings[0].root_joint if recordings else "root"
+    root = summaries[0].rec.root_joint if summaries else "root"
     table = Table(title=f"posecam: {root} in camera coordinates (mm)")
     for col in ("input", "frames", "person", "x", "y", "z", "mean conf."):
         table.add_column(col, justify="right" if col not in ("input",) else "left")
-    for rec in recordings:
-        ids = sorted({p.id for f in rec.frames for p in f.people})
-        for pid in ids:
-            people = [p for f in rec.frames for p in f.people if p.id == pid]
-            where = np.median([p.root for p in people], axis=0)
-            conf = np.mean([p.confidence.mean() for p in people])
-            table.add_row(Path(rec.source).name, str(len(people)), str(pid),
-                          *(f"{v:.0f}" for v in where), f"{conf:.2f}")
-        if not ids:
-            table.add_row(Path(rec.source).name, str(len(rec.frames)), "-", "-", "-", "-", "-")
+    for sm in summaries:
+        name = Path(sm.rec.source).name
+        for pid, (n, root_sum, conf_sum) in sorted(sm.people.items()):
+            table.add_row(name, str(n), str(pid), *(f"{v:.0f}" for v in root_sum / n), f"{conf_sum / n:.2f}")
+        if not sm.people:
+            table.add_row(name, str(sm.frames), "-", "-", "-", "-", "-")
     console.print(table)
-    console.print(f"frames: frames the person is in; x right, y down, z forward (depth): median of the person's "
+    console.print(f"frames: frames the person is in; x right, y down, z forward (depth): mean of the person's "
                   f"{root} position; mean conf.: mean joint confidence, 0 to 1", style="dim")
-    shown = [r for r in recordings if r.intrinsics]
+    shown = [sm.rec for sm in summaries if sm.rec.intrinsics]
     same = len({(r.intrinsics.fx, r.intrinsics.fy, r.intrinsics.cx, r.intrinsics.cy) for r in shown}) == 1
     for rec in shown[:1] if same else shown:   # one line, or one per input when they differ
         k = rec.intrinsics
@@ -46,15 +62,15 @@ def print_summary(recordings, console) -> None:
         console.print(f"intrinsics{name} ({k.source}): fx={k.fx:.1f} fy={k.fy:.1f} cx={k.cx:.1f} cy={k.cy:.1f}")
 
 
-def explain_empty(rec, min_detection_score: float, min_presence: float) -> str | None:
-    """Which stage left `rec` without anyone, as a warning; None when someone was found."""
-    if any(f.people for f in rec.frames):
+def explain_empty(sm: InputSummary, min_detection_score: float, min_presence: float) -> str | None:
+    """Which stage left an input without anyone, as a warning; None when someone was found."""
+    if sm.people:
         return None
-    dropped = [s for f in rec.frames for s in f.dropped]
-    if dropped:
-        return (f"no person kept in {rec.source}: the detector found {len(dropped)} but the pose model's "
-                f"presence was below --min-presence {min_presence:g} (highest {max(dropped):.2f})")
-    return f"no person found in {rec.source}: the detector found nobody above --min-detection-score {min_detection_score:g}"
+    if sm.dropped:
+        return (f"no person kept in {sm.rec.source}: the detector found {sm.dropped} but the pose model's "
+                f"presence was below --min-presence {min_presence:g} (highest {sm.best_dropped:.2f})")
+    return (f"no person found in {sm.rec.source}: the detector found nobody above --min-detection-score "
+            f"{min_detection_score:g}")
 
 
 @click.command()
@@ -104,15 +120,15 @@ def predict_command(inputs, output, viz, model, skeleton, detector, max_people, 
     coordinates in millimetres: x right, y down, z forward, the camera at the origin.
     """
     from posecam.estimate import EstimatorOptions, PoseEstimator
-    from posecam.io.intrinsics import IntrinsicsOptions
-    from posecam.filters import smooth_recording
-    from posecam.io.poses import write_poses
+    from posecam.filters import StreamingSmoother
     from posecam.io.atomic import OutputSet
+    from posecam.io.intrinsics import IntrinsicsOptions
+    from posecam.io.poses import PoseWriter
     from posecam.io.trc import check_markers_output, write_markers
-    from posecam.viz.view3d import write_view3d
     from posecam.media import expand_inputs, open_media
     from posecam.viz.draw import draw_people
     from posecam.viz.sinks import VideoSink, write_image
+    from posecam.viz.view3d import write_view3d
 
     inputs = [str(p) for p in expand_inputs(inputs)]   # a folder of photos: each photo an input
     if viz and len(inputs) > 1:
@@ -143,27 +159,48 @@ def predict_command(inputs, output, viz, model, skeleton, detector, max_people, 
         check_markers_output(markers, [*inputs, intrinsics_file, model])
     staged = OutputSet([None if markers else output, viz, viz3d], [*inputs, intrinsics_file, model])  # checked before the work
     estimator = PoseEstimator(opts)
-    recordings = []
+    keep = bool(markers or viz3d)   # these outputs need whole recordings; JSON and CSV are streamed
+    recordings, summaries = [], []
     with staged, ExitStack() as stack, progress_bar() as progress:  # all outputs or none
-        sink = None
+        sink = writer = None
         if viz and first.kind != "image":
             sink = stack.enter_context(VideoSink(staged.path(viz), first.fps or 30.0, first.width, first.height))
-
-        def draw(frame, rgb, media) -> None:
-            picture = draw_people(rgb, frame.people, estimator.joints)
-            sink.write(picture) if sink else write_image(staged.path(viz), picture)
-
+        if output and not markers:
+            handle = stack.enter_context(open(staged.path(output), "w", encoding="utf-8", newline=""))
+            writer = PoseWriter(handle, Path(output).suffix.lower()[1:])
         for path in inputs:
-            rec = predict_with_progress(estimator, path, progress, draw if viz else None)
-            empty = explain_empty(rec, estimator.min_detection_score, min_presence)
+            stream = estimator.stream_file(path)
+            summary = InputSummary(stream.recording)
+            smoother = StreamingSmoother(stream.recording) if smooth and stream.media.kind != "image" else None
+            task = progress.add_task(Path(path).name, total=stream.media.frame_count)
+            if writer:
+                writer.begin(stream.recording)
+
+            def emit(frames) -> None:
+                for f in frames:
+                    summary.add(f)
+                    if writer:
+                        writer.frame(f)
+                    if keep:
+                        stream.recording.frames.append(f)
+
+            for frame, rgb in stream.frames:
+                progress.update(task, completed=frame.index + 1)
+                if viz:
+                    picture = draw_people(rgb, frame.people, estimator.joints)
+                    sink.write(picture) if sink else write_image(staged.path(viz), picture)
+                emit(smoother.push(frame) if smoother else [frame])
+            emit(smoother.flush() if smoother else [])
+            empty = explain_empty(summary, estimator.min_detection_score, min_presence)
             if empty:
                 warn(empty)
-            recordings.append(smooth_recording(rec) if smooth else rec)
+            recordings.append(stream.recording)
+            summaries.append(summary)
+        if writer:
+            writer.close()
         written = write_markers(markers, recordings[0], trc_y_up, staged) if markers else [output]
-        if output and not markers:
-            write_poses(staged.path(output), recordings)
         if viz3d:
             write_view3d(staged.path(viz3d), recordings[0])
     console = report_console()
-    print_summary(recordings, console)
+    print_summary(summaries, console)
     report_written([*written, viz, viz3d], console)

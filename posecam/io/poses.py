@@ -81,31 +81,68 @@ def _dumps(value) -> str:
     return json.dumps(value, allow_nan=False)
 
 
-def write_json(out: TextIO, recordings: list[Recording]) -> None:
-    """The JSON document, one frame per line, written as it is made."""
-    first = recordings[0]
-    out.write(f'{{"posecam": {_dumps(__version__)}, "model": {_dumps(first.model)},\n'
-              f' "joints": {_dumps(list(first.joints))}, "root_joint": {_dumps(first.root_joint)},\n "inputs": [')
-    for i, r in enumerate(recordings):
-        out.write(("," if i else "") + "\n  " + _dumps(_header(r))[:-1] + ', "frames": [')
-        for j, f in enumerate(r.frames):
-            out.write(("," if j else "") + "\n   " + _dumps(frame_to_dict(f)))
-        out.write("]}")
-    out.write("]}\n")
+class PoseWriter:
+    """Writes a pose file as the poses come: `begin(recording)` for each input (its header; its
+    frames may still be empty), `frame(f)` for each of its frames, `close()` at the end. Nothing
+    is kept, so memory stays flat however long the video."""
 
+    def __init__(self, out: TextIO, fmt: str):
+        if fmt not in ("json", "csv"):
+            raise InputError(f"pose files are json or csv, not {fmt!r}")
+        self.out, self.fmt = out, fmt
+        self._rec: Recording | None = None
+        self._inputs = self._frames = 0
+        self._csv = csv.writer(out, lineterminator="\n") if fmt == "csv" else None
 
-def write_csv(out: TextIO, recordings: list[Recording]) -> None:
-    w = csv.writer(out, lineterminator="\n")
-    w.writerow(CSV_HEADER)
-    for r in recordings:
-        for f in r.frames:
+    def begin(self, rec: Recording) -> None:
+        if self.fmt == "csv":
+            if not self._inputs:
+                self._csv.writerow(CSV_HEADER)
+        else:
+            if not self._inputs:
+                self.out.write(f'{{"posecam": {_dumps(__version__)}, "model": {_dumps(rec.model)},\n'
+                               f' "joints": {_dumps(list(rec.joints))}, "root_joint": {_dumps(rec.root_joint)},\n'
+                               ' "inputs": [')
+            else:
+                self.out.write("]},")
+            self.out.write("\n  " + _dumps(_header(rec))[:-1] + ', "frames": [')
+        self._rec, self._frames = rec, 0
+        self._inputs += 1
+
+    def frame(self, f: Frame) -> None:
+        r = self._rec
+        if self.fmt == "json":
+            self.out.write(("," if self._frames else "") + "\n   " + _dumps(frame_to_dict(f)))
+        else:
             for p in f.people:
                 for j, name in enumerate(r.joints):
                     u, v = p.keypoints_2d[j]
                     x, y, z = p.keypoints_3d[j]
-                    w.writerow((r.source, f.index, p.id, name, _csv_number(u, 2), _csv_number(v, 2),
-                                _csv_number(x, 1), _csv_number(y, 1), _csv_number(z, 1),
-                                _csv_number(p.confidence[j], 3)))
+                    self._csv.writerow((r.source, f.index, p.id, name, _csv_number(u, 2), _csv_number(v, 2),
+                                        _csv_number(x, 1), _csv_number(y, 1), _csv_number(z, 1),
+                                        _csv_number(p.confidence[j], 3)))
+        self._frames += 1
+
+    def close(self) -> None:
+        if self.fmt == "json":
+            self.out.write("]}]}\n" if self._inputs else "")
+
+
+def write_json(out: TextIO, recordings: list[Recording]) -> None:
+    """The JSON document, one frame per line, written as it is made."""
+    _write(PoseWriter(out, "json"), recordings)
+
+
+def write_csv(out: TextIO, recordings: list[Recording]) -> None:
+    _write(PoseWriter(out, "csv"), recordings)
+
+
+def _write(writer: PoseWriter, recordings: list[Recording]) -> None:
+    for r in recordings:
+        writer.begin(r)
+        for f in r.frames:
+            writer.frame(f)
+    writer.close()
 
 
 def to_json(recordings: list[Recording]) -> str:
