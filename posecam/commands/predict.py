@@ -73,6 +73,44 @@ def explain_empty(sm: InputSummary, min_detection_score: float, min_presence: fl
             f"{min_detection_score:g}")
 
 
+def predict_inputs(estimator, inputs: list[str], progress, writer=None, draw=None, smooth: bool = True,
+                   keep: bool = False, min_presence: float = 0.5) -> tuple[list, list[InputSummary]]:
+    """Predict each input with a progress bar; every frame is drawn (`draw(frame, rgb)`), smoothed
+    (videos), written (`writer`, a PoseWriter) and counted as it comes. The recordings hold
+    their frames only with `keep` (markers and the 3D view need them)."""
+    from posecam.filters import StreamingSmoother
+
+    recordings, summaries = [], []
+    for path in inputs:
+        stream = estimator.stream_file(path)
+        summary = InputSummary(stream.recording)
+        smoother = StreamingSmoother(stream.recording) if smooth and stream.media.kind != "image" else None
+        task = progress.add_task(Path(path).name, total=stream.media.frame_count)
+        if writer:
+            writer.begin(stream.recording)
+
+        def emit(frames) -> None:
+            for f in frames:
+                summary.add(f)
+                if writer:
+                    writer.frame(f)
+                if keep:
+                    stream.recording.frames.append(f)
+
+        for frame, rgb in stream.frames:
+            progress.update(task, completed=frame.index + 1)
+            if draw:
+                draw(frame, rgb)
+            emit(smoother.push(frame) if smoother else [frame])
+        emit(smoother.flush() if smoother else [])
+        empty = explain_empty(summary, estimator.min_detection_score, min_presence)
+        if empty:
+            warn(empty)
+        recordings.append(stream.recording)
+        summaries.append(summary)
+    return recordings, summaries
+
+
 @click.command()
 @click.argument("inputs", nargs=-1, required=True)
 @click.option("-o", "--output", type=click.Path(),
@@ -120,7 +158,6 @@ def predict_command(inputs, output, viz, model, skeleton, detector, max_people, 
     coordinates in millimetres: x right, y down, z forward, the camera at the origin.
     """
     from posecam.estimate import EstimatorOptions, PoseEstimator
-    from posecam.filters import StreamingSmoother
     from posecam.io.atomic import OutputSet
     from posecam.io.intrinsics import IntrinsicsOptions
     from posecam.io.poses import PoseWriter
@@ -160,7 +197,6 @@ def predict_command(inputs, output, viz, model, skeleton, detector, max_people, 
     staged = OutputSet([None if markers else output, viz, viz3d], [*inputs, intrinsics_file, model])  # checked before the work
     estimator = PoseEstimator(opts)
     keep = bool(markers or viz3d)   # these outputs need whole recordings; JSON and CSV are streamed
-    recordings, summaries = [], []
     with staged, ExitStack() as stack, progress_bar() as progress:  # all outputs or none
         sink = writer = None
         if viz and first.kind != "image":
@@ -168,34 +204,13 @@ def predict_command(inputs, output, viz, model, skeleton, detector, max_people, 
         if output and not markers:
             handle = stack.enter_context(open(staged.path(output), "w", encoding="utf-8", newline=""))
             writer = PoseWriter(handle, Path(output).suffix.lower()[1:])
-        for path in inputs:
-            stream = estimator.stream_file(path)
-            summary = InputSummary(stream.recording)
-            smoother = StreamingSmoother(stream.recording) if smooth and stream.media.kind != "image" else None
-            task = progress.add_task(Path(path).name, total=stream.media.frame_count)
-            if writer:
-                writer.begin(stream.recording)
 
-            def emit(frames) -> None:
-                for f in frames:
-                    summary.add(f)
-                    if writer:
-                        writer.frame(f)
-                    if keep:
-                        stream.recording.frames.append(f)
+        def draw(frame, rgb) -> None:
+            picture = draw_people(rgb, frame.people, estimator.joints)
+            sink.write(picture) if sink else write_image(staged.path(viz), picture)
 
-            for frame, rgb in stream.frames:
-                progress.update(task, completed=frame.index + 1)
-                if viz:
-                    picture = draw_people(rgb, frame.people, estimator.joints)
-                    sink.write(picture) if sink else write_image(staged.path(viz), picture)
-                emit(smoother.push(frame) if smoother else [frame])
-            emit(smoother.flush() if smoother else [])
-            empty = explain_empty(summary, estimator.min_detection_score, min_presence)
-            if empty:
-                warn(empty)
-            recordings.append(stream.recording)
-            summaries.append(summary)
+        recordings, summaries = predict_inputs(estimator, inputs, progress, writer, draw if viz else None, smooth,
+                                               keep, min_presence)
         if writer:
             writer.close()
         written = write_markers(markers, recordings[0], trc_y_up, staged) if markers else [output]
