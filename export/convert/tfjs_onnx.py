@@ -33,7 +33,7 @@ import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
 
-from export.convert.tflite_onnx import _NCHW_TO_NHWC, _NHWC_TO_NCHW, IR_VERSION, OPSET, ConversionError, _prune
+from export.convert.tflite_onnx import _NCHW_TO_NHWC, _NHWC_TO_NCHW, ConversionError, finish_model
 
 _TF_DTYPES = {"DT_FLOAT": np.float32, "DT_INT32": np.int32, "DT_INT64": np.int64, "DT_BOOL": np.bool_}
 _JS_DTYPES = {"float32": np.float32, "int32": np.int32, "bool": np.bool_}
@@ -733,9 +733,4 @@ def convert(model_json: str | os.PathLike, float_inputs: bool = False, keep_floa
         graph_outputs.append(helper.make_tensor_value_info(name, _ONNX_TYPES[v.dtype], dims))
 
     graph = helper.make_graph(b.nodes, "posecam", graph_inputs, graph_outputs, b.initializers)
-    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", OPSET)],
-                              producer_name="posecam.export.convert.tfjs_onnx")
-    model.ir_version = IR_VERSION
-    model = _prune(model)
-    onnx.checker.check_model(model)
-    return model
+    return finish_model(graph, "posecam.export.convert.tfjs_onnx")

@@ -270,12 +270,17 @@ def convert(path: str | os.PathLike, outputs: list[str] | None = None) -> onnx.M
         graph_outputs.append(helper.make_tensor_value_info(name, TensorProto.FLOAT, ["N", *shape[1:]]))
 
     graph = helper.make_graph(builder.nodes, "posecam", graph_inputs, graph_outputs, builder.initializers)
-    onnx_model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", OPSET)],
-                                   producer_name="posecam.export.convert.tflite_onnx")
-    onnx_model.ir_version = IR_VERSION
-    onnx_model = _prune(onnx_model)
-    onnx.checker.check_model(onnx_model)
-    return onnx_model
+    return finish_model(graph, "posecam.export.convert.tflite_onnx")
+
+
+def finish_model(graph: onnx.GraphProto, producer: str) -> onnx.ModelProto:
+    """The model around a converted graph: opset 17, IR 9 (what onnxruntime 1.31 reads), nodes
+    that feed no output pruned, checked."""
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", OPSET)], producer_name=producer)
+    model.ir_version = IR_VERSION
+    model = _prune(model)
+    onnx.checker.check_model(model)
+    return model
 
 
 def _prune(model: onnx.ModelProto) -> onnx.ModelProto:

@@ -35,6 +35,26 @@ def intrinsics_options(f: Callable) -> Callable:
     return f
 
 
+def many_options(unit: str) -> Callable:
+    """The --out-dir/--format/--jobs/--ray options of `predict` (unit "input") and `fuse` ("take")."""
+    def decorate(f: Callable) -> Callable:
+        for opt in reversed([
+            click.option("--out-dir", type=click.Path(),
+                         help=f"Write one file per {unit} into this folder (DIR/<{unit} name>.json or .csv); "
+                              f"{unit}s whose file is already there are skipped."),
+            click.option("--format", "out_format", type=click.Choice(["json", "csv"]), default="json",
+                         show_default=True, help="File format with --out-dir."),
+            click.option("--jobs", type=click.IntRange(1, 64), default=1, show_default=True,
+                         help=f"Local worker processes with --out-dir, one {unit} each at a time."),
+            click.option("--ray", "ray_address", is_flag=False, flag_value="", default=None,
+                         help=f"Run one task per {unit} on a Ray cluster at ADDRESS (or a local instance when "
+                              "no address is given); needs --out-dir and `pip install 'ray>=2.9'`."),
+        ]):
+            f = opt(f)
+        return f
+    return decorate
+
+
 def progress_bar() -> Progress:
     """A bar on stderr that vanishes when done; off a terminal (a pipe, a log file) none at all."""
     from rich.console import Console

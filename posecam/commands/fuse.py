@@ -8,8 +8,8 @@ from typing import TYPE_CHECKING
 
 import click
 
-from posecam.commands.common import (check_output, predict_with_progress, progress_bar, refuse_alone, report_console,
-                                     report_written, warn)
+from posecam.commands.common import (check_output, many_options, predict_with_progress, progress_bar, refuse_alone,
+                                     report_console, report_written, warn)
 from posecam.errors import InputError
 
 if TYPE_CHECKING:
@@ -60,15 +60,7 @@ def print_report(result: FusionResult, console) -> None:
 @click.option("--model", default="full", show_default=True,
               help="Pose model for video inputs: lite, full, heavy or a posecam .onnx file.")
 @click.option("--viz", type=click.Path(), help="FILE.png or FILE.jpg: the fused pose projected into every view.")
-@click.option("--out-dir", type=click.Path(), help="Many takes: each INPUT is a folder holding one video (or pose "
-              "JSON file) per camera, fused into DIR/<take name>.json or .csv; takes already there are skipped.")
-@click.option("--format", "out_format", type=click.Choice(["json", "csv"]), default="json", show_default=True,
-              help="File format with --out-dir.")
-@click.option("--jobs", type=click.IntRange(1, 64), default=1, show_default=True,
-              help="Local worker processes with --out-dir, one take each at a time.")
-@click.option("--ray", "ray_address", is_flag=False, flag_value="", default=None,
-              help="Run one task per take on a Ray cluster at ADDRESS (or a local instance when no address "
-                   "is given); needs --out-dir and `pip install 'ray>=2.9'`.")
+@many_options("take")
 def fuse_command(inputs, output, calibration, save_calibration, method, sync, offsets, max_offset, model, viz,
                  viz3d=None, smooth=True, trc_y_up=False, device="cpu", out_dir=None, out_format="json",
                  jobs=1, ray_address=None) -> None:

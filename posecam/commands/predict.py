@@ -7,8 +7,8 @@ from pathlib import Path
 
 import click
 
-from posecam.commands.common import (check_output, intrinsics_options, progress_bar, refuse_alone, report_console,
-                                     report_written, warn)
+from posecam.commands.common import (check_output, intrinsics_options, many_options, progress_bar, refuse_alone,
+                                     report_console, report_written, warn)
 from posecam.errors import InputError
 from posecam.inference.contract import DETECTORS
 
@@ -139,15 +139,7 @@ def predict_inputs(estimator, inputs: list[str], progress, writer=None, draw=Non
               help="Pose model presence, 0 to 1, below which a person is dropped.")
 @click.option("--threads", type=click.IntRange(1, 256), show_default="CPU cores, at most 8",
               help="CPU threads for onnxruntime.")
-@click.option("--out-dir", type=click.Path(), help="Write one file per input into this folder "
-              "(DIR/<input name>.json or .csv); inputs whose file is already there are skipped.")
-@click.option("--format", "out_format", type=click.Choice(["json", "csv"]), default="json", show_default=True,
-              help="File format with --out-dir.")
-@click.option("--jobs", type=click.IntRange(1, 64), default=1, show_default=True,
-              help="Local worker processes with --out-dir, one input each at a time.")
-@click.option("--ray", "ray_address", is_flag=False, flag_value="", default=None,
-              help="Run one task per input on a Ray cluster at ADDRESS (or a local instance when no "
-                   "address is given); needs --out-dir and `pip install 'ray>=2.9'`.")
+@many_options("input")
 @intrinsics_options
 def predict_command(inputs, output, viz, model, skeleton, detector, max_people, min_detection_score, min_presence, threads,
                     fx, fy, cx, cy, intrinsics_file, camera, out_dir=None, out_format="json", jobs=1,

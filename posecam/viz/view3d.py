@@ -19,7 +19,7 @@ import os
 
 import numpy as np
 
-from posecam.geometry.camera import CameraCalibration, Intrinsics, Rig
+from posecam.geometry.camera import CameraCalibration, Rig
 from posecam.io.atomic import write_text
 from posecam.io.trc import to_y_up
 from posecam.results import Recording
