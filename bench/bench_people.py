@@ -29,7 +29,6 @@ import itertools
 import time
 from pathlib import Path
 
-import cv2
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
@@ -49,13 +48,9 @@ def demo_path(relative: str) -> Path:
 
 
 def read_frames(video: Path) -> list[np.ndarray]:
-    cap = cv2.VideoCapture(str(video))
-    frames = []
-    while True:
-        ok, bgr = cap.read()
-        if not ok:
-            return frames
-        frames.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+    from posecam.media import open_media   # posecam from PYTHONPATH: the code measured
+
+    return [rgb for _, _, rgb in open_media(video).frames()]
 
 
 # ---------------------------------------------------------------- reference from the other views

@@ -1,6 +1,5 @@
 """Several people: the MoveNet MultiPose detector, crops that hold one person, the tracker."""
 
-import cv2
 import numpy as np
 import pytest
 
@@ -8,7 +7,7 @@ from conftest import DATA
 from posecam import EstimatorOptions, PoseEstimator
 from posecam.inference.detector import Detection
 from posecam.inference.roi import Roi
-from posecam.media import read_image
+from posecam.media import open_media, read_image
 from posecam.tracking import Tracker, TrackerOptions, box_iou, foreign_joints
 
 
@@ -23,13 +22,7 @@ def _confident_box(p, min_conf=0.5):
 
 
 def _clip():
-    cap = cv2.VideoCapture(str(DATA / "two_people_cam03_30f.mp4"))
-    frames = []
-    while True:
-        ok, bgr = cap.read()
-        if not ok:
-            return frames
-        frames.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+    return [rgb for _, _, rgb in open_media(DATA / "two_people_cam03_30f.mp4").frames()]
 
 
 @pytest.mark.parametrize("image, count", [("basketball2.png", 2), ("messi5.jpg", 1), ("fruits.jpg", 0)])
