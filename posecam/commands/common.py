@@ -35,6 +35,14 @@ def intrinsics_options(f: Callable) -> Callable:
     return f
 
 
+def height_option(f: Callable) -> Callable:
+    """--height, shared by `predict` and `fuse` (parsed by posecam.heights.Heights.parse)."""
+    return click.option("--height", "heights", multiple=True, metavar="M[,M...]|ID=M",
+                        help="People's heights in metres, which fix their metric scale: one value for everyone, "
+                             "a list matched to the people tallest first (1.72,1.21), or per id (--height 0=1.72 "
+                             "--height 1=1.21).")(f)
+
+
 def many_options(unit: str) -> Callable:
     """The --out-dir/--format/--jobs/--ray options of `predict` (unit "input") and `fuse` ("take")."""
     def decorate(f: Callable) -> Callable:

@@ -1,0 +1,66 @@
+"""People's heights as the user knows them, in metres: one for everyone, a list matched to the
+people tallest first, or per person id (`--height 1.72`, `--height 1.72,1.21`,
+`--height 0=1.72 --height 1=1.21`). Shared by `predict` and `fuse`."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+from posecam.errors import InputError
+
+HEIGHT_RANGE_M = (0.5, 2.5)     # a person's standing height that posecam accepts
+
+
+def _metres(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise InputError(f"--height takes metres (e.g. 1.72), got {text!r}") from None
+    lo, hi = HEIGHT_RANGE_M
+    if not lo <= value <= hi:
+        hint = " (heights are in metres, not centimetres)" if 50 <= value <= 250 else ""
+        raise InputError(f"--height must lie in {lo:g}..{hi:g} m, got {text}{hint}")
+    return value
+
+
+@dataclass(frozen=True)
+class Heights:
+    """Known heights (m). `ranked` is matched to people by their estimated heights, tallest
+    first; `by_id` names people by id. Empty: nothing is known."""
+
+    ranked: tuple[float, ...] = ()
+    by_id: dict[int, float] = field(default_factory=dict)
+
+    @classmethod
+    def parse(cls, values: Sequence[str]) -> Heights:
+        """From the --height values: "1.72", "1.72,1.21" or "ID=1.72" (repeatable)."""
+        ranked: list[float] = []
+        by_id: dict[int, float] = {}
+        for value in values:
+            for part in str(value).split(","):
+                part = part.strip()
+                if "=" in part:
+                    key, _, metres = part.partition("=")
+                    if not key.strip().isdigit() or len(key.strip()) > 9:
+                        raise InputError(f"--height ID=METRES needs a person id (0, 1, ...), got {part!r}")
+                    by_id[int(key)] = _metres(metres)
+                elif part:
+                    ranked.append(_metres(part))
+        if ranked and by_id:
+            raise InputError("--height takes either heights by id (0=1.72) or a list (1.72,1.21), not both")
+        return cls(tuple(ranked), by_id)
+
+    def __bool__(self) -> bool:
+        return bool(self.ranked or self.by_id)
+
+    def assign(self, estimated: dict[int, float]) -> dict[int, tuple[float, str]]:
+        """For each person id with an estimated height (m), the height to use and its source:
+        "given" (by id, or one value for everyone) or "given, rank K" (a list matched tallest
+        first). People with no given height are left out."""
+        if self.by_id:
+            return {pid: (self.by_id[pid], "given") for pid in estimated if pid in self.by_id}
+        if len(self.ranked) == 1:
+            return {pid: (self.ranked[0], "given") for pid in estimated}
+        order = sorted(estimated, key=lambda pid: -estimated[pid])
+        return {pid: (h, f"given, rank {k + 1}") for k, (pid, h) in enumerate(zip(order, self.ranked))}
