@@ -48,6 +48,8 @@ def _plan(names: list[str], inputs: list[tuple[str, ...]], out_dir: str | os.Pat
             raise InputError(f"two inputs would both write {name}{suffix}; give them different names")
         seen.add(name)
         target = folder / f"{name}{suffix}"
+        if target.is_dir() or (target.exists() and not target.is_file()):
+            raise OutputError(f"cannot write {target}: it is an existing folder (or not a regular file)")
         if not target.exists():   # written atomically, so an existing output is complete
             tasks.append(Task(views, str(target)))
     return tasks

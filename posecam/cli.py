@@ -7,36 +7,20 @@ Every error is one line on stderr, `posecam: error: ...`; warnings are `posecam:
 
 from __future__ import annotations
 
+import errno
 import os
 import signal
+import sys
 import threading
+import warnings
 
+import click
 
-def _interrupted_while_starting(signum, frame) -> None:
-    """Ctrl-C or SIGTERM before the command runs: nothing to clean up yet."""
-    os.write(2, b"posecam: interrupted\n" if signum == signal.SIGINT else b"posecam: terminated\n")
-    os._exit(130 if signum == signal.SIGINT else 143)
-
-
-_MAIN_THREAD = threading.current_thread() is threading.main_thread()
-if _MAIN_THREAD:  # only while the imports below run; `main` installs the handlers it keeps
-    _saved = {s: signal.signal(s, _interrupted_while_starting) for s in (signal.SIGINT, signal.SIGTERM)}
-
-import sys  # noqa: E402
-import warnings  # noqa: E402
-
-import click  # noqa: E402
-
-from posecam._version import __version__  # noqa: E402
-from posecam.commands.export import export_command  # noqa: E402
-from posecam.commands.fuse import fuse_command  # noqa: E402
-from posecam.commands.predict import predict_command  # noqa: E402
-from posecam.errors import PosecamError  # noqa: E402
-
-if _MAIN_THREAD:
-    for _signum, _handler in _saved.items():
-        signal.signal(_signum, _handler if _handler is not None else signal.SIG_DFL)
-
+from posecam._version import __version__
+from posecam.commands.export import export_command
+from posecam.commands.fuse import fuse_command
+from posecam.commands.predict import predict_command
+from posecam.errors import WRITE_ERRNOS, OutputError, PosecamError, ReaderLeft, printable
 
 _NO_ARGS = getattr(click.exceptions, "NoArgsIsHelpError", ())   # click >= 8.2
 
@@ -50,13 +34,21 @@ def _raise_terminated(signum, frame) -> None:
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    text = " ".join(str(message).split())
+    text = printable(" ".join(str(message).split()))
     print(f"posecam: warning: {text}", file=sys.stderr)
 
 
 def _fail(message: str, code: int) -> None:
-    click.echo(f"posecam: error: {' '.join(message.split())}", err=True)
+    click.echo(f"posecam: error: {printable(' '.join(message.split()))}", err=True)
     sys.exit(code)
+
+
+def _quiet_stdout() -> None:
+    """Point stdout at /dev/null so that Python's last flush at exit reports nothing."""
+    try:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
 
 
 def _interrupt_in_chain(exc: BaseException | None) -> KeyboardInterrupt | None:
@@ -82,13 +74,18 @@ class _Group(click.Group):
     def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
         if not standalone_mode:   # called from Python (benchmarks): let exceptions through
             return super().main(args, prog_name, complete_var, standalone_mode, **extra)
-        if _MAIN_THREAD:
+        main_thread = threading.current_thread() is threading.main_thread()
+        if main_thread:   # installed here, when the command runs, never at import
             signal.signal(signal.SIGINT, signal.default_int_handler)
             signal.signal(signal.SIGTERM, _raise_terminated)
         warnings.showwarning = _show_warning
+        for stream in (sys.stdout, sys.stderr):   # an ASCII-only terminal and a name that is not
+            if hasattr(stream, "reconfigure"):     # ASCII: escapes, not UnicodeEncodeError
+                stream.reconfigure(errors="backslashreplace")
         os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")   # posecam reports what goes wrong itself
         try:
             code = super().main(args, prog_name or "posecam", complete_var, False, **extra)
+            sys.stdout.flush()   # a full disk or a closed pipe behind stdout shows here
         except _NO_ARGS as exc:  # `posecam` alone: its help
             click.echo(exc.ctx.get_help())
             code = 0
@@ -98,6 +95,8 @@ class _Group(click.Group):
         except click.ClickException as exc:
             _fail(exc.format_message(), exc.exit_code)
         except PosecamError as exc:
+            if isinstance(exc, OutputError):   # stdout may be the output that failed
+                _quiet_stdout()
             _fail(str(exc), exc.exit_code)
         except (KeyboardInterrupt, click.Abort) as exc:
             _interrupted(exc)
@@ -105,10 +104,16 @@ class _Group(click.Group):
             _fail("input nested too deeply to read", 2)
         except MemoryError:
             _fail("out of memory (an input too large for this machine?)", 1)
-        except BrokenPipeError:  # `posecam ... | head`: the reader left, nothing to report
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (BrokenPipeError, ReaderLeft):  # `posecam ... | head`: the reader left, nothing to report
+            _quiet_stdout()
             sys.exit(141)
-        except OSError as exc:  # writes are OutputErrors already: this is an input that failed
+        except OSError as exc:
+            if exc.errno == errno.EPIPE:
+                _quiet_stdout()
+                sys.exit(141)
+            if exc.errno in WRITE_ERRNOS:   # outside an OutputSet: stdout (help text, a report)
+                _quiet_stdout()
+                _fail(f"cannot write to {exc.filename or 'standard output'}: {exc.strerror or exc}", 4)  # writes are OutputErrors already: this is an input that failed
             where = f"{exc.filename}: " if exc.filename else ""
             _fail(f"{where}{exc.strerror or exc}", 2)
         except Exception as exc:  # Ctrl-C inside a native module's import comes out as ImportError

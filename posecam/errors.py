@@ -2,7 +2,15 @@
 
 from __future__ import annotations
 
+import errno
+import re
 import warnings
+
+# errors only writing gives: such an OSError is an output's (exit code 4), never an input's
+WRITE_ERRNOS = frozenset({errno.ENOSPC, errno.EFBIG, errno.EDQUOT, errno.EROFS})
+
+# control characters (terminal escape codes), bidi overrides and undecodable bytes of file names
+_UNPRINTABLE = re.compile("[\x00-\x1f\x7f-\x9f\u202a-\u202e\u2066-\u2069\ud800-\udfff]")
 
 
 class PosecamError(Exception):
@@ -35,6 +43,12 @@ class FusionError(PosecamError):
     exit_code = 5
 
 
+class ReaderLeft(Exception):
+    """stdout is a pipe whose reader left (`posecam ... | head -1`): the command ends quietly,
+    as Unix tools do (exit code 141), its files written. Not an OSError, which click would
+    turn into exit 1."""
+
+
 class PosecamWarning(UserWarning):
     """Something the user should know that does not stop the command (`posecam: warning: ...`)."""
 
@@ -42,3 +56,16 @@ class PosecamWarning(UserWarning):
 def warn(message: str) -> None:
     """Report a problem that posecam works around (a truncated file, an implausible EXIF tag)."""
     warnings.warn(message, PosecamWarning, stacklevel=2)
+
+
+def _escape(char: str) -> str:
+    code = ord(char)
+    if 0xDC80 <= code <= 0xDCFF:   # a byte of a name that is not UTF-8 (surrogateescape)
+        return f"\\x{code - 0xDC00:02x}"
+    return f"\\x{code:02x}" if code < 0x100 else f"\\u{code:04x}"
+
+
+def printable(text: object) -> str:
+    """`text` safe to show on a terminal: control characters (escape codes), bidi overrides and
+    undecodable bytes of file names are written as escapes (\\x1b, \\u202e, \\xff)."""
+    return _UNPRINTABLE.sub(lambda m: _escape(m.group()), str(text))

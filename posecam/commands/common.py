@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import click
 
-from posecam.errors import InputError, OutputError
+from posecam.errors import InputError, OutputError, ReaderLeft, printable
 
 if TYPE_CHECKING:
     from rich.progress import Progress
@@ -98,12 +99,42 @@ def report_console():
     """Where summaries go: stdout (no command writes poses to stdout; errors and warnings go to stderr)."""
     from rich.console import Console
 
-    return Console(highlight=False)
+    class ReportConsole(Console):
+        def on_broken_pipe(self) -> None:   # rich's own exits 1; posecam ends as Unix tools do
+            raise BrokenPipeError(32, "Broken pipe")
+
+    return ReportConsole(highlight=False)
+
+
+@contextmanager
+def stdout_report() -> Iterator:
+    """A console on stdout for a command's report, flushed at the end of the block. stdout is an
+    output like the files (a command reports before its files are committed): an error writing
+    it is an OutputError (exit 4); a closed pipe (`| head`) is ReaderLeft, which ends the
+    command quietly with its files written."""
+    import errno
+    import sys
+
+    try:
+        yield report_console()
+        sys.stdout.flush()
+    except OSError as exc:
+        if isinstance(exc, BrokenPipeError) or exc.errno == errno.EPIPE:
+            raise ReaderLeft() from None
+        raise OutputError(f"cannot write to standard output: {exc.strerror or exc}") from None
+
+
+def shown(text: object) -> str:
+    """A name for a rich report: terminal escape codes escaped (posecam.errors.printable) and
+    rich markup ([bold] in a file name) shown as typed."""
+    from rich.markup import escape
+
+    return escape(printable(text))
 
 
 def report_written(paths: list[str | None], console) -> None:
     """One line naming every file written."""
-    written = [str(p) for p in paths if p]
+    written = [shown(p) for p in paths if p]
     if written:
         console.print(f"wrote {', '.join(written)}", soft_wrap=True)
 
@@ -127,4 +158,4 @@ def predict_with_progress(estimator: PoseEstimator, path: str, progress: Progres
 def warn(message: str) -> None:
     from rich.console import Console
 
-    Console(stderr=True, highlight=False).print(f"posecam: warning: {message}", soft_wrap=True)
+    Console(stderr=True, highlight=False).print(f"posecam: warning: {shown(message)}", soft_wrap=True)

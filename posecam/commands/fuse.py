@@ -8,8 +8,8 @@ from typing import TYPE_CHECKING
 
 import click
 
-from posecam.commands.common import (check_output, many_options, predict_with_progress, progress_bar, refuse_alone,
-                                     report_console, report_written, warn)
+from posecam.commands.common import (check_output, many_options, predict_with_progress, progress_bar,
+                                     refuse_alone, report_written, stdout_report, shown, warn)
 from posecam.errors import InputError
 
 if TYPE_CHECKING:
@@ -26,7 +26,7 @@ def print_report(result: FusionResult, console) -> None:
         fx, fy, cx, cy = rep.intrinsics
         focal = f"{fx:.0f}" if abs(fx - fy) < 0.5 else f"{fx:.0f}/{fy:.0f}"
         offset = str(rep.offset) if rep.offset_confidence >= 1 else f"{rep.offset} ({rep.offset_confidence:.2f})"
-        table.add_row(rep.name, offset, f"{rep.reprojection_px:.1f}", str(rep.joints_used),
+        table.add_row(shown(rep.name), offset, f"{rep.reprojection_px:.1f}", str(rep.joints_used),
                       str(rep.swaps_fixed), focal, f"{cx:.0f}, {cy:.0f}", " ".join(f"{v / 1000:.1f}" for v in cam.centre))
     console.print(table)
     console.print("offset: frames against the first view (found by --sync auto: its confidence, 0..1); error px: median reprojection error of the fused "
@@ -103,7 +103,8 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     many = out_dir is not None or jobs > 1 or ray_address is not None
     if many and (output or viz or viz3d or save_calibration):
         raise InputError("--out-dir writes one file per take; it does not go with -o, --viz, --viz3d or --save-calibration")
-    staged = OutputSet([None if markers else output, save_calibration, viz, viz3d], [*inputs, calibration])  # checked before the work
+    staged = OutputSet([None if markers else output, save_calibration, viz, viz3d], [*inputs, calibration],
+                       per_person=markers)  # every output checked before the work
     rig = read_calibration(calibration) if calibration else None
     opts = FuseOptions(calibration=rig, method=method, offsets=offset_list, sync=sync == "auto",
                        max_offset=max_offset)
@@ -133,6 +134,6 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
             from posecam.viz.fusion_grid import write_grid
 
             write_grid(staged.path(viz), result, recordings)
-    console = report_console()
-    print_report(result, console)
-    report_written([*written, save_calibration, viz, viz3d], console)
+        with stdout_report() as console:   # stdout is an output too: written before the files are
+            print_report(result, console)
+            report_written([*written, save_calibration, viz, viz3d], console)

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import click
 
-from posecam.commands.common import (check_output, intrinsics_options, many_options, progress_bar, refuse_alone,
-                                     report_console, report_written, warn)
+from posecam.commands.common import (check_output, intrinsics_options, many_options, progress_bar,
+                                     refuse_alone, report_written, stdout_report, shown, warn)
 from posecam.errors import InputError
 from posecam.inference.contract import DETECTORS
 
@@ -46,7 +46,7 @@ def print_summary(summaries: list[InputSummary], console) -> None:
     for col in ("input", "frames", "person", "x", "y", "z", "mean conf."):
         table.add_column(col, justify="right" if col not in ("input",) else "left")
     for sm in summaries:
-        name = Path(sm.rec.source).name
+        name = shown(Path(sm.rec.source).name)
         for pid, (n, root_sum, conf_sum) in sorted(sm.people.items()):
             table.add_row(name, str(n), str(pid), *(f"{v:.0f}" for v in root_sum / n), f"{conf_sum / n:.2f}")
         if not sm.people:
@@ -54,12 +54,12 @@ def print_summary(summaries: list[InputSummary], console) -> None:
     console.print(table)
     console.print(f"frames: frames the person is in; x right, y down, z forward (depth): mean of the person's "
                   f"{root} position; mean conf.: mean joint confidence, 0 to 1", style="dim")
-    shown = [sm.rec for sm in summaries if sm.rec.intrinsics]
-    same = len({(r.intrinsics.fx, r.intrinsics.fy, r.intrinsics.cx, r.intrinsics.cy) for r in shown}) == 1
-    for rec in shown[:1] if same else shown:   # one line, or one per input when they differ
+    known = [sm.rec for sm in summaries if sm.rec.intrinsics]
+    same = len({(r.intrinsics.fx, r.intrinsics.fy, r.intrinsics.cx, r.intrinsics.cy) for r in known}) == 1
+    for rec in known[:1] if same else known:   # one line, or one per input when they differ
         k = rec.intrinsics
-        name = "" if same else f" of {Path(rec.source).name}"
-        console.print(f"intrinsics{name} ({k.source}): fx={k.fx:.1f} fy={k.fy:.1f} cx={k.cx:.1f} cy={k.cy:.1f}")
+        name = "" if same else f" of {shown(Path(rec.source).name)}"
+        console.print(f"intrinsics{name} ({shown(k.source)}): fx={k.fx:.1f} fy={k.fy:.1f} cx={k.cx:.1f} cy={k.cy:.1f}")
 
 
 def explain_empty(sm: InputSummary, min_detection_score: float, min_presence: float) -> str | None:
@@ -186,7 +186,8 @@ def predict_command(inputs, output, viz, model, skeleton, detector, max_people, 
         check_output(viz, IMAGE_SUFFIXES if first.kind == "image" else VIDEO_SUFFIXES, f"--viz for {first.kind} input")
     if markers:
         check_markers_output(markers, [*inputs, intrinsics_file, model])
-    staged = OutputSet([None if markers else output, viz, viz3d], [*inputs, intrinsics_file, model])  # checked before the work
+    staged = OutputSet([None if markers else output, viz, viz3d], [*inputs, intrinsics_file, model],
+                       per_person=markers)  # every output checked before the work
     estimator = PoseEstimator(opts)
     keep = bool(markers or viz3d)   # these outputs need whole recordings; JSON and CSV are streamed
     with staged, ExitStack() as stack, progress_bar() as progress:  # all outputs or none
@@ -208,6 +209,6 @@ def predict_command(inputs, output, viz, model, skeleton, detector, max_people, 
         written = write_markers(markers, recordings[0], trc_y_up, staged) if markers else [output]
         if viz3d:
             write_view3d(staged.path(viz3d), recordings[0])
-    console = report_console()
-    print_summary(summaries, console)
-    report_written([*written, viz, viz3d], console)
+        with stdout_report() as console:   # stdout is an output too: written before the files are
+            print_summary(summaries, console)
+            report_written([*written, viz, viz3d], console)

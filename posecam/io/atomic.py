@@ -1,20 +1,27 @@
 """Outputs appear complete or not at all.
 
 - `atomic_path(path)`: one file, written to a temporary name beside it and renamed on success.
-- `OutputSet`: every output of one command, checked before the work (folder exists, not a
-  folder itself, not one of the inputs), written to temporary names in a hidden staging folder
-  beside each target, and renamed onto the targets together only when the whole command
-  succeeded. On any error, Ctrl-C or SIGTERM (which the CLI turns into an exception) the
-  staging folder is removed and no target is touched.
+- `OutputSet`: every output of one command, known and checked before the work (folder exists,
+  not a folder itself, not one of the inputs; per-person marker files `FILE_id<ID>.trc` by their
+  pattern), written to temporary names in a hidden staging folder beside each target, and
+  committed together only when the whole command succeeded: every staged file is verified
+  (flushed, a video read back), every target checked again (the file system may have changed
+  during the work), then renamed; a rename that fails puts back the targets already replaced.
+  On any error, Ctrl-C or SIGTERM (which the CLI turns into an exception) the staging folder
+  is removed and no target is touched.
 
-Temporary names are short ASCII names that keep the target's extension (writers such as
-OpenCV's pick the format from it), so a 255-byte target name works and OpenCV never sees a
-name it cannot encode. Every OSError while writing becomes an `OutputError` (exit code 4).
+Temporary names start `.posecam-<pid>-`, are short and ASCII and keep the target's extension
+(writers such as OpenCV's pick the format from it), so a 255-byte target name works and OpenCV
+never sees a name it cannot encode. Ones whose process is gone (a run killed with SIGKILL) are
+removed by the next run writing in that folder. Every OSError while writing becomes an
+`OutputError` (exit code 4) naming the target.
 """
 
 from __future__ import annotations
 
+import errno
 import os
+import re
 import shutil
 import tempfile
 from collections.abc import Iterable, Iterator
@@ -22,10 +29,11 @@ from contextlib import contextmanager
 from pathlib import Path
 from types import TracebackType
 
-from posecam.errors import OutputError, PosecamError
+from posecam.errors import WRITE_ERRNOS, OutputError, PosecamError, ReaderLeft, printable, warn
 from posecam.media import VIDEO_SUFFIXES, readable_video
 
 _MAX_SUFFIX = 16   # longer "extensions" are not kept in temporary names
+_STALE = re.compile(r"^\.posecam-(\d+)-")
 
 
 def _folder(target: Path) -> Path:
@@ -37,6 +45,10 @@ def _suffix(target: Path) -> str:
     return suffix if len(suffix) <= _MAX_SUFFIX and suffix.isascii() else ""
 
 
+def _prefix() -> str:
+    return f".posecam-{os.getpid()}-"
+
+
 def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
@@ -45,6 +57,40 @@ def _umask() -> int:
 
 def _describe(exc: OSError) -> str:
     return exc.strerror or str(exc)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:   # another user's process
+        return True
+    return True
+
+
+def remove_stale(folder: str | os.PathLike) -> None:
+    """Remove the temporary files and staging folders that a killed posecam run left in
+    `folder` (their process is gone), with a warning naming each."""
+    try:
+        entries = [e for e in os.scandir(folder) if e.name.startswith(".posecam-")]
+    except OSError:
+        return
+    for entry in entries:
+        match = _STALE.match(entry.name)
+        if not match or _alive(int(match.group(1))):
+            continue
+        path = Path(folder) / entry.name
+        try:
+            if entry.is_dir(follow_symlinks=False):
+                shutil.rmtree(path)
+            else:
+                path.unlink()
+        except OSError as exc:
+            warn(f"{printable(path)} is left over from an interrupted posecam run and cannot be removed "
+                 f"({_describe(exc)}); remove it")
+            continue
+        warn(f"removed {printable(path)}, left over from an interrupted posecam run")
 
 
 def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
@@ -61,6 +107,12 @@ def check_output(target: str | os.PathLike, inputs: Iterable[str | os.PathLike] 
     if not target.name:
         raise OutputError(f"cannot write {target}: it names a folder, not a file")
     folder = _folder(target)
+    try:
+        os.stat(target)   # ENAMETOOLONG and ELOOP show here, before any work
+    except FileNotFoundError:
+        pass
+    except OSError as exc:
+        raise OutputError(f"cannot write {target}: {_describe(exc)}") from None
     if not folder.is_dir():
         raise OutputError(f"cannot write {target}: folder {folder} does not exist")
     if target.is_dir():
@@ -75,6 +127,12 @@ def check_output(target: str | os.PathLike, inputs: Iterable[str | os.PathLike] 
     return target
 
 
+def per_person_pattern(path: str | os.PathLike) -> re.Pattern:
+    """The names of the per-person files of marker output `path` (NAME_id<ID>.trc)."""
+    path = Path(path)
+    return re.compile(re.escape(path.stem) + r"_id\d+" + re.escape(path.suffix) + r"\Z")
+
+
 @contextmanager
 def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
     """Yield a temporary path in the target's folder; rename it onto `path` on success.
@@ -86,14 +144,15 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     if not folder.is_dir():
         raise OutputError(f"cannot write {target}: folder {folder} does not exist")
     try:
-        fd, tmp = tempfile.mkstemp(prefix=".posecam-", suffix=suffix or _suffix(target), dir=folder)
+        fd, tmp = tempfile.mkstemp(prefix=_prefix(), suffix=suffix or _suffix(target), dir=folder)
         os.close(fd)
     except OSError as exc:
         raise OutputError(f"cannot write {target}: {_describe(exc)}") from None
     tmp_path = Path(tmp)
     try:
         yield tmp_path
-        _commit(tmp_path, target)
+        _verify(tmp_path, target)
+        _publish(tmp_path, target)
     except OSError as exc:
         tmp_path.unlink(missing_ok=True)
         raise OutputError(f"cannot write {target}: {_describe(exc)}") from None
@@ -102,8 +161,8 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         raise
 
 
-def _commit(tmp: Path, target: Path) -> None:
-    """Flush `tmp` to disk and rename it onto `target`; a full disk shows here at the latest."""
+def _verify(tmp: Path, target: Path) -> None:
+    """Flush `tmp` to disk and check it; a full disk shows here at the latest."""
     if not tmp.is_file():
         raise OutputError(f"cannot write {target}: the writer produced no file")
     with open(tmp, "rb+") as f:
@@ -112,11 +171,16 @@ def _commit(tmp: Path, target: Path) -> None:
     free = stats.f_bfree if os.geteuid() == 0 else stats.f_bavail
     if free == 0 and stats.f_blocks > 0:
         # Some writers (FFmpeg's) drop write errors; a disk left with no free block lost data.
-        raise OSError(28, os.strerror(28))
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
     if tmp.suffix.lower() in VIDEO_SUFFIXES and not readable_video(tmp):
         # the same for other failures (a file size limit): a video that does not read back
         raise OutputError(f"cannot write {target}: the video does not read back (disk full or file too large?)")
     os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; give the usual permissions
+
+
+def _publish(tmp: Path, target: Path) -> None:
+    if target.is_dir():   # os.replace would put a file into an empty folder's place
+        raise OutputError(f"cannot write {target}: a folder appeared there during the run")
     os.replace(tmp, target)
 
 
@@ -133,22 +197,48 @@ class OutputSet:
         # here every target exists, complete; after an error none was touched
 
     Targets that are None are skipped, so optional outputs can be passed as they are.
+    `per_person` is a marker output (FILE.trc or FILE.c3d) written as one file per person:
+    FILE itself or FILE_id<ID>.trc, whose ids are known only after the work; its folder, and
+    every input and existing entry the pattern could name, are checked now.
     """
 
     def __init__(self, targets: Iterable[str | os.PathLike | None],
-                 inputs: Iterable[str | os.PathLike | None] = ()):
-        inputs = [p for p in inputs if p is not None]
+                 inputs: Iterable[str | os.PathLike | None] = (),
+                 per_person: str | os.PathLike | None = None):
+        self.inputs = [p for p in inputs if p is not None]
         self.targets: list[Path] = []
         for t in targets:
             if t is None:
                 continue
-            target = check_output(t, inputs)
+            target = check_output(t, self.inputs)
             if any(same_file(target, other) for other in self.targets):
                 raise OutputError(f"{target} is given as two outputs")
             self.targets.append(target)
+        self.per_person = self._check_per_person(Path(per_person)) if per_person is not None else None
         self._staged: dict[Path, Path] = {}
         self._folders: dict[Path, Path] = {}
         self._count = 0
+        for folder in {_folder(t).resolve() for t in self.targets + ([self.per_person] if self.per_person else [])}:
+            remove_stale(folder)
+
+    def _check_per_person(self, path: Path) -> Path:
+        check_output(path, self.inputs)
+        pattern = per_person_pattern(path)
+        for source in self.inputs:
+            if pattern.match(Path(source).name) and same_file(_folder(Path(source)), _folder(path)):
+                raise OutputError(f"refusing to overwrite the input {source} with an output "
+                                  f"(one file per person: {path.stem}_id<ID>{path.suffix})")
+        for other in self.targets:
+            if pattern.match(other.name) and same_file(_folder(other), _folder(path)):
+                raise OutputError(f"{other} is given as two outputs (one file per person of {path})")
+        return path
+
+    def _is_target(self, target: Path) -> bool:
+        if target in self.targets:
+            return True
+        p = self.per_person
+        return p is not None and (target == p or (target.parent == p.parent
+                                                  and bool(per_person_pattern(p).match(target.name))))
 
     def __enter__(self) -> "OutputSet":
         return self
@@ -163,29 +253,43 @@ class OutputSet:
         return self._staged[target]
 
     def extra(self, target: str | os.PathLike) -> Path:
-        """A temporary path for `target`, committed with the others; for files named by a
-        writer rather than by the user, or registered later with `adopt`."""
+        """A temporary path for `target`, committed with the others once `adopt`ed: for files
+        named by a writer (the per-person files, an int8 copy) rather than by the user."""
         target = Path(target)
         self._count += 1
         return self._stage(_folder(target)) / f"{self._count}{_suffix(target)}"
 
     def adopt(self, target: str | os.PathLike, staged: Path) -> None:
-        """Commit `staged` (a file a writer made inside the staging folder) as `target`."""
-        self._staged[Path(target)] = staged
+        """Commit `staged` (a file a writer made inside the staging folder) as `target`, which
+        must be a target given or one of the per-person files."""
+        target = Path(target)
+        if not self._is_target(target):
+            raise ValueError(f"{target} is not one of this command's outputs")
+        self._staged[target] = staged
 
     def _stage(self, folder: Path) -> Path:
         key = folder.resolve()
         if key not in self._folders:
             try:
-                self._folders[key] = Path(tempfile.mkdtemp(prefix=".posecam-", dir=folder))
+                self._folders[key] = Path(tempfile.mkdtemp(prefix=_prefix(), dir=folder))
             except OSError as exc:
                 raise OutputError(f"cannot write in {folder}: {_describe(exc)}") from None
         return self._folders[key]
 
+    def _name_target(self, exc: OSError) -> Path | None:
+        """The target an OSError inside the block was writing, if it was an output's."""
+        for target, tmp in self._staged.items():
+            if exc.filename is not None and os.fspath(exc.filename) == str(tmp):
+                return target
+        if exc.errno in WRITE_ERRNOS and self._staged:
+            return list(self._staged)[-1]
+        return None
+
     def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
         try:
-            if kind is None:
+            if kind is None or issubclass(kind, ReaderLeft):
+                # a closed stdout (`| head`) is the reader leaving, not a failed output
                 self._commit_all()
             elif issubclass(kind, PosecamError):   # name the user's file, not its temporary one
                 message = str(exc)
@@ -193,6 +297,10 @@ class OutputSet:
                     message = message.replace(str(tmp), str(target))
                 if message != str(exc):
                     raise kind(message) from None
+            elif issubclass(kind, OSError):
+                target = self._name_target(exc)
+                if target is not None:
+                    raise OutputError(f"cannot write {target}: {_describe(exc)}") from None
         finally:
             for stage in self._folders.values():
                 shutil.rmtree(stage, ignore_errors=True)
@@ -201,8 +309,40 @@ class OutputSet:
         missing = [t for t in self.targets if t not in self._staged]
         if missing:
             raise OutputError(f"internal: no output was written for {missing[0]}")
-        for target, tmp in self._staged.items():
+        staged = list(self._staged.items())
+        for target, tmp in staged:          # every file complete and flushed ...
             try:
-                _commit(tmp, target)
+                _verify(tmp, target)
             except OSError as exc:
                 raise OutputError(f"cannot write {target}: {_describe(exc)}") from None
+        for target, _ in staged:            # ... every target still writable now ...
+            check_output(target, self.inputs)
+        done: list[tuple[Path, Path | None]] = []
+        try:                                # ... then all renamed, or none
+            for target, tmp in staged:
+                backup = self._backup(target, tmp)
+                done.append((target, backup))
+                _publish(tmp, target)
+        except BaseException as exc:
+            failed = done[-1][0] if done else None
+            for target, backup in reversed(done):
+                if backup is not None:
+                    os.replace(backup, target)
+                elif target.is_file() and target != failed:
+                    target.unlink(missing_ok=True)
+            if isinstance(exc, OSError):
+                raise OutputError(f"cannot write {failed}: {_describe(exc)}") from None
+            raise
+
+    @staticmethod
+    def _backup(target: Path, tmp: Path) -> Path | None:
+        """A hard link to the file `target` replaces, in the staging folder, to put it back if a
+        later rename fails; None when there is no such file."""
+        if not target.is_file():
+            return None
+        backup = tmp.with_name(tmp.name + ".old")
+        try:
+            os.link(target, backup)
+        except OSError:              # no hard links here: move it aside instead
+            os.replace(target, backup)
+        return backup
