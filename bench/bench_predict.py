@@ -108,7 +108,7 @@ def accuracy(videos: dict[str, Path], calib_path: Path, model: str, detector: st
     import cv2
     import numpy as np
 
-    from posecam import EstimatorOptions, IntrinsicsOptions, PoseEstimator
+    from posecam import EstimatorOptions, PoseEstimator
     from posecam.io.calibration import read_qualisys
     from posecam.geometry.triangulate import reprojection_errors, triangulate
 
@@ -116,11 +116,9 @@ def accuracy(videos: dict[str, Path], calib_path: Path, model: str, detector: st
     cams = read_qualisys(calib_path, image_widths=widths)
     n = 100 - max(OFFSETS.values()) + min(OFFSETS.values())
     uv, conf, roots = [], [], []
+    estimator = PoseEstimator(EstimatorOptions(model=model, detector=detector, max_people=1))
     for cam in cams:
-        k = cam.intrinsics
-        opts = EstimatorOptions(model=model, detector=detector, max_people=1,
-                                intrinsics=IntrinsicsOptions(k.fx, k.fy, k.cx, k.cy))
-        rec = PoseEstimator(opts).predict_file(videos[cam.name])
+        rec = estimator.predict_file(videos[cam.name], cam.intrinsics)
         start = OFFSETS[cam.name] - min(OFFSETS.values())
         frames = rec.frames[start:start + n]
         uv.append(_first_person(frames, "keypoints_2d", (17, 2)))

@@ -27,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_predict import CAMERAS, OFFSETS, _first_person  # noqa: E402
 
 from export.assets import archive_path  # noqa: E402
-from posecam import EstimatorOptions, IntrinsicsOptions, PoseEstimator, read_poses, write_poses  # noqa: E402
+from posecam import EstimatorOptions, PoseEstimator, read_poses, write_poses  # noqa: E402
 from posecam.filters import SmoothOptions, smooth_recording  # noqa: E402
 from posecam.geometry.triangulate import triangulate  # noqa: E402
 from posecam.io.calibration import read_qualisys  # noqa: E402
@@ -59,14 +59,12 @@ def predictions(take: str, max_people: int, model: str, cache: Path):
     videos = {c: take_file(take, f"videos/{c}.mp4", cache) for c in CAMERAS}
     widths = {c: int(cv2.VideoCapture(str(v)).get(cv2.CAP_PROP_FRAME_WIDTH)) for c, v in videos.items()}
     cams = read_qualisys(take_file(take, "calibration/Calib.qca.txt", cache), image_widths=widths)
-    recs = []
+    recs, estimator = [], None
     for cam in cams:
         path = cache / take / f"{cam.name}_{model}.json"
         if not path.exists():
-            k = cam.intrinsics
-            opts = EstimatorOptions(model=model, max_people=max_people,
-                                    intrinsics=IntrinsicsOptions(k.fx, k.fy, k.cx, k.cy))
-            write_poses(path, [PoseEstimator(opts).predict_file(videos[cam.name])])
+            estimator = estimator or PoseEstimator(EstimatorOptions(model=model, max_people=max_people))
+            write_poses(path, [estimator.predict_file(videos[cam.name], cam.intrinsics)])
         recs.append(read_poses(path)[0])
     return cams, recs
 

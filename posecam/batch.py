@@ -21,7 +21,9 @@ from typing import TYPE_CHECKING
 from posecam.errors import InputError, OutputError, PosecamError
 from posecam.estimate import EstimatorOptions, PoseEstimator
 from posecam.filters import smooth_recording
-from posecam.io.poses import write_poses
+from posecam.io.atomic import OutputSet
+from posecam.io.intrinsics import IntrinsicsOptions
+from posecam.io.poses import PoseWriter, write_poses
 
 if TYPE_CHECKING:
     from posecam.multiview.fuse import FuseOptions
@@ -78,26 +80,40 @@ def plan_fusions(takes: list[str], out_dir: str | os.PathLike, suffix: str) -> l
     return _plan([Path(t).resolve().name for t in takes], views, out_dir, suffix)
 
 
-_estimators: dict[str, PoseEstimator] = {}   # per process, by options
+_estimators: dict[str, PoseEstimator] = {}   # per process, by options: the models load once
 
 
-def predict_task(task: Task, options: EstimatorOptions, smooth: bool = True) -> str:
-    """Predict one input into its output; videos are smoothed as `posecam predict` smooths them."""
+def estimator_for(options: EstimatorOptions) -> PoseEstimator:
+    """This process's estimator for `options`, built on first use."""
     key = repr(options)
-    estimator = _estimators.get(key)
-    if estimator is None:
-        estimator = _estimators[key] = PoseEstimator(options)
-    recording = estimator.predict_file(task.inputs[0])
-    write_poses(task.output, [smooth_recording(recording) if smooth else recording])
+    if key not in _estimators:
+        _estimators[key] = PoseEstimator(options)
+    return _estimators[key]
+
+
+def predict_task(task: Task, options: EstimatorOptions, intrinsics: IntrinsicsOptions | None = None,
+                 smooth: bool = True) -> str:
+    """Predict one input into its output (.json or .csv) as `posecam predict -o` does: frame by
+    frame through `FileStream.poses` (videos smoothed as they stream), in flat memory."""
+    stream = estimator_for(options).stream_file(task.inputs[0], intrinsics)
+    with OutputSet([task.output], task.inputs) as staged, \
+            open(staged.path(task.output), "w", encoding="utf-8", newline="") as handle:
+        writer = PoseWriter(handle, Path(task.output).suffix.lower()[1:])
+        writer.begin(stream.recording)
+        for frame in stream.poses(smooth):
+            writer.frame(frame)
+        writer.close()
     return task.output
 
 
-def fuse_task(task: Task, options: FuseOptions, model: str = "full", calibration: str | None = None,
-              device: str = "cpu", smooth: bool = True) -> str:
+def fuse_task(task: Task, options: FuseOptions, estimator: EstimatorOptions | None = None,
+              intrinsics: IntrinsicsOptions | None = None, calibration: str | None = None, smooth: bool = True) -> str:
     """Fuse one take's views into its output, as `posecam fuse` does."""
     from posecam.multiview.fuse import fuse_recordings   # scipy: only where fusion runs
     from posecam.views import load_views
-    recordings = load_views(list(task.inputs), model, calibration, options.calibration, device)
+    views = [p for p in task.inputs if Path(p).suffix.lower() != ".json"]
+    recordings = load_views(list(task.inputs), intrinsics=intrinsics, calibration=calibration, rig=options.calibration,
+                            fuse=options, estimator=estimator_for(estimator or EstimatorOptions()) if views else None)
     fused = fuse_recordings(recordings, options).recording
     write_poses(task.output, [smooth_recording(fused) if smooth else fused])
     return task.output

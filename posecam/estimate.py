@@ -5,17 +5,24 @@
     frame = est.predict_image(rgb)              # one RGB image -> Frame; keeps no state
     frames = est.track(rgb_frames, k)           # the frames of one video -> Frames with stable ids
     rec = est.predict_file("clip.mp4")          # image, video or folder -> Recording
+    stream = est.stream_file("clip.mp4", IntrinsicsOptions(file="calib.toml", camera="cam01"))
+    for frame in stream.poses(smooth=True):     # the one prediction path: flat memory, any length
+        ...
+
+The estimator holds the models (load it once, use it for every input); the intrinsics belong
+to each input and are given with each call.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from posecam.errors import InputError, ModelError
+from posecam.filters import StreamingSmoother
 from posecam.geometry.camera import Intrinsics
 from posecam.geometry.lift import solve_root_translation
 from posecam.inference.detector import Detection, load_detector
@@ -43,7 +50,6 @@ class EstimatorOptions:
     redetect_every: int = 15            # frames between detector runs while tracking
     threads: int | None = None
     device: str = "cpu"                 # "cpu" or "cuda" (onnxruntime-gpu's CUDA provider)
-    intrinsics: IntrinsicsOptions = field(default_factory=IntrinsicsOptions)
 
     def __post_init__(self) -> None:
         if self.skeleton not in SKELETONS:
@@ -55,17 +61,32 @@ class EstimatorOptions:
                 raise InputError(f"{name} must lie in [0, 1], got {getattr(self, name)}")
 
 
+# Called for each frame as it is predicted: the frame's result, its RGB image, the opened input.
+OnFrame = Callable[[Frame, np.ndarray, Media], None]
+# An input's intrinsics: given, resolved from options (flags, a file, EXIF), or None (EXIF, else the default lens)
+IntrinsicsSource = Intrinsics | IntrinsicsOptions | None
+
+
 @dataclass
 class FileStream:
-    """An opened input: its Recording's header, the media, and its frames as they are predicted."""
+    """An opened input: its Recording's header (no frames), the media, and its frames as they
+    are predicted, each with its RGB image (`frames`, raw) or finished (`poses`)."""
 
     recording: Recording
     media: Media
     frames: Iterator[tuple[Frame, np.ndarray]]
 
-
-# Called after each frame of predict_file: the frame's result, its RGB image, the opened input.
-OnFrame = Callable[[Frame, np.ndarray, Media], None]
+    def poses(self, smooth: bool = False, on_frame: OnFrame | None = None) -> Iterator[Frame]:
+        """The input's frames, finished: each predicted frame goes to `on_frame` (progress bars,
+        overlays) as it comes, then, with `smooth` and a video or a sequence, through the
+        streaming smoother (a few seconds late; the whole video's smoothing). Nothing is kept."""
+        smoother = StreamingSmoother(self.recording) if smooth and self.media.kind != "image" else None
+        for frame, rgb in self.frames:
+            if on_frame:
+                on_frame(frame, rgb, self.media)
+            yield from smoother.push(frame) if smoother else (frame,)
+        if smoother:
+            yield from smoother.flush()
 
 
 class PoseEstimator:
@@ -160,7 +181,7 @@ class PoseEstimator:
 
     def _intrinsics(self, image_rgb: np.ndarray, k: Intrinsics | None) -> Intrinsics:
         h, w = image_rgb.shape[:2]   # given intrinsics are checked as the CLI checks them
-        return k.check_image(w, h) if k else resolve_intrinsics(self.options.intrinsics, w, h)
+        return k.check_image(w, h) if k else Intrinsics.default(w, h)
 
     def predict_image(self, image_rgb: np.ndarray, intrinsics: Intrinsics | None = None) -> Frame:
         """Poses of every person in one RGB uint8 image; nothing is kept between calls."""
@@ -176,12 +197,17 @@ class PoseEstimator:
             frame.index = index
             yield frame
 
-    def stream_file(self, path: str | Path) -> FileStream:
+    def stream_file(self, path: str | Path, intrinsics: IntrinsicsSource = None) -> FileStream:
         """Open an image, a video or a folder of images: its Recording (no frames yet), and its
-        frames, predicted one at a time as they are read (people tracked in a video)."""
+        frames, predicted one at a time as they are read (people tracked in a video).
+        `intrinsics`: this input's camera (`Intrinsics`), or how to find it (`IntrinsicsOptions`:
+        flags, a file, a calibration's camera); None: the photo's EXIF, else the default lens."""
         media = open_media(path)
-        k = resolve_intrinsics(self.options.intrinsics, media.width, media.height,
-                               image_path=media.path if media.kind == "image" else None)
+        if isinstance(intrinsics, Intrinsics):
+            k = intrinsics.check_image(media.width, media.height)
+        else:
+            k = resolve_intrinsics(intrinsics or IntrinsicsOptions(), media.width, media.height,
+                                   image_path=media.path if media.kind == "image" else None)
         rec = Recording(str(path), media.width, media.height, k, self.joints, model=self.model_name, fps=media.fps)
 
         def frames() -> Iterator[tuple[Frame, np.ndarray]]:
@@ -193,14 +219,13 @@ class PoseEstimator:
 
         return FileStream(rec, media, frames())
 
-    def predict_file(self, path: str | Path, on_frame: OnFrame | None = None) -> Recording:
-        """Poses for every frame of an image, a video or a folder of images; each frame is
-        decoded once and handed to `on_frame` (progress bars, overlays) with its result."""
-        stream = self.stream_file(path)
-        for frame, rgb in stream.frames:
-            stream.recording.frames.append(frame)
-            if on_frame:
-                on_frame(frame, rgb, stream.media)
+    def predict_file(self, path: str | Path, intrinsics: IntrinsicsSource = None, on_frame: OnFrame | None = None,
+                     smooth: bool = False) -> Recording:
+        """Poses for every frame of an image, a video or a folder of images, held in the
+        Recording (`stream_file(...).poses()` for long videos); each frame is decoded once and
+        handed to `on_frame` (progress bars, overlays) with its result."""
+        stream = self.stream_file(path, intrinsics)
+        stream.recording.frames = list(stream.poses(smooth, on_frame))
         return stream.recording
 
 

@@ -1,42 +1,77 @@
 """A take's views as recordings: posecam pose JSON files read as they are; videos and image
-folders predicted, each with its camera's intrinsics from the calibration (matched to the
-views by `Rig.match_names`) or, without one, posecam's default intrinsics."""
+folders predicted by one estimator (the models loaded once for every view), each with its own
+camera's intrinsics: from the calibration (`--calibration`, matched to the views by
+`Rig.match_names`), from `--intrinsics` (a file, or a calibration's camera per view), from the
+flags, or posecam's default lens.
+
+    recordings = load_views(["cam01.mp4", "cam02.mp4"], EstimatorOptions(detector="movenet"),
+                            IntrinsicsOptions(file="Calib.toml"))   # cameras matched by name
+"""
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 
-from posecam.estimate import EstimatorOptions, PoseEstimator
+from posecam.errors import InputError, warn
+from posecam.estimate import EstimatorOptions, OnFrame, PoseEstimator
 from posecam.geometry.camera import Rig
-from posecam.io.intrinsics import IntrinsicsOptions
+from posecam.io.calibration import read_calibration
+from posecam.io.intrinsics import IntrinsicsOptions, is_calibration
 from posecam.io.poses import read_poses
 from posecam.media import open_media
+from posecam.multiview.fuse import FuseOptions, check_lengths
 from posecam.results import Recording
 
-Predict = Callable[[PoseEstimator, str], Recording]
+
+def view_intrinsics(videos: list[str], intrinsics: IntrinsicsOptions | None = None, calibration: str | None = None,
+                    rig: Rig | None = None) -> list[IntrinsicsOptions]:
+    """Each video's intrinsics: its camera in `rig` (read from `calibration`); else `intrinsics`,
+    whose calibration file of several cameras gives each video its own camera, named in
+    `intrinsics.camera` (one name, or one per video separated by commas) or matched by name."""
+    if rig is not None:
+        names, note = rig.match_names([Path(p).stem for p in videos])
+        if note:
+            warn(note)
+        return [IntrinsicsOptions(file=calibration, camera=name) for name in names]
+    opts = intrinsics or IntrinsicsOptions()
+    if not opts.file or not is_calibration(opts.file):
+        return [opts] * len(videos)
+    names = opts.camera.split(",") if opts.camera else None
+    if names is None:
+        cameras = read_calibration(opts.file)
+        names = cameras.match_names([Path(p).stem for p in videos])[0] if len(cameras.cameras) > 1 else None
+    elif len(names) == 1:
+        names = names * len(videos)
+    elif len(names) != len(videos):
+        raise InputError(f"--camera names {len(names)} cameras for {len(videos)} videos: give one name, "
+                         "or one per video in the order of the inputs (cam01,cam02,...)")
+    return [IntrinsicsOptions(opts.fx, opts.fy, opts.cx, opts.cy, opts.file, name)
+            for name in names or [opts.camera] * len(videos)]
 
 
-def load_views(inputs: list[str], model: str = "full", calibration: str | None = None, rig: Rig | None = None,
-               device: str = "cpu", predict: Predict | None = None) -> list[Recording]:
-    """One recording per view (a pose JSON file may hold several). Every input is checked
-    before anything is predicted; `predict(estimator, path)` runs a video (default:
-    `estimator.predict_file(path)`, a hook for progress bars)."""
+def load_views(inputs: list[str], options: EstimatorOptions | None = None, intrinsics: IntrinsicsOptions | None = None,
+               calibration: str | None = None, rig: Rig | None = None, fuse: FuseOptions | None = None,
+               on_frame: OnFrame | None = None, estimator: PoseEstimator | None = None) -> list[Recording]:
+    """One recording per view (a pose JSON file may hold several). Every input is opened, and
+    the views' lengths compared from their headers (a warning on any difference; InputError
+    past what `fuse`'s offsets allow), before anything is predicted. The videos are predicted
+    by `estimator` (default: one built from `options`); `on_frame(frame, rgb, media)` sees
+    every frame (progress bars)."""
     videos = [p for p in inputs if Path(p).suffix.lower() != ".json"]
-    names = rig.match_names([Path(p).stem for p in videos])[0] if rig is not None else [None] * len(videos)
-    cameras = dict(zip(videos, names))
-    views: list[list[Recording] | IntrinsicsOptions] = []
+    media = {p: open_media(p) for p in videos}
+    ks = dict(zip(videos, view_intrinsics(videos, intrinsics, calibration, rig)))
+    poses = {p: read_poses(p) for p in inputs if p not in media}
+    names, lengths = [], []
     for path in inputs:
-        if path in cameras:
-            open_media(path)
-            views.append(IntrinsicsOptions(file=calibration, camera=cameras[path]) if rig is not None
-                         else IntrinsicsOptions())
-        else:
-            views.append(read_poses(path))
-    predict = predict or (lambda estimator, path: estimator.predict_file(path))
+        counts = [media[path].frame_count] if path in media else [len(r.frames) for r in poses[path]]
+        names += [Path(path).name] * len(counts)
+        lengths += counts
+    differ = check_lengths(names, lengths, fuse or FuseOptions())
+    if differ:
+        warn(differ)
+    if videos and estimator is None:
+        estimator = PoseEstimator(options or EstimatorOptions())
     recordings = []
-    for path, view in zip(inputs, views):
-        if isinstance(view, IntrinsicsOptions):
-            view = [predict(PoseEstimator(EstimatorOptions(model=model, intrinsics=view, device=device)), path)]
-        recordings += view
+    for path in inputs:
+        recordings += [estimator.predict_file(path, ks[path], on_frame)] if path in media else poses[path]
     return recordings

@@ -19,3 +19,23 @@ def estimator():
     from posecam import PoseEstimator
 
     return PoseEstimator()
+
+
+def invoke_posecam(*args: str):
+    """Run the `posecam` CLI in this process through click's CliRunner (for usage errors: no
+    model is loaded, so no subprocess is needed); the result has exit_code, stdout, stderr.
+    The handlers the CLI installs for its own process are put back afterwards."""
+    import signal
+    import warnings
+
+    from click.testing import CliRunner
+
+    from posecam.cli import main
+
+    saved = warnings.showwarning, {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        return CliRunner().invoke(main, [str(a) for a in args], prog_name="posecam")
+    finally:
+        warnings.showwarning = saved[0]
+        for s, handler in saved[1].items():
+            signal.signal(s, handler)

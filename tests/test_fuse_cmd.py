@@ -58,7 +58,7 @@ def test_views_of_different_lengths(tmp_path):
     short.mkdir()
     _, short_paths = _inputs(short, 20)
     r = run_posecam("fuse", paths[0], short_paths[1], "-o", tmp_path / "x.json")
-    assert r.returncode == 2 and "different lengths (60, 20 frames)" in r.stderr, r.stderr
+    assert r.returncode == 2 and "different lengths (front.json 60, right.json 20 frames)" in r.stderr, r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "x.json").exists()
 

@@ -18,7 +18,7 @@ import cv2
 import numpy as np
 
 from export.assets import pose2sim_demo_path
-from posecam import EstimatorOptions, IntrinsicsOptions, PoseEstimator
+from posecam import EstimatorOptions, PoseEstimator
 from posecam.geometry.camera import project
 from posecam.io.calibration import read_qualisys
 from posecam.geometry.triangulate import reprojection_errors, triangulate
@@ -50,9 +50,9 @@ def build(out: Path) -> None:
     widths = {c: int(cv2.VideoCapture(str(v)).get(cv2.CAP_PROP_FRAME_WIDTH)) for c, v in videos.items()}
     cams = read_qualisys(pose2sim_demo_path("calibration/Calib.qca.txt"), image_widths=widths)
     frames, uv, conf = {}, [], []
+    est = PoseEstimator(EstimatorOptions(max_people=1))
     for cam in cams:
         k = cam.intrinsics
-        est = PoseEstimator(EstimatorOptions(max_people=1, intrinsics=IntrinsicsOptions(k.fx, k.fy, k.cx, k.cy)))
         frames[cam.name] = read_frames(videos[cam.name], {i + OFFSETS[cam.name] for i in INSTANTS})
         cam_uv, cam_conf = [], []
         for i in INSTANTS:

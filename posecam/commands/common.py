@@ -1,4 +1,4 @@
-"""What `predict` and `fuse` share: the intrinsics flags, the progress bar, predicting inputs."""
+"""What `predict` and `fuse` share: the estimator and intrinsics flags, the progress bar, outputs."""
 
 from __future__ import annotations
 
@@ -10,30 +10,79 @@ from typing import TYPE_CHECKING
 import click
 
 from posecam.errors import InputError, OutputError, ReaderLeft, printable
+from posecam.inference.contract import DETECTORS
 
 if TYPE_CHECKING:
     from rich.progress import Progress
 
-    from posecam.estimate import PoseEstimator
+    from posecam.estimate import EstimatorOptions
+    from posecam.io.intrinsics import IntrinsicsOptions
     from posecam.media import Media
-    from posecam.results import Frame, Recording
+    from posecam.results import Frame
 
 
-def intrinsics_options(f: Callable) -> Callable:
-    """The intrinsics flags shared by `predict` and `fuse`."""
+def estimator_options(f: Callable) -> Callable:
+    """The model and detection flags of `predict` and `fuse` (its video inputs), read by `make_estimator_options`."""
     for opt in reversed([
-        click.option("--fx", type=float, show_default="from --intrinsics, else EXIF, else a 28 mm-equivalent lens",
-                     help="Focal length in pixels (x)."),
-        click.option("--fy", type=float, help="Focal length in pixels (y); defaults to fx."),
-        click.option("--cx", type=float, help="Principal point x in pixels; defaults to the image centre."),
-        click.option("--cy", type=float, help="Principal point y in pixels; defaults to the image centre."),
-        click.option("--intrinsics", "intrinsics_file", type=click.Path(),
-                     help="JSON with fx, fy, cx, cy (or a 3x3 matrix), or a calibration: anipose/Pose2Sim TOML "
-                          "or Qualisys .qca.txt (with --camera)."),
-        click.option("--camera", help="Camera name inside the --intrinsics calibration (needs --intrinsics)."),
+        click.option("--device", type=click.Choice(["cpu", "cuda"]), default="cpu", show_default=True,
+                     help="Run the pose model on the CPU or on an NVIDIA GPU (needs onnxruntime-gpu)."),
+        click.option("--model", default="full", show_default=True, help="lite, full, heavy or a posecam .onnx file."),
+        click.option("--skeleton", type=click.Choice(["17", "33"]), default="17", show_default=True,
+                     help="17 Human3.6M-style joints (root: pelvis) or all 33 BlazePose landmarks (root: mid_hip, "
+                          "the hips' midpoint)."),
+        click.option("--detector", type=click.Choice(list(DETECTORS)), default="movenet", show_default=True,
+                     help="Person detector: movenet (MoveNet MultiPose: whole bodies, up to 6 per run) or blazepose "
+                          "(BlazePose's: heads of near, frontal people)."),
+        click.option("--max-people", type=click.IntRange(1), default=6, show_default=True,
+                     help="Most people followed per image or video."),
+        click.option("--min-detection-score", type=float,
+                     show_default="the detector's own: movenet 0.25, blazepose 0.5",
+                     help="Person detector score, 0 to 1, below which a person is not looked at."),
+        click.option("--min-presence", type=float, default=0.5, show_default=True,
+                     help="Pose model presence, 0 to 1, below which a person is dropped."),
+        click.option("--threads", type=click.IntRange(1, 256), show_default="CPU cores, at most 8",
+                     help="CPU threads for onnxruntime."),
     ]):
         f = opt(f)
     return f
+
+
+def make_estimator_options(kwargs: dict) -> EstimatorOptions:
+    """The EstimatorOptions of the `estimator_options` flags, taken out of a command's kwargs."""
+    from posecam.estimate import EstimatorOptions
+
+    names = ("device", "model", "skeleton", "detector", "max_people", "min_detection_score", "min_presence", "threads")
+    return EstimatorOptions(**{n: kwargs.pop(n) for n in names})
+
+
+def intrinsics_options(per_camera: bool = False) -> Callable:
+    """The intrinsics flags shared by `predict` and `fuse` (`per_camera`: --camera names one camera per video)."""
+    camera_help = ("Camera names inside the --intrinsics calibration, one per video in the order of the inputs "
+                   "(cam01,cam02,...); default: matched to the video names." if per_camera else
+                   "Camera name inside the --intrinsics calibration (needs --intrinsics).")
+
+    def decorate(f: Callable) -> Callable:
+        for opt in reversed([
+            click.option("--fx", type=float, show_default="from --intrinsics, else EXIF, else a 28 mm-equivalent lens",
+                         help="Focal length in pixels (x)."),
+            click.option("--fy", type=float, help="Focal length in pixels (y); defaults to fx."),
+            click.option("--cx", type=float, help="Principal point x in pixels; defaults to the image centre."),
+            click.option("--cy", type=float, help="Principal point y in pixels; defaults to the image centre."),
+            click.option("--intrinsics", "intrinsics_file", type=click.Path(),
+                         help="JSON with fx, fy, cx, cy (or a 3x3 matrix), or a calibration: anipose/Pose2Sim TOML "
+                              "or Qualisys .qca.txt (with --camera)."),
+            click.option("--camera", help=camera_help),
+        ]):
+            f = opt(f)
+        return f
+    return decorate
+
+
+def make_intrinsics_options(kwargs: dict) -> IntrinsicsOptions:
+    """The IntrinsicsOptions of the `intrinsics_options` flags, taken out of a command's kwargs."""
+    from posecam.io.intrinsics import IntrinsicsOptions
+
+    return IntrinsicsOptions(*(kwargs.pop(n) for n in ("fx", "fy", "cx", "cy", "intrinsics_file", "camera")))
 
 
 def height_option(f: Callable) -> Callable:
@@ -139,20 +188,16 @@ def report_written(paths: list[str | None], console) -> None:
         console.print(f"wrote {', '.join(written)}", soft_wrap=True)
 
 
-FrameHook = Callable[["Frame", "object", "Media"], None]
-
-
-def predict_with_progress(estimator: PoseEstimator, path: str, progress: Progress,
-                          on_frame: FrameHook | None = None) -> Recording:
-    """`estimator.predict_file(path)` with a bar in `progress`; `on_frame` sees every frame too."""
-    task = progress.add_task(Path(path).name, total=None)
+def frame_progress(progress: Progress) -> Callable[[Frame, object, Media], None]:
+    """An `on_frame` hook that moves one bar per input in `progress` (a bar appears at an input's first frame)."""
+    bars: dict = {}
 
     def step(frame: Frame, rgb, media: Media) -> None:
-        progress.update(task, completed=frame.index + 1, total=media.frame_count)
-        if on_frame:
-            on_frame(frame, rgb, media)
+        if media.path not in bars:
+            bars[media.path] = progress.add_task(Path(media.path).name, total=media.frame_count)
+        progress.update(bars[media.path], completed=frame.index + 1)
 
-    return estimator.predict_file(path, on_frame=step)
+    return step
 
 
 def warn(message: str) -> None:

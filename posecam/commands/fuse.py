@@ -8,7 +8,8 @@ from typing import TYPE_CHECKING
 
 import click
 
-from posecam.commands.common import (check_output, many_options, predict_with_progress, progress_bar,
+from posecam.commands.common import (check_output, estimator_options, frame_progress, intrinsics_options,
+                                     make_estimator_options, make_intrinsics_options, many_options, progress_bar,
                                      refuse_alone, report_written, stdout_report, shown, warn)
 from posecam.errors import InputError
 
@@ -44,8 +45,6 @@ def print_report(result: FusionResult, console) -> None:
               help="Smooth each fused person's joints over time (zero-phase 6 Hz Butterworth).")
 @click.option("--trc-y-up", is_flag=True, help="TRC/C3D: Y-up axes as OpenSim expects (a calibration's Z-up world "
                                                "as Pose2Sim turns it; a camera frame turned 180 degrees about x).")
-@click.option("--device", type=click.Choice(["cpu", "cuda"]), default="cpu", show_default=True,
-              help="Run the pose model for video inputs on the CPU or on an NVIDIA GPU (needs onnxruntime-gpu).")
 @click.option("--calibration", type=click.Path(),
               help="Known cameras: an anipose/Pose2Sim calibration TOML or a Qualisys .qca.txt.")
 @click.option("--save-calibration", type=click.Path(), help="Write the cameras to FILE.toml (anipose/Pose2Sim).")
@@ -57,17 +56,20 @@ def print_report(result: FusionResult, console) -> None:
                                 "shows the same instant as the first view's frame i.")
 @click.option("--max-offset", type=click.IntRange(0), default=10, show_default=True,
               help="Largest frame offset --sync auto tries, in frames either way.")
-@click.option("--model", default="full", show_default=True,
-              help="Pose model for video inputs: lite, full, heavy or a posecam .onnx file.")
 @click.option("--viz", type=click.Path(), help="FILE.png or FILE.jpg: the fused pose projected into every view.")
+@estimator_options
 @many_options("take")
-def fuse_command(inputs, output, calibration, save_calibration, method, sync, offsets, max_offset, model, viz,
-                 viz3d=None, smooth=True, trc_y_up=False, device="cpu", out_dir=None, out_format="json",
-                 jobs=1, ray_address=None) -> None:
+@intrinsics_options(per_camera=True)
+def fuse_command(inputs, output, calibration, save_calibration, method, sync, offsets, max_offset, viz,
+                 viz3d=None, smooth=True, trc_y_up=False, out_dir=None, out_format="json",
+                 jobs=1, ray_address=None, **flags) -> None:
     """Fuse several cameras' views of one scene.
 
     INPUTS are 2 or more videos, image folders or `posecam predict` JSON files, one per
-    static camera; with --out-dir, folders of takes, each holding its cameras' videos.
+    static camera; with --out-dir, folders of takes, each holding its cameras' videos. The
+    model, detection and intrinsics options apply to the video and image-folder inputs,
+    predicted as `posecam predict` does (without --calibration, each camera's intrinsics come
+    from --intrinsics, the flags, or posecam's default lens).
     """
     from rich.console import Console
 
@@ -103,7 +105,11 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     many = out_dir is not None or jobs > 1 or ray_address is not None
     if many and (output or viz or viz3d or save_calibration):
         raise InputError("--out-dir writes one file per take; it does not go with -o, --viz, --viz3d or --save-calibration")
-    staged = OutputSet([None if markers else output, save_calibration, viz, viz3d], [*inputs, calibration],
+    estimator, intrinsics = make_estimator_options(flags), make_intrinsics_options(flags)
+    if calibration and (intrinsics.file or intrinsics.fx is not None or intrinsics.fy is not None):
+        raise InputError("--calibration gives every camera's intrinsics; it does not go with --intrinsics or --fx/--fy")
+    staged = OutputSet([None if markers else output, save_calibration, viz, viz3d],
+                       [*inputs, calibration, intrinsics.file, estimator.model],
                        per_person=markers)  # every output checked before the work
     rig = read_calibration(calibration) if calibration else None
     opts = FuseOptions(calibration=rig, method=method, offsets=offset_list, sync=sync == "auto",
@@ -111,11 +117,11 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     if many:
         from posecam.commands.many import fuse_many
 
-        return fuse_many(list(inputs), opts, model, calibration, device, out_dir, f".{out_format}", jobs,
+        return fuse_many(list(inputs), opts, estimator, intrinsics, calibration, out_dir, f".{out_format}", jobs,
                          ray_address, smooth)
     with progress_bar() as progress:
-        recordings = load_views(list(inputs), model, calibration, rig, device,
-                                predict=lambda estimator, path: predict_with_progress(estimator, path, progress))
+        recordings = load_views(list(inputs), estimator, intrinsics, calibration, rig, opts,
+                                on_frame=frame_progress(progress))
     with err.status("fusing") as status:
         result = fuse_recordings(recordings, opts, progress=lambda msg: status.update(msg))
     for line in result.warnings:

@@ -31,7 +31,7 @@ def _need_out_dir(out_dir: str | None) -> None:
         raise InputError("--jobs and --ray write one file per input: give the folder with --out-dir")
 
 
-def predict_many(inputs: list[str], options, out_dir: str | None, suffix: str, jobs: int,
+def predict_many(inputs: list[str], options, intrinsics, out_dir: str | None, suffix: str, jobs: int,
                  ray_address: str | None, smooth: bool) -> None:
     """Predict every input into DIR/<input name><suffix>."""
     from posecam.batch import plan_predictions, predict_task, threads_per_worker
@@ -39,16 +39,18 @@ def predict_many(inputs: list[str], options, out_dir: str | None, suffix: str, j
     _need_out_dir(out_dir)
     tasks = plan_predictions(inputs, out_dir, suffix)
     options = threads_per_worker(options, jobs) if jobs > 1 else options
-    _run(tasks, len(inputs), partial(predict_task, options=options, smooth=smooth), out_dir, jobs, ray_address,
-         "inputs")
+    _run(tasks, len(inputs), partial(predict_task, options=options, intrinsics=intrinsics, smooth=smooth), out_dir,
+         jobs, ray_address, "inputs")
 
 
-def fuse_many(takes: list[str], options, model: str, calibration: str | None, device: str,
+def fuse_many(takes: list[str], options, estimator, intrinsics, calibration: str | None,
               out_dir: str | None, suffix: str, jobs: int, ray_address: str | None, smooth: bool) -> None:
     """Fuse every take folder into DIR/<take name><suffix>."""
-    from posecam.batch import fuse_task, plan_fusions
+    from posecam.batch import fuse_task, plan_fusions, threads_per_worker
 
     _need_out_dir(out_dir)
     tasks = plan_fusions(takes, out_dir, suffix)
-    work = partial(fuse_task, options=options, model=model, calibration=calibration, device=device, smooth=smooth)
+    estimator = threads_per_worker(estimator, jobs) if jobs > 1 else estimator
+    work = partial(fuse_task, options=options, estimator=estimator, intrinsics=intrinsics, calibration=calibration,
+                   smooth=smooth)
     _run(tasks, len(takes), work, out_dir, jobs, ray_address, "takes")

@@ -7,10 +7,10 @@ from pathlib import Path
 
 import click
 
-from posecam.commands.common import (check_output, intrinsics_options, many_options, progress_bar,
-                                     refuse_alone, report_written, stdout_report, shown, warn)
+from posecam.commands.common import (check_output, estimator_options, intrinsics_options, make_estimator_options,
+                                     make_intrinsics_options, many_options, progress_bar, refuse_alone,
+                                     report_written, stdout_report, shown, warn)
 from posecam.errors import InputError
-from posecam.inference.contract import DETECTORS
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv")
@@ -73,37 +73,34 @@ def explain_empty(sm: InputSummary, min_detection_score: float, min_presence: fl
             f"{min_detection_score:g}")
 
 
-def predict_inputs(estimator, inputs: list[str], progress, writer=None, draw=None, smooth: bool = True,
-                   keep: bool = False, min_presence: float = 0.5) -> tuple[list, list[InputSummary]]:
-    """Predict each input with a progress bar; every frame is drawn (`draw(frame, rgb)`), smoothed
-    (videos), written (`writer`, a PoseWriter) and counted as it comes. The recordings hold
-    their frames only with `keep` (markers and the 3D view need them)."""
-    from posecam.filters import StreamingSmoother
+def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=None, draw=None, smooth: bool = True,
+                   keep: bool = False) -> tuple[list, list[InputSummary]]:
+    """Predict each input through `FileStream.poses` with a progress bar; every frame is drawn
+    (`draw(frame, rgb)`) as it is predicted, then smoothed (videos), written (`writer`, a
+    PoseWriter) and counted. The recordings hold their frames only with `keep` (markers and
+    the 3D view need them)."""
+    from posecam.commands.common import frame_progress
+
+    moved = frame_progress(progress)
+
+    def on_frame(frame, rgb, media) -> None:
+        moved(frame, rgb, media)
+        if draw:
+            draw(frame, rgb)
 
     recordings, summaries = [], []
     for path in inputs:
-        stream = estimator.stream_file(path)
+        stream = estimator.stream_file(path, intrinsics)
         summary = InputSummary(stream.recording)
-        smoother = StreamingSmoother(stream.recording) if smooth and stream.media.kind != "image" else None
-        task = progress.add_task(Path(path).name, total=stream.media.frame_count)
         if writer:
             writer.begin(stream.recording)
-
-        def emit(frames) -> None:
-            for f in frames:
-                summary.add(f)
-                if writer:
-                    writer.frame(f)
-                if keep:
-                    stream.recording.frames.append(f)
-
-        for frame, rgb in stream.frames:
-            progress.update(task, completed=frame.index + 1)
-            if draw:
-                draw(frame, rgb)
-            emit(smoother.push(frame) if smoother else [frame])
-        emit(smoother.flush() if smoother else [])
-        empty = explain_empty(summary, estimator.min_detection_score, min_presence)
+        for frame in stream.poses(smooth, on_frame):
+            summary.add(frame)
+            if writer:
+                writer.frame(frame)
+            if keep:
+                stream.recording.frames.append(frame)
+        empty = explain_empty(summary, estimator.min_detection_score, estimator.options.min_presence)
         if empty:
             warn(empty)
         recordings.append(stream.recording)
@@ -122,36 +119,18 @@ def predict_inputs(estimator, inputs: list[str], progress, writer=None, draw=Non
               help="Smooth each person's joints over time (zero-phase 6 Hz Butterworth) in videos and frame "
                    "sequences; --viz draws the unsmoothed poses.")
 @click.option("--trc-y-up", is_flag=True, help="TRC/C3D: Y-up axes as OpenSim expects (camera turned 180 degrees about x).")
-@click.option("--device", type=click.Choice(["cpu", "cuda"]), default="cpu", show_default=True,
-              help="Run the pose model on the CPU or on an NVIDIA GPU (needs onnxruntime-gpu).")
-@click.option("--model", default="full", show_default=True, help="lite, full, heavy or a posecam .onnx file.")
-@click.option("--skeleton", type=click.Choice(["17", "33"]), default="17", show_default=True,
-              help="17 Human3.6M-style joints (root: pelvis) or all 33 BlazePose landmarks (root: mid_hip, "
-                   "the hips' midpoint).")
-@click.option("--detector", type=click.Choice(list(DETECTORS)), default="movenet", show_default=True,
-              help="Person detector: movenet (MoveNet MultiPose: whole bodies, up to 6 per run) or blazepose "
-                   "(BlazePose's: heads of near, frontal people).")
-@click.option("--max-people", type=click.IntRange(1), default=6, show_default=True,
-              help="Most people followed per image or video.")
-@click.option("--min-detection-score", type=float, show_default="the detector's own: movenet 0.25, blazepose 0.5",
-              help="Person detector score, 0 to 1, below which a person is not looked at.")
-@click.option("--min-presence", type=float, default=0.5, show_default=True,
-              help="Pose model presence, 0 to 1, below which a person is dropped.")
-@click.option("--threads", type=click.IntRange(1, 256), show_default="CPU cores, at most 8",
-              help="CPU threads for onnxruntime.")
+@estimator_options
 @many_options("input")
-@intrinsics_options
-def predict_command(inputs, output, viz, model, skeleton, detector, max_people, min_detection_score, min_presence, threads,
-                    fx, fy, cx, cy, intrinsics_file, camera, out_dir=None, out_format="json", jobs=1,
-                    ray_address=None, viz3d=None, smooth=True, trc_y_up=False, device="cpu") -> None:
+@intrinsics_options()
+def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1, ray_address=None, viz3d=None,
+                    smooth=True, trc_y_up=False, **flags) -> None:
     """3D poses (mm) of every person in INPUTS.
 
     INPUTS are images, videos or folders of images. Each person's joints come out in camera
     coordinates in millimetres: x right, y down, z forward, the camera at the origin.
     """
-    from posecam.estimate import EstimatorOptions, PoseEstimator
+    from posecam.estimate import PoseEstimator
     from posecam.io.atomic import OutputSet
-    from posecam.io.intrinsics import IntrinsicsOptions
     from posecam.io.poses import PoseWriter
     from posecam.io.trc import check_markers_output, write_markers
     from posecam.media import expand_inputs, open_media
@@ -170,23 +149,21 @@ def predict_command(inputs, output, viz, model, skeleton, detector, max_people, 
     for flag, value in (("-o FILE.trc/.c3d", markers), ("--viz3d", viz3d)):
         if value and len(inputs) > 1:
             raise InputError(f"{flag} holds one input; pass a single input (or write .json)")
-    opts = EstimatorOptions(model=model, detector=detector, skeleton=skeleton, max_people=max_people, threads=threads,
-                            min_detection_score=min_detection_score, min_presence=min_presence, device=device,
-                            intrinsics=IntrinsicsOptions(fx, fy, cx, cy, intrinsics_file, camera))
+    opts, intrinsics = make_estimator_options(flags), make_intrinsics_options(flags)
     if out_dir or jobs > 1 or ray_address is not None:
         if output or viz or viz3d:
             raise InputError("--out-dir writes one file per input; it does not go with -o, --viz or --viz3d")
         from posecam.commands.many import predict_many
 
-        return predict_many(list(inputs), opts, out_dir, f".{out_format}", jobs, ray_address, smooth)
+        return predict_many(list(inputs), opts, intrinsics, out_dir, f".{out_format}", jobs, ray_address, smooth)
     first = open_media(inputs[0])
     for path in inputs[1:]:  # fail on a bad input before spending time on the good ones
         open_media(path)
     if viz:
         check_output(viz, IMAGE_SUFFIXES if first.kind == "image" else VIDEO_SUFFIXES, f"--viz for {first.kind} input")
     if markers:
-        check_markers_output(markers, [*inputs, intrinsics_file, model])
-    staged = OutputSet([None if markers else output, viz, viz3d], [*inputs, intrinsics_file, model],
+        check_markers_output(markers, [*inputs, intrinsics.file, opts.model])
+    staged = OutputSet([None if markers else output, viz, viz3d], [*inputs, intrinsics.file, opts.model],
                        per_person=markers)  # every output checked before the work
     estimator = PoseEstimator(opts)
     keep = bool(markers or viz3d)   # these outputs need whole recordings; JSON and CSV are streamed
@@ -202,8 +179,8 @@ def predict_command(inputs, output, viz, model, skeleton, detector, max_people, 
             picture = draw_people(rgb, frame.people, estimator.joints)
             sink.write(picture) if sink else write_image(staged.path(viz), picture)
 
-        recordings, summaries = predict_inputs(estimator, inputs, progress, writer, draw if viz else None, smooth,
-                                               keep, min_presence)
+        recordings, summaries = predict_inputs(estimator, inputs, intrinsics, progress, writer, draw if viz else None,
+                                               smooth, keep)
         if writer:
             writer.close()
         written = write_markers(markers, recordings[0], trc_y_up, staged) if markers else [output]

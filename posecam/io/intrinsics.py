@@ -72,6 +72,12 @@ def _from_toml(path: Path, camera: str | None, width: int, height: int) -> Intri
     return Intrinsics(k.fx, k.fy, k.cx, k.cy, source=f"file:{path.name}#{camera}")
 
 
+def is_calibration(path: str | Path) -> bool:
+    """True for a calibration of cameras (anipose/Pose2Sim TOML, Qualisys .qca.txt), False for
+    an intrinsics JSON."""
+    return Path(path).suffix.lower() == ".toml" or Path(path).name.lower().endswith(".qca.txt")
+
+
 def resolve_intrinsics(opts: IntrinsicsOptions, width: int, height: int, image_path: str | Path | None = None) -> Intrinsics:
     """The intrinsics to use for an input of this size, following the documented order."""
     return _resolve(opts, width, height, image_path).check_image(width, height)
@@ -88,7 +94,7 @@ def _resolve(opts: IntrinsicsOptions, width: int, height: int, image_path: str |
         path = check_input(opts.file, "intrinsics file")
         if not path.is_file():
             raise InputError(f"intrinsics file {path} is a folder")
-        if path.suffix.lower() == ".toml" or path.name.lower().endswith(".qca.txt"):
+        if is_calibration(path):
             return _from_toml(path, opts.camera, width, height)
         return _from_json(path)
     if image_path is not None:

@@ -72,6 +72,20 @@ def view_names(recordings: list[Recording]) -> list[str]:
     return names
 
 
+def check_lengths(names: list[str], lengths: list[int], opts: FuseOptions) -> str | None:
+    """Views of one take have one length: InputError when they differ by more than the offsets
+    allow (`max_offset` and the largest `offsets`), a warning line when they differ at all."""
+    if not lengths or max(lengths) == min(lengths):
+        return None
+    shown = ", ".join(f"{n} {k}" for n, k in zip(names, lengths))
+    slack = opts.max_offset + max((abs(o) for o in opts.offsets or [0]), default=0)
+    if max(lengths) - min(lengths) > slack:
+        raise InputError(f"the views have different lengths ({shown} frames): fuse needs "
+                         "recordings of the same take; trim them to it")
+    return (f"the views differ in length ({shown} frames): fuse lines them up by their first frames "
+            "(shifted by --offsets or --sync auto); are they one take, cut alike?")
+
+
 def _check(recordings: list[Recording], opts: FuseOptions) -> None:
     if len(recordings) < 2:
         raise InputError(f"fusion needs two views or more, got {len(recordings)}")
@@ -81,11 +95,7 @@ def _check(recordings: list[Recording], opts: FuseOptions) -> None:
         raise InputError("the views were predicted with different skeletons; predict them with the same --skeleton")
     if opts.offsets is not None and len(opts.offsets) != len(recordings):
         raise InputError(f"--offsets needs one value per view ({len(recordings)}), got {len(opts.offsets)}")
-    lengths = [len(r.frames) for r in recordings]
-    slack = opts.max_offset + max((abs(o) for o in opts.offsets or [0]), default=0)
-    if max(lengths) - min(lengths) > slack:
-        raise InputError(f"the views have different lengths ({', '.join(map(str, lengths))} frames): fuse needs "
-                         "recordings of the same take; trim them to it")
+    check_lengths(view_names(recordings), [len(r.frames) for r in recordings], opts)
     rates = [r.fps for r in recordings if r.fps]
     if rates and max(rates) > 1.01 * min(rates):
         raise InputError(f"the views have different frame rates ({', '.join(f'{f:g}' for f in rates)} fps)")

@@ -1,0 +1,102 @@
+"""The one prediction path: a take's views predicted by one estimator, each with its own camera's
+intrinsics; `--out-dir` writes what `-o` writes; fuse's options reach the videos."""
+
+import json
+import warnings
+
+import pytest
+
+from conftest import DATA, EXAMPLES, run_posecam
+from posecam.errors import InputError, PosecamWarning
+from posecam.geometry.camera import CameraCalibration, Intrinsics
+from posecam.io.calibration import write_toml
+from posecam.io.intrinsics import IntrinsicsOptions
+from posecam.io.poses import read_poses, write_poses
+from posecam.views import load_views, view_intrinsics
+
+VIEWS = [str(DATA / "messi5.jpg"), str(EXAMPLES / "balance.jpg")]   # 548x342 and 1080x1920
+
+
+def _calibration(tmp_path):
+    """Two cameras with focal lengths no default lens has, sized like the two views."""
+    cams = [CameraCalibration("left", (548, 342), Intrinsics(401.0, 402.0, 270.0, 170.0)),
+            CameraCalibration("right", (1080, 1920), Intrinsics(1501.0, 1502.0, 540.0, 950.0))]
+    path = tmp_path / "calib.toml"
+    write_toml(path, cams)
+    return path
+
+
+def test_each_view_gets_its_own_camera_from_one_estimator(estimator, tmp_path):
+    calib = _calibration(tmp_path)
+    recs = load_views(VIEWS, intrinsics=IntrinsicsOptions(file=str(calib), camera="left,right"), estimator=estimator)
+    assert [(r.intrinsics.fx, r.intrinsics.source) for r in recs] == [
+        (401.0, "file:calib.toml#left"), (1501.0, "file:calib.toml#right")]
+    assert [len(r.frames[0].people) for r in recs] == [1, 1]
+    # the same pose, lifted with a focal length 1501 / 1681.2 of the lab's: the pinhole puts it nearer
+    lab = estimator.predict_file(VIEWS[1], IntrinsicsOptions(file=str(EXAMPLES / "cam01_intrinsics.json")))
+    ratio = recs[1].frames[0].people[0].root[2] / lab.frames[0].people[0].root[2]
+    assert ratio == pytest.approx(1501.0 / 1681.24, rel=0.05)
+
+
+def test_camera_names_must_match_the_videos(tmp_path):
+    calib = str(_calibration(tmp_path))
+    with pytest.raises(InputError, match="names 2 cameras for 3 videos"):
+        view_intrinsics(["a.mp4", "b.mp4", "c.mp4"], IntrinsicsOptions(file=calib, camera="left,right"))
+    one = view_intrinsics(["a.mp4", "b.mp4"], IntrinsicsOptions(file=calib, camera="right"))
+    assert [o.camera for o in one] == ["right", "right"]
+    flags = view_intrinsics(["a.mp4", "b.mp4"], IntrinsicsOptions(fx=900.0))
+    assert [o.fx for o in flags] == [900.0, 900.0] and all(o.file is None for o in flags)
+
+
+def test_lengths_are_compared_from_the_headers_before_any_prediction(estimator, tmp_path):
+    """A 30-frame video against a 25-frame pose file: a warning naming both, from the video's
+    header; against a 5-frame one (past the offsets fuse may try): refused, nothing predicted."""
+    rec = estimator.predict_file(EXAMPLES / "balance.jpg")
+    rec.frames = rec.frames * 25
+    write_poses(tmp_path / "side.json", [rec])
+    video = str(DATA / "balance_cam01_30f.mp4")
+    with pytest.warns(PosecamWarning, match=r"differ in length \(balance_cam01_30f.mp4 30, side.json 25 frames\)"):
+        recs = load_views([video, str(tmp_path / "side.json")], estimator=estimator)
+    assert [len(r.frames) for r in recs] == [30, 25]
+    rec.frames = rec.frames[:5]
+    write_poses(tmp_path / "short.json", [rec])
+    with warnings.catch_warnings(record=True) as seen:
+        warnings.simplefilter("always")
+        with pytest.raises(InputError, match=r"different lengths \(balance_cam01_30f.mp4 30, short.json 5 frames\)"):
+            load_views([video, str(tmp_path / "short.json")], on_frame=lambda *a: pytest.fail("predicted"))
+    assert not seen
+
+
+def test_out_dir_writes_what_dash_o_writes(tmp_path):
+    """`--out-dir` (the batch task) and `-o` (the command) stream through one path: the same
+    smoothed frames, byte for byte past the header."""
+    video = DATA / "balance_cam01_30f.mp4"
+    (tmp_path / "dir").mkdir()
+    r = run_posecam("predict", video, "--out-dir", tmp_path / "dir", "--fx", "1500")
+    assert r.returncode == 0, r.stderr
+    r = run_posecam("predict", video, "-o", tmp_path / "one.json", "--fx", "1500")
+    assert r.returncode == 0, r.stderr
+    a, b = (json.loads(p.read_text()) for p in (tmp_path / "dir" / "balance_cam01_30f.json", tmp_path / "one.json"))
+    assert a["inputs"][0]["intrinsics"]["fx"] == 1500.0
+    assert a == b
+    raw = run_posecam("predict", video, "-o", tmp_path / "raw.json", "--fx", "1500", "--no-smooth")
+    assert raw.returncode == 0, raw.stderr
+    assert read_poses(tmp_path / "raw.json")[0].frames[3].people[0].keypoints_3d.tolist() != \
+        read_poses(tmp_path / "one.json")[0].frames[3].people[0].keypoints_3d.tolist()   # smoothing did something
+
+
+@pytest.mark.parametrize("args, code, words", [
+    (["--calibration", "{calib}", "--intrinsics", "{calib}"], 2, "--calibration gives every camera's intrinsics"),
+    (["--camera", "left"], 2, "give the file too"),
+    (["--detector", "nope"], 2, "Invalid value for '--detector'"),
+    (["--min-presence", "2"], 2, "min_presence must lie in [0, 1]"),
+    (["--max-people", "0"], 2, "--max-people"),
+])
+def test_fuse_takes_predicts_options_and_checks_them_before_any_work(args, code, words, tmp_path):
+    from conftest import invoke_posecam
+
+    calib = _calibration(tmp_path)
+    r = invoke_posecam("fuse", *VIEWS, *(a.format(calib=calib) for a in args), "-o", tmp_path / "x.json")
+    assert r.exit_code == code and words in r.stderr, r.stderr
+    assert r.stderr.startswith("posecam: error:") and len(r.stderr.splitlines()) == 1
+    assert not (tmp_path / "x.json").exists()
