@@ -20,6 +20,7 @@ class Person:
     keypoints_2d: np.ndarray    # (J, 2) u, v in pixels
     keypoints_3d: np.ndarray    # (J, 3) x, y, z in mm, camera (or world) coordinates
     confidence: np.ndarray      # (J,) in [0, 1]
+    angles: dict[str, float] | None = None   # joint/segment angles in degrees (posecam.angles), when asked for
 
     def __post_init__(self) -> None:
         if np.ndim(self.confidence) != 1:

@@ -93,6 +93,22 @@ def height_option(f: Callable) -> Callable:
                              "--height 1=1.21).")(f)
 
 
+def angle_options(f: Callable) -> Callable:
+    """--angles and --plot, shared by `predict` and `fuse` (posecam.angles, posecam.viz.plot)."""
+    f = click.option("--plot", type=click.Path(),
+                     help="FILE.png or FILE.html: each person's joint angles and root depth over time.")(f)
+    return click.option("--angles", is_flag=True,
+                        help="Add each person's joint and segment angles (degrees, Sports2D's conventions, from the "
+                             "smoothed joints) to -o FILE.json or FILE.csv.")(f)
+
+
+def check_angles(angles: bool, output: str | None, plot: str | None) -> None:
+    """Refuse --angles without a JSON/CSV output to hold them, and a --plot of the wrong kind."""
+    if angles and not (output and Path(output).suffix.lower() in (".json", ".csv")):
+        raise InputError("--angles writes the angles into -o FILE.json or FILE.csv; give one (or only --plot)")
+    check_output(plot, (".png", ".html"), "--plot")
+
+
 def many_options(unit: str) -> Callable:
     """The --out-dir/--format/--jobs/--ray options of `predict` (unit "input") and `fuse` ("take")."""
     def decorate(f: Callable) -> Callable:

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from posecam.commands.common import (check_output, estimator_options, frame_progress, intrinsics_options,
+from posecam.commands.common import (angle_options, check_angles, check_output, estimator_options, frame_progress, intrinsics_options,
                                      make_estimator_options, make_intrinsics_options, many_options, progress_bar,
                                      refuse_alone, report_written, stdout_report, shown, warn)
 from posecam.errors import InputError
@@ -57,12 +57,13 @@ def print_report(result: FusionResult, console) -> None:
 @click.option("--max-offset", type=click.IntRange(0), default=10, show_default=True,
               help="Largest frame offset --sync auto tries, in frames either way.")
 @click.option("--viz", type=click.Path(), help="FILE.png or FILE.jpg: the fused pose projected into every view.")
+@angle_options
 @estimator_options
 @many_options("take")
 @intrinsics_options(per_camera=True)
 def fuse_command(inputs, output, calibration, save_calibration, method, sync, offsets, max_offset, viz,
                  viz3d=None, smooth=True, trc_y_up=False, out_dir=None, out_format="json",
-                 jobs=1, ray_address=None, **flags) -> None:
+                 jobs=1, ray_address=None, angles=False, plot=None, **flags) -> None:
     """Fuse several cameras' views of one scene.
 
     INPUTS are 2 or more videos, image folders or `posecam predict` JSON files, one per
@@ -81,11 +82,13 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     from posecam.io.trc import check_markers_output, write_markers
     from posecam.multiview.fuse import FuseOptions, fuse_recordings
     from posecam.viz.view3d import write_view3d
+    from posecam.angles import angle_names
     from posecam.views import load_views
 
     err = Console(stderr=True, highlight=False)
     check_output(output, (".json", ".csv", ".trc", ".c3d"), "output")
     check_output(viz3d, (".html",), "--viz3d")
+    check_angles(angles, output, plot)
     markers = output if output and Path(output).suffix.lower() in (".trc", ".c3d") else None
     if markers:
         check_markers_output(markers, [*inputs, calibration])
@@ -103,12 +106,13 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
         check_input(calibration, "calibration")   # a pipe or a device would block the read
     refuse_alone("out_format", "--out-dir", bool(out_dir))
     many = out_dir is not None or jobs > 1 or ray_address is not None
-    if many and (output or viz or viz3d or save_calibration):
-        raise InputError("--out-dir writes one file per take; it does not go with -o, --viz, --viz3d or --save-calibration")
+    if many and (output or viz or viz3d or save_calibration or angles or plot):
+        raise InputError("--out-dir writes one file per take; it does not go with -o, --viz, --viz3d, --save-calibration, "
+                         "--angles or --plot")
     estimator, intrinsics = make_estimator_options(flags), make_intrinsics_options(flags)
     if calibration and (intrinsics.file or intrinsics.fx is not None or intrinsics.fy is not None):
         raise InputError("--calibration gives every camera's intrinsics; it does not go with --intrinsics or --fx/--fy")
-    staged = OutputSet([None if markers else output, save_calibration, viz, viz3d],
+    staged = OutputSet([None if markers else output, save_calibration, viz, viz3d, plot],
                        [*inputs, calibration, intrinsics.file, estimator.model],
                        per_person=markers)  # every output checked before the work
     rig = read_calibration(calibration) if calibration else None
@@ -127,10 +131,15 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     for line in result.warnings:
         warn(line)
     fused = smooth_recording(result.recording) if smooth else result.recording
+    if angles or plot:
+        from posecam.angles import add_angles
+
+        for frame in fused.frames:
+            add_angles(frame, fused)
     with staged:  # every output or none
         written = write_markers(markers, fused, trc_y_up, staged) if markers else [output]
         if output and not markers:
-            write_poses(staged.path(output), [fused])
+            write_poses(staged.path(output), [fused], angle_names(fused.joints) if angles else ())
         if viz3d:
             write_view3d(staged.path(viz3d), fused, result.rig)
         if save_calibration:
@@ -140,6 +149,13 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
             from posecam.viz.fusion_grid import write_grid
 
             write_grid(staged.path(viz), result, recordings)
+        if plot:
+            from posecam.viz.plot import AngleSeries, write_plot
+
+            series = AngleSeries(fused.joints)
+            for frame in fused.frames:
+                series.add(frame)
+            write_plot(staged.path(plot), series, f"fused {len(result.views)} views")
         with stdout_report() as console:   # stdout is an output too: written before the files are
             print_report(result, console)
-            report_written([*written, save_calibration, viz, viz3d], console)
+            report_written([*written, save_calibration, viz, viz3d, plot], console)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from posecam.commands.common import (check_output, estimator_options, intrinsics_options, make_estimator_options,
+from posecam.commands.common import (angle_options, check_angles, check_output, estimator_options, intrinsics_options, make_estimator_options,
                                      make_intrinsics_options, many_options, progress_bar, refuse_alone,
                                      report_written, stdout_report, shown, warn)
 from posecam.errors import InputError
@@ -74,11 +74,11 @@ def explain_empty(sm: InputSummary, min_detection_score: float, min_presence: fl
 
 
 def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=None, draw=None, smooth: bool = True,
-                   keep: bool = False) -> tuple[list, list[InputSummary]]:
+                   keep: bool = False, emitted=None) -> tuple[list, list[InputSummary]]:
     """Predict each input through `FileStream.poses` with a progress bar; every frame is drawn
-    (`draw(frame, rgb)`) as it is predicted, then smoothed (videos), written (`writer`, a
-    PoseWriter) and counted. The recordings hold their frames only with `keep` (markers and
-    the 3D view need them)."""
+    (`draw(frame, rgb)`) as it is predicted, then smoothed (videos), handed to `emitted(frame,
+    recording)` (angles, plots), written (`writer`, a PoseWriter) and counted. The recordings
+    hold their frames only with `keep` (markers and the 3D view need them)."""
     from posecam.commands.common import frame_progress
 
     moved = frame_progress(progress)
@@ -95,6 +95,8 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
         if writer:
             writer.begin(stream.recording)
         for frame in stream.poses(smooth, on_frame):
+            if emitted:
+                emitted(frame, stream.recording)
             summary.add(frame)
             if writer:
                 writer.frame(frame)
@@ -115,6 +117,7 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
                    "(needs posecam[c3d]): one input, one file per person (FILE_id<ID>.trc when several).")
 @click.option("--viz", type=click.Path(), help="Draw the result: FILE.png/.jpg for an image, FILE.mp4 for a video.")
 @click.option("--viz3d", type=click.Path(), help="FILE.html: a self-contained 3D view of one input's poses.")
+@angle_options
 @click.option("--smooth/--no-smooth", default=True, show_default=True,
               help="Smooth each person's joints over time (zero-phase 6 Hz Butterworth) in videos and frame "
                    "sequences; --viz draws the unsmoothed poses.")
@@ -123,7 +126,7 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
 @many_options("input")
 @intrinsics_options()
 def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1, ray_address=None, viz3d=None,
-                    smooth=True, trc_y_up=False, **flags) -> None:
+                    smooth=True, trc_y_up=False, angles=False, plot=None, **flags) -> None:
     """3D poses (mm) of every person in INPUTS.
 
     INPUTS are images, videos or folders of images. Each person's joints come out in camera
@@ -137,22 +140,26 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     from posecam.viz.draw import draw_people
     from posecam.viz.sinks import VideoSink, write_image
     from posecam.viz.view3d import write_view3d
+    from posecam.angles import add_angles, angle_names
+    from posecam.viz.plot import AngleSeries, write_plot
 
     inputs = [str(p) for p in expand_inputs(inputs)]   # a folder of photos: each photo an input
     if viz and len(inputs) > 1:
         raise InputError("--viz draws one input; pass a single input with --viz")
     check_output(output, (".json", ".csv", *MARKER_SUFFIXES), "output")
     check_output(viz3d, (".html",), "--viz3d")
+    check_angles(angles, output, plot)
     markers = output if output and Path(output).suffix.lower() in MARKER_SUFFIXES else None
     refuse_alone("trc_y_up", "-o FILE.trc or FILE.c3d", bool(markers))
     refuse_alone("out_format", "--out-dir", bool(out_dir))
-    for flag, value in (("-o FILE.trc/.c3d", markers), ("--viz3d", viz3d)):
+    for flag, value in (("-o FILE.trc/.c3d", markers), ("--viz3d", viz3d), ("--plot", plot)):
         if value and len(inputs) > 1:
             raise InputError(f"{flag} holds one input; pass a single input (or write .json)")
     opts, intrinsics = make_estimator_options(flags), make_intrinsics_options(flags)
     if out_dir or jobs > 1 or ray_address is not None:
-        if output or viz or viz3d:
-            raise InputError("--out-dir writes one file per input; it does not go with -o, --viz or --viz3d")
+        if output or viz or viz3d or plot or angles:
+            raise InputError("--out-dir writes one file per input; it does not go with -o, --viz, --viz3d, --angles "
+                             "or --plot")
         from posecam.commands.many import predict_many
 
         return predict_many(list(inputs), opts, intrinsics, out_dir, f".{out_format}", jobs, ray_address, smooth)
@@ -163,7 +170,7 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
         check_output(viz, IMAGE_SUFFIXES if first.kind == "image" else VIDEO_SUFFIXES, f"--viz for {first.kind} input")
     if markers:
         check_markers_output(markers, [*inputs, intrinsics.file, opts.model])
-    staged = OutputSet([None if markers else output, viz, viz3d], [*inputs, intrinsics.file, opts.model],
+    staged = OutputSet([None if markers else output, viz, viz3d, plot], [*inputs, intrinsics.file, opts.model],
                        per_person=markers)  # every output checked before the work
     estimator = PoseEstimator(opts)
     keep = bool(markers or viz3d)   # these outputs need whole recordings; JSON and CSV are streamed
@@ -173,19 +180,27 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
             sink = stack.enter_context(VideoSink(staged.path(viz), first.fps or 30.0, first.width, first.height))
         if output and not markers:
             handle = stack.enter_context(open(staged.path(output), "w", encoding="utf-8", newline=""))
-            writer = PoseWriter(handle, Path(output).suffix.lower()[1:])
+            writer = PoseWriter(handle, Path(output).suffix.lower()[1:], angle_names(estimator.joints) if angles else ())
+        series = AngleSeries(estimator.joints) if plot else None
+
+        def emitted(frame, rec) -> None:
+            add_angles(frame, rec)
+            if series:
+                series.add(frame)
 
         def draw(frame, rgb) -> None:
             picture = draw_people(rgb, frame.people, estimator.joints)
             sink.write(picture) if sink else write_image(staged.path(viz), picture)
 
         recordings, summaries = predict_inputs(estimator, inputs, intrinsics, progress, writer, draw if viz else None,
-                                               smooth, keep)
+                                               smooth, keep, emitted if angles or plot else None)
         if writer:
             writer.close()
         written = write_markers(markers, recordings[0], trc_y_up, staged) if markers else [output]
         if viz3d:
             write_view3d(staged.path(viz3d), recordings[0])
+        if plot:
+            write_plot(staged.path(plot), series, Path(inputs[0]).name)
         with stdout_report() as console:   # stdout is an output too: written before the files are
             print_summary(summaries, console)
-            report_written([*written, viz, viz3d], console)
+            report_written([*written, viz, viz3d, plot], console)

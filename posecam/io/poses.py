@@ -4,6 +4,9 @@ JSON: {"posecam", "model", "joints", "root_joint", "inputs": [{"source", "width"
 "intrinsics": {"fx", "fy", "cx", "cy", "source"}, "fps", "frames": [{"index", "time",
 "people": [{"id", "score", "bbox", "keypoints_2d", "keypoints_3d", "confidence", "root"}]}]}]}
 CSV: one row per joint, header exactly CSV_HEADER.
+With angles (`posecam predict --angles`, posecam.angles) each person also holds "angles": {name:
+degrees}, and the CSV gains one column per angle after CSV_HEADER's (the person's angles in that
+frame, repeated on each of its joint rows).
 
 Both are written frame by frame (`write_poses`), so no second copy of a long video's poses is
 built in memory. Values that are not finite (a joint a model could not place) are written as
@@ -55,6 +58,7 @@ def person_to_dict(p: Person) -> dict:
         "keypoints_3d": _round(p.keypoints_3d, 1),
         "confidence": _round(p.confidence, 3),
         "root": _round(p.root, 1),
+        **({"angles": {k: _number(v, 1) for k, v in p.angles.items()}} if p.angles is not None else {}),
     }
 
 
@@ -84,12 +88,12 @@ def _dumps(value) -> str:
 class PoseWriter:
     """Writes a pose file as the poses come: `begin(recording)` for each input (its header; its
     frames may still be empty), `frame(f)` for each of its frames, `close()` at the end. Nothing
-    is kept, so memory stays flat however long the video."""
+    is kept, so memory stays flat however long the video. `angles`: the CSV's angle columns."""
 
-    def __init__(self, out: TextIO, fmt: str):
+    def __init__(self, out: TextIO, fmt: str, angles: tuple[str, ...] = ()):
         if fmt not in ("json", "csv"):
             raise InputError(f"pose files are json or csv, not {fmt!r}")
-        self.out, self.fmt = out, fmt
+        self.out, self.fmt, self.angles = out, fmt, tuple(angles)
         self._rec: Recording | None = None
         self._inputs = self._frames = 0
         self._csv = csv.writer(out, lineterminator="\n") if fmt == "csv" else None
@@ -97,7 +101,7 @@ class PoseWriter:
     def begin(self, rec: Recording) -> None:
         if self.fmt == "csv":
             if not self._inputs:
-                self._csv.writerow(CSV_HEADER)
+                self._csv.writerow(CSV_HEADER + self.angles)
         else:
             if not self._inputs:
                 self.out.write(f'{{"posecam": {_dumps(__version__)}, "model": {_dumps(rec.model)},\n'
@@ -115,12 +119,13 @@ class PoseWriter:
             self.out.write(("," if self._frames else "") + "\n   " + _dumps(frame_to_dict(f)))
         else:
             for p in f.people:
+                angles = tuple(_csv_number((p.angles or {}).get(a, np.nan), 1) for a in self.angles)
                 for j, name in enumerate(r.joints):
                     u, v = p.keypoints_2d[j]
                     x, y, z = p.keypoints_3d[j]
                     self._csv.writerow((r.source, f.index, p.id, name, _csv_number(u, 2), _csv_number(v, 2),
                                         _csv_number(x, 1), _csv_number(y, 1), _csv_number(z, 1),
-                                        _csv_number(p.confidence[j], 3)))
+                                        _csv_number(p.confidence[j], 3)) + angles)
         self._frames += 1
 
     def close(self) -> None:
@@ -133,8 +138,8 @@ def write_json(out: TextIO, recordings: list[Recording]) -> None:
     _write(PoseWriter(out, "json"), recordings)
 
 
-def write_csv(out: TextIO, recordings: list[Recording]) -> None:
-    _write(PoseWriter(out, "csv"), recordings)
+def write_csv(out: TextIO, recordings: list[Recording], angles: tuple[str, ...] = ()) -> None:
+    _write(PoseWriter(out, "csv", angles), recordings)
 
 
 def _write(writer: PoseWriter, recordings: list[Recording]) -> None:
@@ -157,13 +162,14 @@ def to_csv(recordings: list[Recording]) -> str:
     return buf.getvalue()
 
 
-def write_poses(path: str | os.PathLike, recordings: list[Recording]) -> None:
-    """Write JSON or CSV, chosen by the file extension, atomically and frame by frame."""
+def write_poses(path: str | os.PathLike, recordings: list[Recording], angles: tuple[str, ...] = ()) -> None:
+    """Write JSON or CSV, chosen by the file extension, atomically and frame by frame; `angles`:
+    the CSV's angle columns (JSON writes each person's angles when it has them)."""
     suffix = Path(path).suffix.lower()
     if suffix not in (".json", ".csv"):
         raise InputError(f"output must end in .json or .csv, got {path}")
     with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as out:
-        (write_json if suffix == ".json" else write_csv)(out, recordings)
+        write_json(out, recordings) if suffix == ".json" else write_csv(out, recordings, angles)
 
 
 def _array(values, columns: int | None, joints: int, what: str) -> np.ndarray:
@@ -174,6 +180,11 @@ def _array(values, columns: int | None, joints: int, what: str) -> np.ndarray:
     if a.shape != want:
         raise ValueError(f"{what} has shape {list(a.shape)}, expected {list(want)} for {joints} joints")
     return a
+
+
+def _angles(values: dict | None) -> dict[str, float] | None:
+    """A person's angles from JSON (null -> NaN), or None when the file has none."""
+    return None if values is None else {str(k): np.nan if v is None else float(v) for k, v in values.items()}
 
 
 def read_poses(path: str | os.PathLike) -> list[Recording]:
@@ -191,7 +202,7 @@ def read_poses(path: str | os.PathLike) -> list[Recording]:
                     Person(p["id"], p["score"], np.array(p["bbox"], float),
                            _array(p["keypoints_2d"], 2, n, "keypoints_2d"),
                            _array(p["keypoints_3d"], 3, n, "keypoints_3d"),
-                           _array(p["confidence"], None, n, "confidence"))
+                           _array(p["confidence"], None, n, "confidence"), _angles(p.get("angles")))
                     for p in f["people"]
                 ])
                 for f in inp["frames"]

@@ -1,0 +1,147 @@
+"""Joint and segment angles (degrees) from 3D joints, with Sports2D's conventions.
+
+    from posecam.angles import angles_of, angle_names
+    names = angle_names(rec.joints)                    # the angles this skeleton has
+    values = angles_of(xyz, rec.joints, rec.frame_of_reference)   # (..., J, 3) mm -> (..., A)
+
+Sports2D (github.com/davidpagnon/Sports2D, `Sports2D.py` "Angle conventions", with the
+formulas of Pose2Sim's `common.py`: `angle_dict`, `points_to_angles`, `fixed_angles`) measures
+angles on a 2D image of a person seen from the side (or the front). posecam has 3D joints, so it
+builds each person's body frame in every frame and measures Sports2D's angles in that body's own
+sagittal and frontal planes (a perfect side or front camera, whatever the real camera's place):
+
+- up `U`: the frame's vertical (camera frames: -y, a level camera; a calibration's world: +Z);
+- mediolateral `M`: right hip -> left hip, made horizontal; forward `F = M x U`.
+- sagittal view: (F, U), the person facing right; frontal view: (M, U), seen from the front.
+
+A segment's direction `phi(v)` is its angle anticlockwise from the view's horizontal. The angles:
+
+| name                    | view     | Sports2D entry | value                                                |
+|-------------------------|----------|----------------|------------------------------------------------------|
+| {r,l}_ankle_dorsiflexion| sagittal | right ankle    | phi(heel-toe) - phi(ankle-knee) + 90: 0 foot square to the shank, + toes up (33 landmarks only) |
+| {r,l}_knee_flexion      | 3D       | right knee     | 180 - angle(hip-knee, ankle-knee): 0 straight, + bent |
+| {r,l}_hip_flexion       | sagittal | right hip      | phi(hip-knee) - phi(neck-mid hip): 0 thigh along the trunk, + thigh forward |
+| {r,l}_shoulder_flexion  | sagittal | right shoulder | phi(shoulder-elbow) - phi(neck-mid hip): 0 arm along the trunk, + arm forward |
+| {r,l}_elbow_flexion     | 3D       | right elbow    | 180 - angle(shoulder-elbow, wrist-elbow): 0 straight, + bent |
+| {r,l}_hip_abduction     | frontal  | right hip, front view | hip flexion's formula in the front view (mirrored for the right side): + thigh away from the midline |
+| {r,l}_shoulder_abduction| frontal  | right shoulder, front view | likewise: 0 arm along the trunk, + arm out to the side |
+| trunk_sagittal          | sagittal | trunk          | phi(neck-mid hip): 90 upright, < 90 leaning forward  |
+| trunk_frontal           | frontal  | trunk          | phi(neck-mid hip): 90 upright, > 90 leaning to the right |
+| pelvis_frontal          | frontal  | pelvis         | phi(left hip-right hip) in (-90, 90]: + left hip higher |
+| shoulders_frontal       | frontal  | shoulders      | phi(left shoulder-right shoulder) in (-90, 90]: + left higher |
+
+Sports2D measures a front view by mirroring the right side's keypoints (`visible_side = front`),
+which turns its hip and shoulder flexion into abduction; posecam does the same in the frontal
+plane, mirroring the trunk with the right side's limbs so that abduction stays relative to the
+trunk when it leans sideways (Sports2D's right-side value differs from it by twice that lean). Hip and shoulder flexion are sagittal: an arm raised out to the side is foreshortened in
+that view, so its flexion swings (and wraps at +-180) while its abduction tells where it is.
+Knee and elbow are hinges: their flexion is measured in the plane of their two segments (as
+Pose2Sim's `points_to_angles` does with 3D points), so it has no sign (no hyperextension), but
+is right however far the limb is turned out of the sagittal plane. The neck is the 17 joints'
+thorax (the 33 landmarks' shoulder midpoint), the mid hip the pelvis (the hips' midpoint). The
+17-joint skeleton has no heel or toe: ankle dorsiflexion needs `--skeleton 33`. Angles are in
+(-180, 180]; a joint that is missing (NaN) leaves its angles NaN.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from posecam.io.trc import to_y_up
+from posecam.results import Frame, Recording
+
+SIDES = ("r", "l")
+# where each role sits in the two skeletons: one joint, or the mean of several
+_ROLES = {
+    "17": {"mid_hip": ("pelvis",), "neck": ("thorax",),
+           **{f"{s}_{j}": (f"{s}_{j}",) for s in SIDES
+              for j in ("hip", "knee", "ankle", "shoulder", "elbow", "wrist")}},
+    "33": {"mid_hip": ("left_hip", "right_hip"), "neck": ("left_shoulder", "right_shoulder"),
+           **{f"{s}_{j}": (f"{side}_{j}",) for s, side in zip(SIDES, ("right", "left"))
+              for j in ("hip", "knee", "ankle", "shoulder", "elbow", "wrist", "heel", "foot_index")}},
+}
+_JOINT_ANGLES = ("ankle_dorsiflexion", "knee_flexion", "hip_flexion", "shoulder_flexion", "elbow_flexion",
+                 "hip_abduction", "shoulder_abduction")
+_SEGMENT_ANGLES = ("trunk_sagittal", "trunk_frontal", "pelvis_frontal", "shoulders_frontal")
+
+
+def _roles(joints: tuple[str, ...]) -> dict[str, tuple[int, ...]]:
+    for roles in _ROLES.values():
+        if all(j in joints for names in roles.values() for j in names):
+            return {role: tuple(joints.index(j) for j in names) for role, names in roles.items()}
+    raise ValueError(f"angles need the 17-joint or the 33-landmark skeleton, got {len(joints)} joints")
+
+
+def angle_names(joints: tuple[str, ...]) -> tuple[str, ...]:
+    """The angles `angles_of` gives for this joint set, in its output order."""
+    has_feet = "r_heel" in _roles(tuple(joints))
+    return tuple(f"{s}_{a}" for a in _JOINT_ANGLES if has_feet or a != "ankle_dorsiflexion" for s in SIDES) \
+        + _SEGMENT_ANGLES
+
+
+def _wrap(deg: np.ndarray, half_turn: float = 180.0) -> np.ndarray:
+    """Into (-half_turn, half_turn] (180: a full turn; 90: a line's direction, as Sports2D's pelvis)."""
+    period = 2 * half_turn
+    return half_turn - np.mod(half_turn - deg, period)
+
+
+def _direction(v: np.ndarray, horizontal: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """phi(v): the angle of (..., 3) `v` anticlockwise from `horizontal` in the view (horizontal, up)."""
+    return np.degrees(np.arctan2(np.sum(v * up, -1), np.sum(v * horizontal, -1)))
+
+
+def _flexion_3d(a: np.ndarray, joint: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """180 - the angle at `joint` between its segments to `a` and to `b` (0 when straight)."""
+    u, v = a - joint, b - joint
+    return 180.0 - np.degrees(np.arctan2(np.linalg.norm(np.cross(u, v), axis=-1), np.sum(u * v, -1)))
+
+
+def angles_of(xyz: np.ndarray, joints: tuple[str, ...], frame_of_reference: str = "camera") -> np.ndarray:
+    """(..., J, 3) joints in mm (posecam's axes for `frame_of_reference`) -> (..., A) angles in
+    degrees, in the order of `angle_names(joints)` (see the module doc for each)."""
+    joints = tuple(joints)
+    roles = _roles(joints)
+    p = to_y_up(np.asarray(xyz, float), frame_of_reference)          # +Y is up
+    at = {role: p[..., list(idx), :].mean(axis=-2) for role, idx in roles.items()}
+    up = np.array([0.0, 1.0, 0.0])
+    lateral = at["l_hip"] - at["r_hip"]
+    lateral = lateral - lateral[..., 1:2] * up                      # horizontal mediolateral axis M
+    lateral = lateral / np.linalg.norm(lateral, axis=-1, keepdims=True)
+    forward = np.cross(lateral, up)                                  # F = M x U
+
+    def sagittal(v):
+        return _direction(v, forward, up)
+
+    def frontal(v):
+        return _direction(v, lateral, up)
+
+    trunk = sagittal(at["neck"] - at["mid_hip"])
+    trunk_frontal = frontal(at["neck"] - at["mid_hip"])
+    out = {}
+    for s in SIDES:
+        j = {name: at[f"{s}_{name}"] for name in ("hip", "knee", "ankle", "shoulder", "elbow", "wrist")}
+        if "r_heel" in roles:
+            foot_back = at[f"{s}_heel"] - at[f"{s}_foot_index"]
+            out[f"{s}_ankle_dorsiflexion"] = sagittal(foot_back) - sagittal(j["ankle"] - j["knee"]) + 90.0
+        out[f"{s}_knee_flexion"] = _flexion_3d(j["hip"], j["knee"], j["ankle"])
+        out[f"{s}_hip_flexion"] = sagittal(j["hip"] - j["knee"]) - trunk
+        out[f"{s}_shoulder_flexion"] = sagittal(j["shoulder"] - j["elbow"]) - trunk
+        out[f"{s}_elbow_flexion"] = _flexion_3d(j["shoulder"], j["elbow"], j["wrist"])
+        outward = -1.0 if s == "r" else 1.0          # the right side mirrored, as Sports2D's front view
+        out[f"{s}_hip_abduction"] = outward * (frontal(j["hip"] - j["knee"]) - trunk_frontal)
+        out[f"{s}_shoulder_abduction"] = outward * (frontal(j["shoulder"] - j["elbow"]) - trunk_frontal)
+    out["trunk_sagittal"] = trunk
+    out["trunk_frontal"] = trunk_frontal
+    out["pelvis_frontal"] = _wrap(frontal(at["l_hip"] - at["r_hip"]), 90.0)
+    out["shoulders_frontal"] = _wrap(frontal(at["l_shoulder"] - at["r_shoulder"]), 90.0)
+    return np.stack([_wrap(out[name]) for name in angle_names(joints)], axis=-1)
+
+
+def add_angles(frame: Frame, rec: Recording) -> Frame:
+    """Give each person of `frame` its angles (`Person.angles`, name -> degrees), in place."""
+    if frame.people:
+        names = angle_names(rec.joints)
+        values = angles_of(np.stack([p.keypoints_3d for p in frame.people]), rec.joints, rec.frame_of_reference)
+        for p, row in zip(frame.people, values):
+            p.angles = dict(zip(names, row.tolist()))
+    return frame
