@@ -24,6 +24,7 @@ from posecam.filters import smooth_recording
 from posecam.io.atomic import OutputSet
 from posecam.io.intrinsics import IntrinsicsOptions
 from posecam.io.poses import PoseWriter, write_poses
+from posecam.metric import MetricOptions
 
 if TYPE_CHECKING:
     from posecam.multiview.fuse import FuseOptions
@@ -92,15 +93,16 @@ def estimator_for(options: EstimatorOptions) -> PoseEstimator:
 
 
 def predict_task(task: Task, options: EstimatorOptions, intrinsics: IntrinsicsOptions | None = None,
-                 smooth: bool = True) -> str:
+                 smooth: bool = True, metric: MetricOptions | None = None) -> str:
     """Predict one input into its output (.json or .csv) as `posecam predict -o` does: frame by
-    frame through `FileStream.poses` (videos smoothed as they stream), in flat memory."""
+    frame through `FileStream.poses` (people at their metric scale, videos smoothed as they
+    stream), in flat memory."""
     stream = estimator_for(options).stream_file(task.inputs[0], intrinsics)
     with OutputSet([task.output], task.inputs) as staged, \
             open(staged.path(task.output), "w", encoding="utf-8", newline="") as handle:
         writer = PoseWriter(handle, Path(task.output).suffix.lower()[1:])
         writer.begin(stream.recording)
-        for frame in stream.poses(smooth):
+        for frame in stream.poses(smooth, metric=metric):
             writer.frame(frame)
         writer.close()
     return task.output

@@ -23,6 +23,7 @@ import numpy as np
 
 from posecam.errors import InputError, ModelError
 from posecam.filters import StreamingSmoother
+from posecam.metric import MetricOptions, MetricStage
 from posecam.geometry.camera import Intrinsics
 from posecam.geometry.lift import solve_root_translation
 from posecam.inference.detector import Detection, load_detector
@@ -75,16 +76,29 @@ class FileStream:
     recording: Recording
     media: Media
     frames: Iterator[tuple[Frame, np.ndarray]]
+    floor_refused: str = ""             # why `poses(metric=...)` fitted no floor
 
-    def poses(self, smooth: bool = False, on_frame: OnFrame | None = None) -> Iterator[Frame]:
+    def poses(self, smooth: bool = False, on_frame: OnFrame | None = None,
+              metric: MetricOptions | None = None) -> Iterator[Frame]:
         """The input's frames, finished: each predicted frame goes to `on_frame` (progress bars,
-        overlays) as it comes, then, with `smooth` and a video or a sequence, through the
-        streaming smoother (a few seconds late; the whole video's smoothing). Nothing is kept."""
+        overlays) as it comes, then, with `metric`, to its track's metric scale (posecam.metric;
+        afterwards `recording.floor` is set, or `floor_refused` says why not), then, with `smooth`
+        and a video or a sequence, through the streaming smoother (a few seconds late; the whole
+        video's smoothing). Nothing is kept."""
         smoother = StreamingSmoother(self.recording) if smooth and self.media.kind != "image" else None
+        scaler = MetricStage(self.recording, metric) if metric else None
+
+        def finish(frames) -> Iterator[Frame]:
+            for frame in frames:
+                yield from smoother.push(frame) if smoother else (frame,)
+
         for frame, rgb in self.frames:
             if on_frame:
                 on_frame(frame, rgb, self.media)
-            yield from smoother.push(frame) if smoother else (frame,)
+            yield from finish(scaler.push(frame) if scaler else (frame,))
+        if scaler:
+            yield from finish(scaler.flush())
+            self.floor_refused = scaler.floor_refused
         if smoother:
             yield from smoother.flush()
 

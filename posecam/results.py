@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from posecam.geometry.camera import Intrinsics
+from posecam.geometry.floor import Floor
 from posecam.skeleton import root_name, root_point
 
 
@@ -21,6 +22,12 @@ class Person:
     keypoints_3d: np.ndarray    # (J, 3) x, y, z in mm, camera (or world) coordinates
     confidence: np.ndarray      # (J,) in [0, 1]
     angles: dict[str, float] | None = None   # joint/segment angles in degrees (posecam.angles), when asked for
+    # metric scale (posecam.metric); NaN and "" where it was not fixed
+    height: float = float("nan")            # m: the height the person's scale was fixed with
+    height_source: str = ""                 # "given", "given, rank K", "floor" or "model"
+    height_estimated: float = float("nan")  # m: the height estimated from the track, whatever was given
+    height_sd: float = float("nan")         # m: its standard uncertainty
+    depth_sd: float = float("nan")          # mm: standard uncertainty of the root's depth (z)
 
     def __post_init__(self) -> None:
         if np.ndim(self.confidence) != 1:
@@ -60,6 +67,7 @@ class Recording:
     model: str = ""
     fps: float | None = None
     frame_of_reference: str = "camera"   # "camera", "reference camera NAME" or "world"
+    floor: Floor | None = None           # the ground plane under the people (posecam.metric), camera frame
 
     @property
     def root_joint(self) -> str:

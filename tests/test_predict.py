@@ -55,7 +55,7 @@ def test_lab_intrinsics_put_the_subject_where_the_lab_sees_him(tmp_path):
     r = run_posecam("predict", EXAMPLES / "balance.jpg", "--intrinsics", EXAMPLES / "cam01_intrinsics.json", "-o", out)
     assert r.returncode == 0, r.stderr
     rows = list(csv.reader(out.open()))
-    assert rows[0] == "source,frame,person,joint,u,v,x,y,z,confidence".split(",")
+    assert rows[0] == "source,frame,person,joint,u,v,x,y,z,confidence,height,height_source,depth_sd".split(",")
     assert len(rows) == 1 + 17
     pelvis = next(r for r in rows[1:] if r[3] == "pelvis")
     assert 3000 < float(pelvis[8]) < 4500   # cam01 stands about 3.5-4 m from the balance board

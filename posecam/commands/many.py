@@ -32,14 +32,14 @@ def _need_out_dir(out_dir: str | None) -> None:
 
 
 def predict_many(inputs: list[str], options, intrinsics, out_dir: str | None, suffix: str, jobs: int,
-                 ray_address: str | None, smooth: bool) -> None:
+                 ray_address: str | None, smooth: bool, metric=None) -> None:
     """Predict every input into DIR/<input name><suffix>."""
     from posecam.batch import plan_predictions, predict_task, threads_per_worker
 
     _need_out_dir(out_dir)
     tasks = plan_predictions(inputs, out_dir, suffix)
     options = threads_per_worker(options, jobs) if jobs > 1 else options
-    _run(tasks, len(inputs), partial(predict_task, options=options, intrinsics=intrinsics, smooth=smooth), out_dir,
+    _run(tasks, len(inputs), partial(predict_task, options=options, intrinsics=intrinsics, smooth=smooth, metric=metric), out_dir,
          jobs, ray_address, "inputs")
 
 

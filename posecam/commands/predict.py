@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from posecam.commands.common import (angle_options, check_angles, check_output, estimator_options, intrinsics_options, make_estimator_options,
+from posecam.commands.common import (angle_options, check_angles, check_output, estimator_options, height_option, intrinsics_options, make_estimator_options,
                                      make_intrinsics_options, many_options, progress_bar, refuse_alone,
                                      report_written, stdout_report, shown, warn)
 from posecam.errors import InputError
@@ -74,9 +74,10 @@ def explain_empty(sm: InputSummary, min_detection_score: float, min_presence: fl
 
 
 def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=None, draw=None, smooth: bool = True,
-                   keep: bool = False, emitted=None) -> tuple[list, list[InputSummary]]:
+                   keep: bool = False, emitted=None, metric=None) -> tuple[list, list[InputSummary]]:
     """Predict each input through `FileStream.poses` with a progress bar; every frame is drawn
-    (`draw(frame, rgb)`) as it is predicted, then smoothed (videos), handed to `emitted(frame,
+    (`draw(frame, rgb)`) as it is predicted, put at its track's metric scale (`metric`,
+    MetricOptions), then smoothed (videos), handed to `emitted(frame,
     recording)` (angles, plots), written (`writer`, a PoseWriter) and counted. The recordings
     hold their frames only with `keep` (markers and the 3D view need them)."""
     from posecam.commands.common import frame_progress
@@ -94,7 +95,7 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
         summary = InputSummary(stream.recording)
         if writer:
             writer.begin(stream.recording)
-        for frame in stream.poses(smooth, on_frame):
+        for frame in stream.poses(smooth, on_frame, metric):
             if emitted:
                 emitted(frame, stream.recording)
             summary.add(frame)
@@ -102,6 +103,8 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
                 writer.frame(frame)
             if keep:
                 stream.recording.frames.append(frame)
+        if stream.floor_refused and summary.people and stream.media.kind != "image":
+            warn(f"no floor for {path}: {stream.floor_refused}; each person keeps their track's own scale")
         empty = explain_empty(summary, estimator.min_detection_score, estimator.options.min_presence)
         if empty:
             warn(empty)
@@ -122,18 +125,23 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
               help="Smooth each person's joints over time (zero-phase 6 Hz Butterworth) in videos and frame "
                    "sequences; --viz draws the unsmoothed poses.")
 @click.option("--trc-y-up", is_flag=True, help="TRC/C3D: Y-up axes as OpenSim expects (camera turned 180 degrees about x).")
+@click.option("--floor/--no-floor", default=True, show_default=True,
+              help="Fit the ground plane under everyone's feet (static camera) and put each person on it.")
+@height_option
 @estimator_options
 @many_options("input")
 @intrinsics_options()
 def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1, ray_address=None, viz3d=None,
-                    smooth=True, trc_y_up=False, angles=False, plot=None, **flags) -> None:
+                    smooth=True, trc_y_up=False, angles=False, plot=None, heights=(), floor=True, **flags) -> None:
     """3D poses (mm) of every person in INPUTS.
 
     INPUTS are images, videos or folders of images. Each person's joints come out in camera
     coordinates in millimetres: x right, y down, z forward, the camera at the origin.
     """
     from posecam.estimate import PoseEstimator
+    from posecam.heights import Heights
     from posecam.io.atomic import OutputSet
+    from posecam.metric import MetricOptions
     from posecam.io.poses import PoseWriter
     from posecam.io.trc import check_markers_output, write_markers
     from posecam.media import expand_inputs, open_media
@@ -156,13 +164,14 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
         if value and len(inputs) > 1:
             raise InputError(f"{flag} holds one input; pass a single input (or write .json)")
     opts, intrinsics = make_estimator_options(flags), make_intrinsics_options(flags)
+    metric = MetricOptions(heights=Heights.parse(heights), floor=floor)
     if out_dir or jobs > 1 or ray_address is not None:
         if output or viz or viz3d or plot or angles:
             raise InputError("--out-dir writes one file per input; it does not go with -o, --viz, --viz3d, --angles "
                              "or --plot")
         from posecam.commands.many import predict_many
 
-        return predict_many(list(inputs), opts, intrinsics, out_dir, f".{out_format}", jobs, ray_address, smooth)
+        return predict_many(list(inputs), opts, intrinsics, out_dir, f".{out_format}", jobs, ray_address, smooth, metric)
     first = open_media(inputs[0])
     for path in inputs[1:]:  # fail on a bad input before spending time on the good ones
         open_media(path)
@@ -193,7 +202,7 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
             sink.write(picture) if sink else write_image(staged.path(viz), picture)
 
         recordings, summaries = predict_inputs(estimator, inputs, intrinsics, progress, writer, draw if viz else None,
-                                               smooth, keep, emitted if angles or plot else None)
+                                               smooth, keep, emitted if angles or plot else None, metric)
         if writer:
             writer.close()
         written = write_markers(markers, recordings[0], trc_y_up, staged) if markers else [output]

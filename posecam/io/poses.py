@@ -2,8 +2,12 @@
 
 JSON: {"posecam", "model", "joints", "root_joint", "inputs": [{"source", "width", "height", "frame",
 "intrinsics": {"fx", "fy", "cx", "cy", "source"}, "fps", "frames": [{"index", "time",
-"people": [{"id", "score", "bbox", "keypoints_2d", "keypoints_3d", "confidence", "root"}]}]}]}
-CSV: one row per joint, header exactly CSV_HEADER.
+"people": [{"id", "score", "bbox", "keypoints_2d", "keypoints_3d", "confidence", "root"[, "height",
+"height_source", "height_estimated", "height_sd", "depth_sd"]}]}][, "floor": {"normal", "distance",
+"spread", "contacts", "tracks"}]}]}. The height fields (m; depth_sd in mm) are there when the
+person's metric scale was fixed (posecam.metric); "floor" when a ground plane was fitted (camera
+frame, mm). Files without them (older posecam) read as before.
+CSV: one row per joint, header exactly CSV_HEADER (height and depth_sd empty where unknown).
 With angles (`posecam predict --angles`, posecam.angles) each person also holds "angles": {name:
 degrees}, and the CSV gains one column per angle after CSV_HEADER's (the person's angles in that
 frame, repeated on each of its joint rows).
@@ -26,12 +30,14 @@ import numpy as np
 
 from posecam._version import __version__
 from posecam.geometry.camera import Intrinsics
+from posecam.geometry.floor import Floor
 from posecam.errors import InputError
 from posecam.io.atomic import atomic_path
 from posecam.media import check_input
 from posecam.results import Frame, Person, Recording
 
-CSV_HEADER = ("source", "frame", "person", "joint", "u", "v", "x", "y", "z", "confidence")
+CSV_HEADER = ("source", "frame", "person", "joint", "u", "v", "x", "y", "z", "confidence", "height", "height_source",
+              "depth_sd")
 
 
 def _round(a: np.ndarray, digits: int) -> list:
@@ -50,7 +56,7 @@ def _csv_number(x: float, digits: int) -> str:
 
 
 def person_to_dict(p: Person) -> dict:
-    return {
+    out = {
         "id": int(p.id),
         "score": _number(p.score, 4),
         "bbox": _round(p.bbox, 1),
@@ -60,6 +66,22 @@ def person_to_dict(p: Person) -> dict:
         "root": _round(p.root, 1),
         **({"angles": {k: _number(v, 1) for k, v in p.angles.items()}} if p.angles is not None else {}),
     }
+    if p.height_source:
+        out.update(height=_number(p.height, 3), height_source=p.height_source,
+                   height_estimated=_number(p.height_estimated, 3), height_sd=_number(p.height_sd, 3),
+                   depth_sd=_number(p.depth_sd, 1))
+    return out
+
+
+def _person_metric(p: dict) -> dict:
+    """The metric-scale fields of a person read from JSON (absent in older files)."""
+    def number(key):
+        value = p.get(key)
+        return float("nan") if value is None else float(value)
+
+    return {"height": number("height"), "height_source": str(p.get("height_source", "")),
+            "height_estimated": number("height_estimated"), "height_sd": number("height_sd"),
+            "depth_sd": number("depth_sd")}
 
 
 def _header(r: Recording) -> dict:
@@ -108,7 +130,7 @@ class PoseWriter:
                                f' "joints": {_dumps(list(rec.joints))}, "root_joint": {_dumps(rec.root_joint)},\n'
                                ' "inputs": [')
             else:
-                self.out.write("]},")
+                self.out.write("]" + self._floor() + "},")
             self.out.write("\n  " + _dumps(_header(rec))[:-1] + ', "frames": [')
         self._rec, self._frames = rec, 0
         self._inputs += 1
@@ -125,12 +147,18 @@ class PoseWriter:
                     x, y, z = p.keypoints_3d[j]
                     self._csv.writerow((r.source, f.index, p.id, name, _csv_number(u, 2), _csv_number(v, 2),
                                         _csv_number(x, 1), _csv_number(y, 1), _csv_number(z, 1),
-                                        _csv_number(p.confidence[j], 3)) + angles)
+                                        _csv_number(p.confidence[j], 3), _csv_number(p.height, 3),
+                                        p.height_source, _csv_number(p.depth_sd, 1)) + angles)
         self._frames += 1
 
     def close(self) -> None:
         if self.fmt == "json":
-            self.out.write("]}]}\n" if self._inputs else "")
+            self.out.write("]" + self._floor() + "}]}\n" if self._inputs else "")
+
+    def _floor(self) -> str:
+        """The input's ground plane, known once its frames are all through (posecam.metric)."""
+        floor = getattr(self._rec, "floor", None)
+        return f', "floor": {_dumps(floor.to_dict())}' if floor is not None else ""
 
 
 def write_json(out: TextIO, recordings: list[Recording]) -> None:
@@ -202,7 +230,8 @@ def read_poses(path: str | os.PathLike) -> list[Recording]:
                     Person(p["id"], p["score"], np.array(p["bbox"], float),
                            _array(p["keypoints_2d"], 2, n, "keypoints_2d"),
                            _array(p["keypoints_3d"], 3, n, "keypoints_3d"),
-                           _array(p["confidence"], None, n, "confidence"), _angles(p.get("angles")))
+                           _array(p["confidence"], None, n, "confidence"), _angles(p.get("angles")),
+                           **_person_metric(p))
                     for p in f["people"]
                 ])
                 for f in inp["frames"]
@@ -211,6 +240,7 @@ def read_poses(path: str | os.PathLike) -> list[Recording]:
                 inp["source"], inp["width"], inp["height"],
                 Intrinsics(k["fx"], k["fy"], k["cx"], k["cy"], k.get("source", "file")) if k else None,
                 joints, frames, doc.get("model", ""), inp.get("fps"), inp.get("frame", "camera"),
+                Floor.from_dict(inp["floor"]) if inp.get("floor") else None,
             ))
     except RecursionError:
         raise InputError(f"{path} is not a posecam pose file (JSON nested too deeply)") from None

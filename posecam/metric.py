@@ -1,0 +1,286 @@
+"""Metric scale of every person: one scale per track, from a known height, the floor, or the pose
+model's adult-sized skeleton.
+
+    from posecam.metric import MetricOptions, scale_recording
+    rec = scale_recording(rec, MetricOptions(heights=Heights.parse(["1.72,1.21"])))
+
+The pose model's metric skeleton has an adult's size, and the root translation is solved from
+it and the 2D keypoints (posecam.geometry.lift). That solve is linear and homogeneous in the
+skeleton: scaling the root-relative skeleton by s scales the whole camera-space pose by s about
+the camera centre and leaves the 2D keypoints where they are. So a person's size can be fixed
+after the pose model, on the stream of frames, by multiplying each pose by its scale:
+- each frame's skeleton is brought to its track's height (the median over the track's frames),
+  so a person's size no longer breathes from frame to frame;
+- the track's height is the one given (`--height`), or the one the floor gives (static camera:
+  everyone's feet on one plane fixes each track's size relative to the others; the adult-sized
+  people keep the pose model's scale), or else the pose model's.
+Frames are held back `delay` frames, so that the first ones are scaled with their track's
+estimate too; the statistics of a track are a bounded, evenly thinned sample of its frames.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from posecam.errors import InputError
+from posecam.geometry.floor import Floor, FloorFit, fit_floor
+from posecam.heights import Heights
+from posecam.results import Frame, Person, Recording
+from posecam.skeleton import BLAZEPOSE_LANDMARKS, H36M_JOINTS
+
+# The keypoint chain ankle-knee-hip, pelvis-thorax-head (mid-ears) as a fraction of the stature.
+# Anthropometry (Drillis & Contini 1966, in Winter, Biomechanics and Motor Control of Human
+# Movement, fig. 4.1: ankle 0.039, ear 0.936) gives 0.897 for the joints' heights; keypoints sit
+# inside the joints, and the chain of a 1.72 m adult triangulated from the 4 lab-calibrated views
+# of both Pose2Sim takes measures 0.851 and 0.854 of the stature (bench/bench_depth.py).
+CHAIN_OF_STATURE = 0.85
+ANKLE_OF_STATURE = 0.039        # the ankle's height above the sole
+MIN_CONF = 0.5                  # joints that measure the skeleton must be this confident
+SAMPLES = 512                   # per track: the most frames kept for its statistics
+ADULT_CLUSTER = 0.85            # tracks at least this fraction of the tallest are the adult-sized ones
+MODEL_SD = 0.06                 # relative uncertainty of the pose model's adult size for one person
+GIVEN_SD = 0.01                 # relative uncertainty of a given height (typed to the centimetre)
+MIN_TRACK_CONTACTS = 5          # foot contacts a track needs for the floor to scale it
+
+# name -> (legs: (hip, knee, ankle) per side, pelvis, thorax, head) as joint-index tuples to average
+_SEGMENTS = {
+    H36M_JOINTS: {"legs": ((4, 5, 6), (1, 2, 3)), "pelvis": (0,), "thorax": (8,), "head": (10,)},
+    BLAZEPOSE_LANDMARKS: {"legs": ((23, 25, 27), (24, 26, 28)), "pelvis": (23, 24), "thorax": (11, 12),
+                          "head": (7, 8)},
+}
+
+
+@dataclass
+class MetricOptions:
+    heights: Heights = field(default_factory=Heights)   # known heights (posecam.heights)
+    floor: bool = True          # fit the floor (static camera) and scale each track to it
+    delay: int = 120            # frames held back before they are given out
+
+    def __post_init__(self) -> None:
+        if self.delay < 0:
+            raise InputError(f"delay must be 0 or more frames, got {self.delay}")
+
+
+def _segments(joints: tuple[str, ...]) -> dict | None:
+    return _SEGMENTS.get(tuple(joints))
+
+
+def stature(xyz: np.ndarray, conf: np.ndarray, joints: tuple[str, ...]) -> np.ndarray:
+    """(..., J, 3) poses (mm) and (..., J) confidences -> (...) standing height (mm) of each
+    skeleton from its bone lengths (so whatever the pose): mean leg (hip-knee + knee-ankle),
+    pelvis-thorax, thorax-head, over CHAIN_OF_STATURE. NaN where a joint is not confident."""
+    seg = _segments(joints)
+    xyz, conf = np.asarray(xyz, float), np.asarray(conf, float)
+    if seg is None:
+        return np.full(xyz.shape[:-2], np.nan)
+
+    def point(idx):
+        return xyz[..., list(idx), :].mean(axis=-2), conf[..., list(idx)].min(axis=-1)
+
+    legs, ok = [], []
+    for hip, knee, ankle in seg["legs"]:
+        legs.append(np.linalg.norm(xyz[..., hip, :] - xyz[..., knee, :], axis=-1)
+                    + np.linalg.norm(xyz[..., knee, :] - xyz[..., ankle, :], axis=-1))
+        ok.append(conf[..., [hip, knee, ankle]].min(axis=-1) >= MIN_CONF)
+    pelvis, c_p = point(seg["pelvis"])
+    thorax, c_t = point(seg["thorax"])
+    head, c_h = point(seg["head"])
+    torso = np.linalg.norm(thorax - pelvis, axis=-1) + np.linalg.norm(head - thorax, axis=-1)
+    leg = (legs[0] + legs[1]) / 2
+    good = ok[0] & ok[1] & (np.minimum(np.minimum(c_p, c_t), c_h) >= MIN_CONF)
+    return np.where(good, (leg + torso) / CHAIN_OF_STATURE, np.nan)
+
+
+def _down_and_ankles(xyz: np.ndarray, joints: tuple[str, ...]) -> tuple[np.ndarray | None, np.ndarray]:
+    """One pose: its down direction (head to mid-ankle, unit) when it stands upright (straight
+    legs, torso in line with them), else None; and its two ankles (2, 3)."""
+    seg = _segments(joints)
+    ankles = np.stack([xyz[leg[2]] for leg in seg["legs"]])
+    head = xyz[list(seg["head"])].mean(axis=0)
+    pelvis, thorax = xyz[list(seg["pelvis"])].mean(axis=0), xyz[list(seg["thorax"])].mean(axis=0)
+    straight = all(np.linalg.norm(xyz[h] - xyz[a]) >= 0.95 * (np.linalg.norm(xyz[h] - xyz[k]) + np.linalg.norm(xyz[k] - xyz[a]))
+                   for h, k, a in seg["legs"])
+    down = ankles.mean(axis=0) - head
+    down /= np.linalg.norm(down)
+    torso = (pelvis - thorax) / np.linalg.norm(pelvis - thorax)
+    return (down if straight and down @ torso > np.cos(np.radians(20)) else None), ankles
+
+
+class _Sample:
+    """An evenly thinned sample of a stream of rows, at most `size` kept (every 2^k-th row)."""
+
+    def __init__(self, size: int = SAMPLES):
+        self.size, self.stride, self.seen, self.rows = size, 1, 0, []
+
+    def add(self, row) -> None:
+        if self.seen % self.stride == 0:
+            self.rows.append(row)
+            if len(self.rows) > self.size:
+                self.rows, self.stride = self.rows[::2], self.stride * 2
+        self.seen += 1
+
+
+@dataclass
+class _Track:
+    heights: _Sample = field(default_factory=_Sample)     # per-frame stature (mm)
+    feet: _Sample = field(default_factory=_Sample)        # (stature, ankles (2, 3)) of frames with the feet seen
+    downs: _Sample = field(default_factory=_Sample)       # down directions of upright frames
+
+    @property
+    def stature(self) -> float:
+        return float(np.median(self.heights.rows)) if self.heights.rows else np.nan
+
+    @property
+    def breathing(self) -> float:
+        """Relative spread of the track's per-frame statures (1.4826 MAD / median)."""
+        h = np.asarray(self.heights.rows)
+        return float(1.4826 * np.median(np.abs(h - np.median(h))) / np.median(h)) if len(h) >= 3 else MODEL_SD
+
+
+@dataclass(frozen=True)
+class TrackScale:
+    """What a track's people are multiplied by, and why."""
+
+    stature: float              # mm: the track's skeleton height before scaling (the pose model's)
+    scale: float                # the track's scale (its people's height used / stature)
+    source: str                 # "given", "given, rank K", "floor" or "model"
+    estimated: float            # m: the height estimated without a given one (floor, else model)
+    estimated_sd: float         # m
+    relative_sd: float          # relative uncertainty of the scale used
+
+
+class MetricStage:
+    """Scale each person of a stream of frames by their track's scale: push each frame as it
+    comes, take the frames that come back (`delay` frames late), `flush()` at the end. After the
+    flush, `floor` is the ground plane (or None, and `floor_refused` says why)."""
+
+    def __init__(self, rec: Recording, options: MetricOptions | None = None):
+        self.rec, self.options = rec, options or MetricOptions()
+        self._tracks: dict[int, _Track] = {}
+        self._pending: list[Frame] = []
+        self._fit: FloorFit | None = None
+        self._stale = True
+        self.floor: Floor | None = None
+        self.floor_refused = ""
+        self._measurable = _segments(rec.joints) is not None
+
+    def push(self, frame: Frame) -> list[Frame]:
+        if self._measurable:
+            for p in frame.people:
+                self._observe(p)
+        self._pending.append(frame)
+        if len(self._pending) <= self.options.delay:
+            return []
+        return self._emit(len(self._pending) - self.options.delay)
+
+    def flush(self) -> list[Frame]:
+        out = self._emit(len(self._pending))
+        self.rec.floor = self.floor
+        return out
+
+    def _observe(self, p: Person) -> None:
+        t = self._tracks.setdefault(p.id, _Track())
+        h = float(stature(p.keypoints_3d, p.confidence, self.rec.joints))
+        if not np.isfinite(h):
+            return
+        t.heights.add(h)
+        down, ankles = _down_and_ankles(p.keypoints_3d, self.rec.joints)
+        t.feet.add((h, ankles))
+        if down is not None:
+            t.downs.add(down)
+        self._stale = True
+
+    def _floor_fit(self) -> FloorFit | None:
+        """The floor from every track's contacts, each frame's brought to its track's stature:
+        the lower ankle along the people's vertical, moved down to the sole."""
+        downs = [d for t in self._tracks.values() for d in t.downs.rows]
+        if not downs:
+            return FloorFit(None, {}, {}, "nobody stands upright with the legs and head seen")
+        vertical = np.median(downs, axis=0)
+        vertical /= np.linalg.norm(vertical)
+        contacts = {}
+        for tid, t in self._tracks.items():
+            if len(t.feet.rows) < MIN_TRACK_CONTACTS:
+                continue
+            h_track = t.stature
+            pts = []
+            for h, ankles in t.feet.rows:
+                lower = ankles[np.argmax(ankles @ vertical)] * (h_track / h)
+                pts.append(lower + ANKLE_OF_STATURE * h_track * vertical)
+            contacts[tid] = np.array(pts)
+        return fit_floor(contacts, np.array(downs))
+
+    def _scales(self) -> dict[int, TrackScale]:
+        """Every track's scale, from the statistics so far."""
+        fit = self._fit
+        if self.options.floor and self._stale:
+            fit = self._fit = self._floor_fit()
+            self._stale = False
+        on_floor = fit is not None and fit.floor is not None
+        stat = {tid: t.stature for tid, t in self._tracks.items() if np.isfinite(t.stature)}
+        # the floor's relative sizes; the adult-sized people keep the pose model's scale
+        relative = {tid: fit.scales[tid] for tid in stat if on_floor and tid in fit.scales}
+        gauge = 1.0
+        if relative:
+            size = {tid: relative[tid] * stat[tid] for tid in relative}
+            adults = [tid for tid in size if size[tid] >= ADULT_CLUSTER * max(size.values())]
+            gauge = 1.0 / float(np.median([relative[tid] for tid in adults]))
+        estimated = {tid: relative.get(tid, 1.0 / gauge) * gauge * h / 1000.0 for tid, h in stat.items()}
+        given = self.options.heights.assign(estimated) if self.options.heights else {}
+        on_given = [given[tid][0] * 1000.0 / (relative[tid] * stat[tid]) for tid in given if tid in relative]
+        used_gauge, gauge_sd = (float(np.median(on_given)), GIVEN_SD) if on_given else (gauge, MODEL_SD)
+        out = {}
+        for tid, h in stat.items():
+            est_sd = float(np.hypot(fit.scale_sd[tid], MODEL_SD)) if tid in relative else MODEL_SD
+            if tid in given:
+                metres, source = given[tid]
+                scale, source, sd = metres * 1000.0 / h, source, GIVEN_SD
+            elif tid in relative:     # known heights on the floor fix its scale for the others too
+                scale, source, sd = relative[tid] * used_gauge, "floor", float(np.hypot(fit.scale_sd[tid], gauge_sd))
+            else:
+                scale, source, sd = 1.0, "model", MODEL_SD
+            out[tid] = TrackScale(h, scale, source, estimated[tid], estimated[tid] * est_sd, sd)
+        if self.options.floor and fit is not None:
+            self.floor = (dataclasses.replace(fit.floor, distance=fit.floor.distance * used_gauge,
+                                              spread=fit.floor.spread * used_gauge) if on_floor else None)
+            self.floor_refused = fit.reason
+        return out
+
+    def _emit(self, n: int) -> list[Frame]:
+        if n <= 0:
+            return []
+        scales = self._scales() if self._measurable else {}
+        out = [self._scaled(f, scales) for f in self._pending[:n]]
+        self._pending = self._pending[n:]
+        return out
+
+    def _scaled(self, frame: Frame, scales: dict[int, TrackScale]) -> Frame:
+        people = []
+        for p in frame.people:
+            ts = scales.get(p.id)
+            if ts is None:
+                people.append(p)
+                continue
+            h = float(stature(p.keypoints_3d, p.confidence, self.rec.joints))
+            s = ts.scale * (ts.stature / h if np.isfinite(h) else 1.0)     # the track's height, then its scale
+            breathing = self._tracks[p.id].breathing
+            depth = float(p.root[2]) * s
+            people.append(dataclasses.replace(
+                p, keypoints_3d=p.keypoints_3d * s, height=ts.scale * ts.stature / 1000.0, height_source=ts.source,
+                height_estimated=ts.estimated, height_sd=ts.estimated_sd,
+                depth_sd=abs(depth) * float(np.hypot(ts.relative_sd, breathing))))
+        return dataclasses.replace(frame, people=people)
+
+
+def scale_recording(rec: Recording, options: MetricOptions | None = None) -> Recording:
+    """A copy of `rec` with every person at their track's metric scale (and `floor` set when
+    the feet support one): MetricStage over the whole recording."""
+    out = dataclasses.replace(rec, frames=[])
+    stage = MetricStage(out, options)
+    for f in rec.frames:
+        out.frames.extend(stage.push(f))
+    out.frames.extend(stage.flush())
+    return out

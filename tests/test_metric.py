@@ -1,0 +1,209 @@
+"""posecam.metric and posecam.geometry.floor: heights, one scale per track, the floor.
+
+The scenes are built here: people of known heights standing and walking on a floor seen by a
+tilted camera, whose "pose model" output is what BlazePose gives, an adult-sized skeleton put on
+the 2D keypoints, i.e. the true pose scaled about the camera centre by adult size / true size."""
+
+import json
+
+import numpy as np
+import pytest
+
+from conftest import DATA, run_posecam
+from posecam.geometry.camera import Intrinsics, project
+from posecam.geometry.lift import solve_root_translation
+from posecam.heights import Heights
+from posecam.io.poses import read_poses, write_poses
+from posecam.metric import CHAIN_OF_STATURE, MetricOptions, MetricStage, _Sample, scale_recording, stature
+from posecam.results import Frame, Person, Recording
+from posecam.skeleton import H36M_JOINTS
+
+K = Intrinsics(1400.0, 1400.0, 960.0, 540.0)
+CAMERA_HEIGHT = 2000.0      # mm above the floor
+TILT = np.radians(12.0)     # the camera looks down this much
+ADULT = 1700.0              # mm: the pose model's skeleton
+
+
+def standing(h: float) -> np.ndarray:
+    """A standing 17-joint pose of stature h (mm), feet on y = 0, y down, facing the camera."""
+    leg_x, sh_x = 0.09 * h, 0.13 * h
+    head = 0.53 * h + 0.288 * h + (CHAIN_OF_STATURE - 0.779) * h       # the chain spans CHAIN_OF_STATURE
+    y = {"ankle": -0.039 * h, "knee": -0.285 * h, "hip": -0.531 * h, "thorax": -0.819 * h}
+    pts = {
+        "pelvis": (0, y["hip"]), "r_hip": (-leg_x, y["hip"]), "r_knee": (-leg_x, y["knee"]), "r_ankle": (-leg_x, y["ankle"]),
+        "l_hip": (leg_x, y["hip"]), "l_knee": (leg_x, y["knee"]), "l_ankle": (leg_x, y["ankle"]),
+        "spine": (0, -0.67 * h), "thorax": (0, y["thorax"]), "nose": (0, -head + 0.01 * h), "head": (0, -head),
+        "l_shoulder": (sh_x, y["thorax"]), "l_elbow": (sh_x + 0.02 * h, -0.63 * h), "l_wrist": (sh_x + 0.03 * h, -0.48 * h),
+        "r_shoulder": (-sh_x, y["thorax"]), "r_elbow": (-sh_x - 0.02 * h, -0.63 * h), "r_wrist": (-sh_x - 0.03 * h, -0.48 * h),
+    }
+    return np.array([[pts[j][0], pts[j][1], 0.0] for j in H36M_JOINTS])
+
+
+def to_camera(world: np.ndarray, height: float = CAMERA_HEIGHT) -> np.ndarray:
+    """World (x right, y down, z forward, floor at y = 0 below the camera) -> tilted camera."""
+    c, s = np.cos(TILT), np.sin(TILT)
+    r = np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+    return (world + [0.0, height, 0.0]) @ r.T
+
+
+def scene(heights_mm: dict[int, float], frames: int = 60, noise: float = 0.0, seed: int = 0, climb: float = 0.0):
+    """A recording of people walking on the floor, as the pose model sees them (adult-sized),
+    and the true camera-space poses by (frame, id). `climb`: the camera rises this much (mm) a
+    frame; `noise`: the relative frame-to-frame noise of the model skeleton's size."""
+    rng = np.random.default_rng(seed)
+    rec = Recording("scene.mp4", 1920, 1080, K, H36M_JOINTS, fps=30.0)
+    truth = {}
+    for i in range(frames):
+        people = []
+        for pid, h in heights_mm.items():
+            where = np.array([-1500.0 + 1000 * pid + 30 * i * (-1) ** pid, 0.0, 3500.0 + 1500 * pid + 40 * i])
+            true = to_camera(standing(h) + where, CAMERA_HEIGHT + climb * i)
+            model = true * (ADULT / h) * (1 + noise * rng.standard_normal())
+            uv = project(true, K)
+            people.append(Person(pid, 0.9, np.r_[uv.min(0), uv.max(0)], uv, model, np.full(17, 0.9)))
+            truth[(i, pid)] = true
+        rec.frames.append(Frame(i, i / 30.0, people))
+    return rec, truth
+
+
+def test_a_scaled_skeleton_is_placed_at_the_scaled_position():
+    """The fact the stage is built on: the root solve is linear and homogeneous in the skeleton."""
+    rng = np.random.default_rng(3)
+    rel = rng.normal(0, 300, (17, 3))
+    uv = rng.uniform(200, 900, (17, 2))
+    w = rng.uniform(0.3, 1, 17)
+    t = solve_root_translation(rel, uv, w, K)
+    for s in (0.7, 1.3):
+        assert np.allclose(solve_root_translation(s * rel, uv, w, K), s * t)
+        assert np.allclose(project(s * (rel + t), K), project(rel + t, K))
+
+
+def test_stature_of_a_skeleton_whatever_its_pose():
+    pose = standing(1650.0)
+    assert stature(pose, np.ones(17), H36M_JOINTS) == pytest.approx(1650.0, rel=0.01)
+    bent = pose.copy()
+    bent[[2, 5], 2] -= 300.0                                                    # knees forward ...
+    assert stature(bent, np.ones(17), H36M_JOINTS) > 1650.0                     # bones measured as they are
+    conf = np.ones(17)
+    conf[3] = 0.1
+    assert np.isnan(stature(pose, conf, H36M_JOINTS))
+
+
+def test_the_floor_puts_people_of_different_sizes_at_their_depths():
+    rec, truth = scene({0: 1750.0, 1: 1200.0})
+    out = scale_recording(rec)
+    assert out.floor is not None
+    assert out.floor.distance == pytest.approx(CAMERA_HEIGHT, rel=0.03)
+    assert np.degrees(np.arccos(out.floor.normal @ [0, np.cos(TILT), np.sin(TILT)])) < 2
+    before = np.median([abs(p.root[2] / truth[(f.index, p.id)][0, 2] - 1) for f in rec.frames for p in f.people if p.id == 1])
+    assert before > 0.3                                                          # the child, placed as an adult
+    for f in out.frames:
+        for p in f.people:
+            assert p.height_source == "floor"
+            assert abs(p.root[2] - truth[(f.index, p.id)][0, 2]) < 0.04 * truth[(f.index, p.id)][0, 2]
+    child = out.frames[-1].people[1]
+    assert child.height_estimated == pytest.approx(1.2 * ADULT / 1750, rel=0.04)  # the adult keeps the model's size
+    assert 0 < child.height_sd < 0.2 and child.depth_sd > 0
+
+
+def test_given_heights_by_rank_and_by_id():
+    rec, truth = scene({0: 1750.0, 1: 1200.0}, frames=20)
+    ranked = scale_recording(rec, MetricOptions(heights=Heights.parse(["1.75,1.20"])))   # the floor ranks them
+    p0, p1 = ranked.frames[5].people
+    assert (p0.height_source, p1.height_source) == ("given, rank 1", "given, rank 2")
+    assert (p0.height, p1.height) == pytest.approx((1.75, 1.20))
+    by_id = scale_recording(rec, MetricOptions(heights=Heights.parse(["1=1.20"]), floor=False))
+    p0, p1 = by_id.frames[5].people
+    assert (p0.height_source, p1.height_source, p1.height) == ("model", "given", pytest.approx(1.20))
+    assert abs(p1.root[2] - truth[(5, 1)][0, 2]) < 0.02 * truth[(5, 1)][0, 2]    # the given height places the child
+
+
+def test_each_track_keeps_one_size_across_frames():
+    rec, _ = scene({0: 1700.0}, frames=40, noise=0.05, seed=4)
+    raw = np.array([stature(f.people[0].keypoints_3d, f.people[0].confidence, H36M_JOINTS) for f in rec.frames])
+    out = scale_recording(rec, MetricOptions(floor=False))
+    kept = np.array([stature(f.people[0].keypoints_3d, f.people[0].confidence, H36M_JOINTS) for f in out.frames])
+    assert raw.std() / raw.mean() > 0.03 and kept.std() / kept.mean() < 1e-6
+
+
+@pytest.mark.parametrize("why, make", [
+    ("too few foot contacts", lambda: scene({0: 1700.0}, frames=1)[0]),
+    ("a moving camera", lambda: scene({0: 1700.0, 1: 1600.0}, frames=60, climb=25.0)[0]),   # a moving camera
+])
+def test_the_floor_is_refused_when_the_feet_do_not_support_it(why, make):
+    stage = MetricStage(make())
+    for f in stage.rec.frames:
+        stage.push(f)
+    stage.flush()
+    assert stage.floor is None and why in stage.floor_refused
+
+
+def test_nobody_upright_gives_no_floor():
+    rec, _ = scene({0: 1700.0}, frames=30)
+    for f in rec.frames:
+        f.people[0].keypoints_3d[[2, 5], 2] -= 400.0         # knees bent forward in every frame
+    stage = MetricStage(dataclass_copy(rec))
+    for f in rec.frames:
+        stage.push(f)
+    stage.flush()
+    assert stage.floor is None and "upright" in stage.floor_refused
+
+
+def dataclass_copy(rec):
+    import dataclasses
+
+    return dataclasses.replace(rec, frames=[])
+
+
+def test_the_stage_streams_in_bounded_memory():
+    sample = _Sample(size=8)
+    for i in range(1000):
+        sample.add(i)
+    assert len(sample.rows) <= 8 and sample.rows[0] == 0 and sample.rows[-1] > 800     # spread over the stream
+    rec, _ = scene({0: 1750.0, 1: 1200.0}, frames=60)
+    stage = MetricStage(dataclass_copy(rec), MetricOptions(delay=10))
+    out = []
+    for i, f in enumerate(rec.frames):
+        out += stage.push(f)
+        assert len(out) == max(0, i + 1 - 10)
+    out += stage.flush()
+    assert [f.index for f in out] == list(range(60))
+
+
+def test_heights_and_floor_round_trip_through_json(tmp_path):
+    rec, _ = scene({0: 1750.0, 1: 1200.0}, frames=30)
+    out = scale_recording(rec)
+    write_poses(tmp_path / "p.json", [out])
+    doc = json.loads((tmp_path / "p.json").read_text())
+    assert set(doc["inputs"][0]["floor"]) == {"normal", "distance", "spread", "contacts", "tracks"}
+    assert {"height", "height_source", "height_estimated", "height_sd", "depth_sd"} <= set(doc["inputs"][0]["frames"][0]["people"][0])
+    back = read_poses(tmp_path / "p.json")[0]
+    assert back.floor.distance == pytest.approx(out.floor.distance, abs=0.1)
+    p, q = back.frames[3].people[1], out.frames[3].people[1]
+    assert (p.height_source, p.height) == (q.height_source, round(q.height, 3))
+    for person in doc["inputs"][0]["frames"][0]["people"]:            # a file from before: no such fields
+        for key in ("height", "height_source", "height_estimated", "height_sd", "depth_sd"):
+            person.pop(key)
+    del doc["inputs"][0]["floor"]
+    (tmp_path / "old.json").write_text(json.dumps(doc))
+    old = read_poses(tmp_path / "old.json")[0]
+    assert old.floor is None and old.frames[0].people[0].height_source == "" and np.isnan(old.frames[0].people[0].height)
+
+
+def test_predict_records_the_given_height(tmp_path):
+    out = tmp_path / "m.json"
+    r = run_posecam("predict", DATA / "messi5.jpg", "--height", "1.70", "-o", out)
+    assert r.returncode == 0, r.stderr
+    plain = tmp_path / "plain.json"
+    assert run_posecam("predict", DATA / "messi5.jpg", "-o", plain).returncode == 0
+    (p,) = json.loads(out.read_text())["inputs"][0]["frames"][0]["people"]
+    (q,) = json.loads(plain.read_text())["inputs"][0]["frames"][0]["people"]
+    assert (p["height"], p["height_source"], q["height_source"]) == (1.70, "given", "model")
+    ratio = 1.70 / q["height"]
+    assert p["root"][2] == pytest.approx(q["root"][2] * ratio, rel=0.002)       # scaled about the camera centre
+    assert np.allclose(p["keypoints_2d"], q["keypoints_2d"])
+
+
+def test_predict_refuses_a_height_in_centimetres():
+    r = run_posecam("predict", DATA / "messi5.jpg", "--height", "172")
+    assert r.returncode == 2 and "centimetres" in r.stderr and "Traceback" not in r.stderr
