@@ -226,10 +226,11 @@ def test_predict_csv_angles_and_plot_pages(balance_33, tmp_path):
     assert run.returncode == 0, run.stderr
     lines = csv_out.read_text().splitlines()
     header = lines[0].split(",")
-    assert header[:10] == list(CSV_HEADER) and tuple(header[10:]) == angle_names(BLAZEPOSE_LANDMARKS)
+    n = len(CSV_HEADER)
+    assert header[:n] == list(CSV_HEADER) and tuple(header[n:]) == angle_names(BLAZEPOSE_LANDMARKS)
     first = next(p for p in balance_33["inputs"][0]["frames"][0]["people"] if p["id"] == 0)
     row = next(r.split(",") for r in lines[1:] if r.split(",")[1:4] == ["0", "0", "nose"])
-    assert [float(v) for v in row[10:]] == pytest.approx([first["angles"][n] for n in header[10:]], abs=0.051)
+    assert [float(v) for v in row[n:]] == pytest.approx([first["angles"][a] for a in header[n:]], abs=0.051)
     text = page.read_text()
     assert text.startswith("<!DOCTYPE html>") and "<polyline" in text and "person #0" in text and "http" not in text.replace("http://www.w3.org/2000/svg", "")
     run = run_posecam("predict", DATA / "balance_cam01_30f.mp4", "--plot", png)   # 17 joints: no ankle panel
