@@ -105,12 +105,12 @@ def reference(cams, recs, take: str):
     return out
 
 
-def root_errors(cams, recs, ref) -> list[float]:
-    """Mean root error (mm) per camera against the reference."""
+def root_errors(cams, recs, ref, who: str | None = None) -> list[float]:
+    """Mean root error (mm) per camera against the reference (of the adult or the child only)."""
     errs = []
     for c, (cam, rec) in enumerate(zip(cams, recs)):
         e = [np.linalg.norm(p.root - cam.to_camera(ref[(c, f.index, p.id)][0]))
-             for f in rec.frames for p in f.people if (c, f.index, p.id) in ref]
+             for f in rec.frames for p in f.people if (c, f.index, p.id) in ref and who in (None, ref[(c, f.index, p.id)][1])]
         errs.append(float(np.mean(e)) if e else np.nan)
     return errs
 
@@ -157,6 +157,10 @@ def take_bench(take: str, cache: Path) -> None:
         smooth = root_errors(cams, [smooth_recording(r) for r in scaled], ref)
         print(f"{label:40s}" + "".join(f"{e:8.0f}" for e in (*raw, np.mean(raw))) + " |"
               + "".join(f"{e:8.0f}" for e in (*smooth, np.mean(smooth))))
+        if take == "multi":
+            print(f"{'':40s}adult / child: " + ", ".join(
+                f"{c} {a:.0f} / {b:.0f}" for c, a, b in zip(CAMERAS, root_errors(cams, scaled, ref, "adult"),
+                                                           root_errors(cams, scaled, ref, "child"))))
         if opts:
             est = heights(scaled, ref)
             floors = ["%.2f m" % (r.floor.distance / 1000) if r.floor else "refused" for r in scaled]

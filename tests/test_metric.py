@@ -190,6 +190,20 @@ def test_heights_and_floor_round_trip_through_json(tmp_path):
     assert old.floor is None and old.frames[0].people[0].height_source == "" and np.isnan(old.frames[0].people[0].height)
 
 
+def test_the_3d_view_draws_the_fitted_floor():
+    from posecam.viz.view3d import scene as page_data
+
+    rec, _ = scene({0: 1750.0, 1: 1200.0}, frames=30)
+    assert page_data(rec)["plane"] == []                           # no plane fitted: the level grid
+    out = scale_recording(rec)
+    lines = np.array(page_data(out)["plane"])                      # (L, 2, 3) display axes (y up), m
+    assert len(lines) >= 6
+    camera = lines.reshape(-1, 3) * 1000.0 * [1, -1, -1]
+    assert np.allclose(out.floor.height_of(camera), 0.0, atol=5.0)
+    feet = np.array([p.keypoints_3d[[3, 6]] for f in out.frames for p in f.people]).reshape(-1, 3)
+    assert np.all(np.abs(out.floor.height_of(feet) - 0.039 * 1750) < 60)   # the feet stand on it
+
+
 def test_predict_records_the_given_height(tmp_path):
     out = tmp_path / "m.json"
     r = run_posecam("predict", DATA / "messi5.jpg", "--height", "1.70", "-o", out)

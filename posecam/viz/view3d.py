@@ -5,7 +5,8 @@
     write_view3d("view.html", fused.recording, fused.rig)   # world / reference frame + its cameras
 
 The page draws the skeletons of every frame with a small canvas renderer written here (no
-library): a time slider and a play button, a floor grid under the people (at the lowest joints),
+library): a time slider and a play button, a floor grid under the people (the fitted ground plane,
+`Recording.floor`, when there is one; else level, at the lowest joints),
 the cameras as frustums with their names, mouse drag to orbit and the wheel to zoom. It shows
 Y-up axes (posecam.io.trc.to_y_up): camera frames turned 180 degrees about x, a calibration's
 Z-up world as Pose2Sim turns it.
@@ -73,7 +74,29 @@ def scene(rec: Recording, rig: Rig | None = None) -> dict:
     except StopIteration:
         bones = []
     return {"title": os.path.basename(str(rec.source)), "frame": frame, "fps": rec.fps or 30.0,
-            "frames": frames, "bones": bones, "cameras": cameras, "floor": _floor(frames, points, cameras)}
+            "frames": frames, "bones": bones, "cameras": cameras, "floor": _floor(frames, points, cameras),
+            "plane": _plane(rec, points)}
+
+
+def _plane(rec: Recording, points: list[np.ndarray]) -> list[list[list[float]]]:
+    """Grid lines (display axes, m, 0.5 m apart) on the recording's fitted ground plane, spanning
+    the people's footprint; empty when there is no plane."""
+    floor = rec.floor
+    if floor is None or not points or rec.frame_of_reference != "camera":
+        return []
+    n, d = floor.normal, floor.distance
+    u = np.array([1.0, 0.0, 0.0]) - n[0] * n
+    u /= np.linalg.norm(u)
+    w = np.cross(n, u)
+    cam = to_y_up(np.vstack(points) * 1000.0, "camera")      # back to camera axes, mm (the turn is its own inverse)
+    onto = cam - np.outer(cam @ n - d, n)                                    # the people's footprint on the plane
+    origin = onto.mean(axis=0)
+    a, b = (onto - origin) @ u, (onto - origin) @ w
+    lo = np.floor(np.array([a.min(), b.min()]) / 500.0 - 1) * 500.0
+    hi = np.ceil(np.array([a.max(), b.max()]) / 500.0 + 1) * 500.0
+    lines = [(origin + x * u + lo[1] * w, origin + x * u + hi[1] * w) for x in np.arange(lo[0], hi[0] + 1, 500.0)]
+    lines += [(origin + lo[0] * u + y * w, origin + hi[0] * u + y * w) for y in np.arange(lo[1], hi[1] + 1, 500.0)]
+    return [[_r(q) for q in to_y_up(np.array(pair), "camera") / 1000.0] for pair in lines]
 
 
 def _floor(frames: list[dict], points: list[np.ndarray], cameras: list[dict]) -> dict:
@@ -156,8 +179,13 @@ function draw() {
   g.fillStyle = "#14161a"; g.fillRect(0, 0, cv.width, cv.height);
   const F = D.floor;
   g.strokeStyle = "#3a3f48"; g.lineWidth = 1;
-  for (let x = F.x[0]; x <= F.x[1] + 1e-9; x += F.step) line([x, F.y, F.z[0]], [x, F.y, F.z[1]]);
-  for (let z = F.z[0]; z <= F.z[1] + 1e-9; z += F.step) line([F.x[0], F.y, z], [F.x[1], F.y, z]);
+  if (D.plane.length) {
+    g.strokeStyle = "#4f7f5f";
+    for (const [a, b] of D.plane) line(a, b);
+  } else {
+    for (let x = F.x[0]; x <= F.x[1] + 1e-9; x += F.step) line([x, F.y, F.z[0]], [x, F.y, F.z[1]]);
+    for (let z = F.z[0]; z <= F.z[1] + 1e-9; z += F.step) line([F.x[0], F.y, z], [F.x[1], F.y, z]);
+  }
   g.lineWidth = 1.5; g.strokeStyle = "#c8ccd4"; g.fillStyle = "#c8ccd4";
   for (const c of D.cameras) {
     for (let i = 0; i < 4; i++) { line(c.c, c.corners[i]); line(c.corners[i], c.corners[(i + 1) % 4]); }
