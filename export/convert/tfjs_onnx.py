@@ -1,4 +1,4 @@
-"""A small TF.js graph model -> ONNX converter (MoveNet MultiPose, NanoDet).
+"""A small TF.js graph model -> ONNX converter (MoveNet MultiPose).
 
 A TF.js graph model is a `model.json` holding a TensorFlow GraphDef as JSON (`modelTopology`)
 and a `weightsManifest` describing the binary shards next to it. Every Const node's value is
@@ -11,7 +11,7 @@ inside the ONNX graph (convolutions, pooling, resizing and the elementwise ops b
 while the graph inputs and outputs keep the TF.js layout. Everything else (shape arithmetic,
 StridedSlice, GatherNd, TopK of MoveNet's decoder) is translated in TF layout, transposing a
 4-D NCHW value back only where such an op reads it. Nodes whose inputs are all constant are
-folded with numpy where a rule exists (NanoDet's SparseToDense reshape targets).
+folded with numpy where a rule exists (Cast, Pack, Reshape and the elementwise ops).
 
 Input dimensions that the TF.js signature leaves open (-1) stay dynamic in ONNX: MoveNet
 MultiPose runs at any height and width that are multiples of 32. Non-float inputs may be
@@ -279,11 +279,6 @@ class _Builder:
             result = _FOLD[op](*args)
         elif op == "Cast":
             result = args[0].astype(_attr(node, "DstT"))
-        elif op == "SparseToDense":
-            indices, shape, values, default = args
-            result = np.full(shape.astype(np.int64), default, default.dtype)
-            if indices.size:
-                result[tuple(np.atleast_2d(indices.reshape(len(indices), -1)).T)] = values
         elif op == "Pack":
             result = np.stack(args, axis=_attr(node, "axis", 0))
         elif op == "Reshape":

@@ -78,22 +78,23 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     from posecam.media import check_input
     from posecam.io.calibration import read_calibration, write_toml
     from posecam.filters import smooth_recording
-    from posecam.io.poses import write_poses
-    from posecam.io.trc import check_markers_output, write_markers
+    from posecam.io.poses import POSE_SUFFIXES, write_poses
+    from posecam.io.trc import MARKER_SUFFIXES, check_markers_output, write_markers
+    from posecam.viz.sinks import PICTURE_SUFFIXES
     from posecam.multiview.fuse import FuseOptions, fuse_recordings
     from posecam.viz.view3d import write_view3d
     from posecam.angles import angle_names
     from posecam.views import load_views
 
     err = Console(stderr=True, highlight=False)
-    check_output(output, (".json", ".csv", ".trc", ".c3d"), "output")
+    check_output(output, (*POSE_SUFFIXES, *MARKER_SUFFIXES), "output")
     check_output(viz3d, (".html",), "--viz3d")
     check_angles(angles, output, plot)
-    markers = output if output and Path(output).suffix.lower() in (".trc", ".c3d") else None
+    markers = output if output and Path(output).suffix.lower() in MARKER_SUFFIXES else None
     if markers:
         check_markers_output(markers, [*inputs, calibration])
     check_output(save_calibration, (".toml",), "--save-calibration")
-    check_output(viz, (".png", ".jpg", ".jpeg"), "--viz")
+    check_output(viz, PICTURE_SUFFIXES, "--viz")
     if offsets and sync == "auto":
         raise InputError("give either --offsets or --sync auto")
     refuse_alone("max_offset", "--sync auto", sync == "auto")

@@ -12,10 +12,6 @@ from posecam.commands.common import (angle_options, check_angles, check_output, 
                                      report_written, stdout_report, shown, warn)
 from posecam.errors import InputError
 
-IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg")
-VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv")
-MARKER_SUFFIXES = (".trc", ".c3d")
-
 
 class InputSummary:
     """Running totals of one input's people, kept as the frames stream past (memory stays flat)."""
@@ -142,11 +138,11 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     from posecam.heights import Heights
     from posecam.io.atomic import OutputSet
     from posecam.metric import MetricOptions
-    from posecam.io.poses import PoseWriter
-    from posecam.io.trc import check_markers_output, write_markers
-    from posecam.media import expand_inputs, open_media
+    from posecam.io.poses import POSE_SUFFIXES, PoseWriter
+    from posecam.io.trc import MARKER_SUFFIXES, check_markers_output, write_markers
+    from posecam.media import VIDEO_SUFFIXES, expand_inputs, open_media
     from posecam.viz.draw import draw_people
-    from posecam.viz.sinks import VideoSink, write_image
+    from posecam.viz.sinks import PICTURE_SUFFIXES, VideoSink, write_image
     from posecam.viz.view3d import write_view3d
     from posecam.angles import add_angles, angle_names
     from posecam.viz.plot import AngleSeries, write_plot
@@ -154,7 +150,7 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     inputs = [str(p) for p in expand_inputs(inputs)]   # a folder of photos: each photo an input
     if viz and len(inputs) > 1:
         raise InputError("--viz draws one input; pass a single input with --viz")
-    check_output(output, (".json", ".csv", *MARKER_SUFFIXES), "output")
+    check_output(output, (*POSE_SUFFIXES, *MARKER_SUFFIXES), "output")
     check_output(viz3d, (".html",), "--viz3d")
     check_angles(angles, output, plot)
     markers = output if output and Path(output).suffix.lower() in MARKER_SUFFIXES else None
@@ -176,7 +172,7 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     for path in inputs[1:]:  # fail on a bad input before spending time on the good ones
         open_media(path)
     if viz:
-        check_output(viz, IMAGE_SUFFIXES if first.kind == "image" else VIDEO_SUFFIXES, f"--viz for {first.kind} input")
+        check_output(viz, PICTURE_SUFFIXES if first.kind == "image" else VIDEO_SUFFIXES, f"--viz for {first.kind} input")
     if markers:
         check_markers_output(markers, [*inputs, intrinsics.file, opts.model])
     staged = OutputSet([None if markers else output, viz, viz3d, plot], [*inputs, intrinsics.file, opts.model],
@@ -186,7 +182,7 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     with staged, ExitStack() as stack, progress_bar() as progress:  # all outputs or none
         sink = writer = None
         if viz and first.kind != "image":
-            sink = stack.enter_context(VideoSink(staged.path(viz), first.fps or 30.0, first.width, first.height))
+            sink = stack.enter_context(VideoSink(staged.path(viz), first.fps, first.width, first.height))
         if output and not markers:
             handle = stack.enter_context(open(staged.path(output), "w", encoding="utf-8", newline=""))
             writer = PoseWriter(handle, Path(output).suffix.lower()[1:], angle_names(estimator.joints) if angles else ())

@@ -17,7 +17,8 @@ import numpy as np
 
 from posecam.errors import InputError
 from posecam.io.atomic import OutputSet
-from posecam.io.trc import DEFAULT_FPS, person_ids, to_y_up, trajectory, trc_paths, write_files
+from posecam.media import DEFAULT_FPS
+from posecam.io.trc import person_ids, to_y_up, trajectory, trc_paths, write_files
 from posecam.results import Recording
 
 INSTALL_HINT = "pip install 'posecam[c3d]' (the c3d package)"

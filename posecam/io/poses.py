@@ -20,7 +20,6 @@ JSON `null` and as an empty CSV field: the JSON is standard and every language r
 from __future__ import annotations
 
 import csv
-import io
 import json
 import os
 from pathlib import Path
@@ -36,6 +35,7 @@ from posecam.io.atomic import atomic_path
 from posecam.media import check_input
 from posecam.results import Frame, Person, Recording
 
+POSE_SUFFIXES = (".json", ".csv")   # the pose files posecam writes (and reads, .json)
 CSV_HEADER = ("source", "frame", "person", "joint", "u", "v", "x", "y", "z", "confidence", "height", "height_source",
               "depth_sd")
 
@@ -97,10 +97,6 @@ def _header(r: Recording) -> dict:
 
 def frame_to_dict(f: Frame) -> dict:
     return {"index": f.index, "time": _number(f.time, 4), "people": [person_to_dict(p) for p in f.people]}
-
-
-def recording_to_dict(r: Recording) -> dict:
-    return {**_header(r), "frames": [frame_to_dict(f) for f in r.frames]}
 
 
 def _dumps(value) -> str:
@@ -178,23 +174,11 @@ def _write(writer: PoseWriter, recordings: list[Recording]) -> None:
     writer.close()
 
 
-def to_json(recordings: list[Recording]) -> str:
-    buf = io.StringIO()
-    write_json(buf, recordings)
-    return buf.getvalue()
-
-
-def to_csv(recordings: list[Recording]) -> str:
-    buf = io.StringIO()
-    write_csv(buf, recordings)
-    return buf.getvalue()
-
-
 def write_poses(path: str | os.PathLike, recordings: list[Recording], angles: tuple[str, ...] = ()) -> None:
     """Write JSON or CSV, chosen by the file extension, atomically and frame by frame; `angles`:
     the CSV's angle columns (JSON writes each person's angles when it has them)."""
     suffix = Path(path).suffix.lower()
-    if suffix not in (".json", ".csv"):
+    if suffix not in POSE_SUFFIXES:
         raise InputError(f"output must end in .json or .csv, got {path}")
     with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as out:
         write_json(out, recordings) if suffix == ".json" else write_csv(out, recordings, angles)

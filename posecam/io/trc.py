@@ -21,9 +21,9 @@ import numpy as np
 
 from posecam.errors import InputError
 from posecam.io.atomic import OutputSet, atomic_path, check_output
+from posecam.media import DEFAULT_FPS
 from posecam.results import Recording
 
-DEFAULT_FPS = 30.0      # a recording without a frame rate (a still image)
 
 
 def person_ids(rec: Recording) -> list[int]:
@@ -104,6 +104,9 @@ def write_trc(path: str | os.PathLike, rec: Recording, y_up: bool = False,
     paths = trc_paths(path, ids)
     write_files([(p, trc_text(rec, pid, p.name, y_up).encode()) for pid, p in zip(ids, paths)], outputs)
     return paths
+
+
+MARKER_SUFFIXES = (".trc", ".c3d")   # marker files, one per person: TRC, or C3D (posecam[c3d])
 
 
 def check_markers_output(path: str | os.PathLike, inputs: list[str | os.PathLike | None] = ()) -> None:

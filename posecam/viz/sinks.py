@@ -15,8 +15,9 @@ import numpy as np
 
 from posecam.errors import InputError, OutputError
 from posecam.io.atomic import atomic_path
+from posecam.media import VIDEO_SUFFIXES
 
-VIDEO_SUFFIXES = {".mp4", ".avi", ".mov", ".mkv"}
+PICTURE_SUFFIXES = (".png", ".jpg", ".jpeg")   # what `write_image` writes (--viz of an image, fuse's grid)
 
 
 def write_image(path: str | os.PathLike, image_rgb: np.ndarray) -> None:

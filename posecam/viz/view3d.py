@@ -23,6 +23,7 @@ import numpy as np
 from posecam.geometry.camera import CameraCalibration, Rig
 from posecam.io.atomic import write_text
 from posecam.io.trc import to_y_up
+from posecam.media import DEFAULT_FPS
 from posecam.results import Recording
 from posecam.skeleton import skeleton_of
 
@@ -73,7 +74,7 @@ def scene(rec: Recording, rig: Rig | None = None) -> dict:
         bones = skeleton_of(rec.joints).bone_indices.tolist()
     except StopIteration:
         bones = []
-    return {"title": os.path.basename(str(rec.source)), "frame": frame, "fps": rec.fps or 30.0,
+    return {"title": os.path.basename(str(rec.source)), "frame": frame, "fps": rec.fps or DEFAULT_FPS,
             "frames": frames, "bones": bones, "cameras": cameras, "floor": _floor(frames, points, cameras),
             "plane": _plane(rec, points)}
 
