@@ -132,7 +132,7 @@ ROWS = [
     ("fx-tiny", "predict {in}/messi.jpg --fx 1 -o {out}/p.json", 2, "field of view", ()),
     ("cx-alone", "predict {in}/messi.jpg --fx 500 --cx 10 -o {out}/p.json", 2, "--cx and --cy", ()),
     ("cx-without-fx", "predict {in}/messi.jpg --cx 10 --cy 10 -o {out}/p.json", 2, "focal length", ()),
-    ("fx-true-in-json", "predict {in}/messi.jpg --intrinsics {in}/fx_true.json -o {out}/p.json", 2, "numbers", ()),
+    ("fx-true-in-json", "predict {in}/messi.jpg --intrinsics {in}/fx_true.json -o {out}/p.json", 2, "fx: must be a number", ()),
     ("deep-json", "predict {in}/messi.jpg --intrinsics {in}/deep.json -o {out}/p.json", 2, "nested", ()),
     ("intrinsics-fifo", "predict {in}/messi.jpg --intrinsics {in}/pipe.mp4 -o {out}/p.json", 2, "not a regular", ()),
     # outputs
@@ -150,7 +150,7 @@ ROWS = [
     ("fuse-16-joints", "fuse {in}/a.json {in}/j16.json -o {out}/f.json", 2, "expected [17, 2]", ()),
     ("fuse-calibration-fifo", "fuse {in}/a.json {in}/b.json --calibration {in}/pipe.mp4", 2, "not a regular", ()),
     ("fuse-fifo", "fuse {in}/a.json {in}/pipe.mp4 -o {out}/f.json", 2, "not a regular file", ()),
-    ("fuse-deep-json", "fuse {in}/a.json {in}/deep.json -o {out}/f.json", 2, "nested", ()),
+    ("fuse-deep-json", "fuse {in}/a.json {in}/deep.json -o {out}/f.json", 2, "not a posecam pose file", ()),
     # models that pass the contract check but break at run time
     ("model-nan", "predict {in}/messi.jpg --model {in}/nan.onnx -o {out}/p.json", 3, "NaN", ("nan",)),
     ("model-shape", "predict {in}/messi.jpg --model {in}/shape.onnx -o {out}/p.json", 3, "shape", ("shape",)),

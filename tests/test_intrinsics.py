@@ -59,9 +59,13 @@ def test_options_that_cannot_go_together_are_refused_when_built(opts, words):
 
 
 @pytest.mark.parametrize("doc, words", [
-    ({"fx": True, "cx": 320, "cy": 240}, "must be numbers"),
-    ({"fx": "800", "cx": 320, "cy": 240}, "must be numbers"),
-    ({"fx": 1e9, "cx": 320, "cy": 240}, "field of view"),
+    ({"fx": True, "cx": 320, "cy": 240}, "fx: must be a number"),
+    ({"fx": "800", "cx": 320, "cy": 240}, "fx: must be a number"),
+    ({"fx": 1e9, "cx": 320, "cy": 240}, r"fx: must be a number > 0 and <= 1e\+06, got 1000000000.0"),
+    ({"fx": 1e5, "cx": 320, "cy": 240}, "field of view"),
+    ({"fx": 10 ** 400, "cx": 320, "cy": 240}, "fx: must be a number > 0"),
+    ({"matrix": [[500, 0, 320], [0, 500, 240], [0, 0, 0]]}, "matrix: must be a camera matrix"),
+    ({"matrix": [[500, 0, 320], [0, 500, 240]]}, "matrix: must be 3x3 numbers, got shape"),
 ])
 def test_file_values_are_checked_like_flags(tmp_path, doc, words):
     p = tmp_path / "k.json"

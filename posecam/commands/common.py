@@ -69,8 +69,9 @@ def intrinsics_options(per_camera: bool = False) -> Callable:
             click.option("--cx", type=float, help="Principal point x in pixels; defaults to the image centre."),
             click.option("--cy", type=float, help="Principal point y in pixels; defaults to the image centre."),
             click.option("--intrinsics", "intrinsics_file", type=click.Path(),
-                         help="JSON with fx, fy, cx, cy (or a 3x3 matrix), or a calibration: anipose/Pose2Sim TOML "
-                              "or Qualisys .qca.txt (with --camera)."),
+                         help="JSON with fx, fy, cx, cy (or a 3x3 matrix), OpenCV's FileStorage YAML/XML "
+                              "(camera_matrix), or a calibration: anipose/Pose2Sim TOML or Qualisys .qca.txt "
+                              "(with --camera)."),
             click.option("--camera", help=camera_help),
         ]):
             f = opt(f)

@@ -9,6 +9,7 @@ In memory, translations are in millimetres like every posecam pose.
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import tomllib
@@ -21,18 +22,37 @@ import numpy as np
 from posecam.geometry.camera import CameraCalibration, Intrinsics, Rig, natural_key
 from posecam.errors import InputError
 from posecam.io.atomic import write_text
+from posecam.io.validate import MAX_MM, MAX_PIXEL, MAX_SIDE, Field
 
 
-def _vector(table: dict, key: str, n: tuple[int, ...], where: str) -> np.ndarray:
+def _toml_camera(table: dict, key: str, check: Field, source: str) -> CameraCalibration:
+    """One camera table of a calibration TOML, checked field by field (posecam.io.validate)."""
+    if table.get("fisheye", False) is not False:
+        if table.get("fisheye") is True:
+            raise check.fail("fisheye", "fisheye cameras are not supported (posecam's cameras are pinhole "
+                                        "with k1 k2 p1 p2 [k3] distortion; calibrate without fisheye)")
+        raise check.fail("fisheye", "must be true or false", table.get("fisheye"))
+    for needed in ("size", "matrix", "rotation", "translation"):
+        if needed not in table:
+            raise check.fail(needed, "is missing")
+    size = check.image_size(table["size"], "size")
+    k = check.numbers(table["matrix"], "matrix", ((3, 3),), -MAX_PIXEL, MAX_PIXEL)
+    if k[0, 1] != 0 or k[1, 0] != 0 or k[2].tolist() != [0, 0, 1]:
+        raise check.fail("matrix", "must be a pinhole camera matrix [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]",
+                         k.tolist())
+    if k[0, 0] <= 0 or k[1, 1] <= 0:
+        raise check.fail("matrix", "focal lengths fx, fy must be positive", [k[0, 0], k[1, 1]])
+    intrinsics = Intrinsics.from_matrix(k, source=source)
     try:
-        a = np.asarray(table[key], dtype=float)
-    except KeyError:
-        raise InputError(f"{where}: missing '{key}'") from None
-    except (TypeError, ValueError):
-        raise InputError(f"{where}: '{key}' must hold numbers") from None
-    if a.shape not in n or not np.all(np.isfinite(a)):
-        raise InputError(f"{where}: '{key}' must be finite numbers of shape {' or '.join(map(str, n))}, got {a.shape}")
-    return a
+        intrinsics.check_image(*size)
+    except InputError as exc:
+        raise check.fail("matrix", f"must suit the {size[0]}x{size[1]} image ({exc})") from None
+    rotation = check.rotation(table["rotation"], "rotation")
+    translation = check.numbers(table["translation"], "translation", ((3,),), -MAX_MM / 1000, MAX_MM / 1000)
+    dist = (check.numbers(table["distortions"], "distortions", ((4,), (5,)), -1e3, 1e3)
+            if "distortions" in table else np.zeros(4))
+    name = check.text(table.get("name", key), "name")
+    return CameraCalibration(name, size, intrinsics, rotation, translation * 1000.0, dist)
 
 
 def read_toml(path: str | os.PathLike) -> list[CameraCalibration]:
@@ -44,26 +64,14 @@ def read_toml(path: str | os.PathLike) -> list[CameraCalibration]:
         raise InputError(f"calibration file {path} does not exist") from None
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
         raise InputError(f"{path} is not a calibration TOML ({exc})") from None
-    cams = []
-    for key, table in doc.items():
-        if key == "metadata" or not isinstance(table, dict) or "matrix" not in table:
-            continue
-        where = f"{path} [{key}]"
-        size = _vector(table, "size", ((2,),), where)
-        k = Intrinsics.from_matrix(_vector(table, "matrix", ((3, 3),), where), source=f"file:{path.name}")
-        rvec = _vector(table, "rotation", ((3,), (3, 3)), where)
-        rotation = rvec if rvec.shape == (3, 3) else cv2.Rodrigues(rvec)[0]
-        dist = _vector(table, "distortions", ((4,), (5,)), where) if "distortions" in table else np.zeros(4)
-        cams.append(CameraCalibration(
-            name=str(table.get("name", key)),
-            size=(int(round(size[0])), int(round(size[1]))),
-            intrinsics=k,
-            rotation=rotation,
-            translation=_vector(table, "translation", ((3,),), where) * 1000.0,
-            distortion=dist,
-        ))
+    cams = [_toml_camera(table, key, Field(f"{path} [{key}]"), f"file:{path.name}")
+            for key, table in doc.items()
+            if key != "metadata" and isinstance(table, dict) and "matrix" in table]
     if not cams:
         raise InputError(f"{path} holds no camera (tables with name, size, matrix, rotation, translation)")
+    names = [c.name for c in cams]
+    if len(set(names)) != len(names):
+        raise InputError(f"{path}: camera names must differ, got {names}")
     return cams
 
 
@@ -125,6 +133,25 @@ def _toml_value(value: bool | int | float | str) -> str:
 _QUALISYS_TO_CV = np.diag([1.0, -1.0, -1.0])
 
 
+def _attributes(cam: ET.Element, tag: str, keys: tuple[str, ...], check: Field, lo: float,
+                hi: float) -> dict[str, float]:
+    """The numeric attributes `keys` of a camera's <tag>, each checked finite and in lo..hi."""
+    element = cam.find(tag)
+    if element is None:
+        raise check.fail(tag, "is missing")
+    values = {}
+    for key in keys:
+        text = element.attrib.get(key)
+        if text is None:
+            raise check.fail(f"{tag} {key}", "is missing")
+        try:
+            value = float(text) if len(text) <= 64 else math.inf
+        except ValueError:
+            raise check.fail(f"{tag} {key}", "must be a number", text) from None
+        values[key] = check.number(value, f"{tag} {key}", lo, hi)
+    return values
+
+
 def read_qualisys(path: str | os.PathLike, image_widths: dict[str, int] | None = None) -> list[CameraCalibration]:
     """Video cameras of a Qualisys .qca.txt calibration (read as Pose2Sim does), in natural name order.
 
@@ -143,32 +170,42 @@ def read_qualisys(path: str | os.PathLike, image_widths: dict[str, int] | None =
     except (OSError, ET.ParseError) as exc:
         raise InputError(f"{path} is not a Qualisys calibration ({exc})") from None
     cams = []
-    for cam in root.findall("cameras/camera"):
+    for number, cam in enumerate(root.findall("cameras/camera")):
         if not any(m in cam.attrib.get("model", "none").lower() for m in ("video", "none")):
             continue                        # marker cameras: Pose2Sim keeps video cameras only
-        try:
-            name = cam.attrib["serial"]
-            fov = {k: float(v) for k, v in cam.find("fov_video").attrib.items()}
-            tr = {k: float(v) for k, v in cam.find("transform").attrib.items()}
-            intr = {k: float(v) for k, v in cam.find("intrinsic").attrib.items()}
-            rq = np.array([tr[f"r{i}{j}"] for i in (1, 2, 3) for j in (1, 2, 3)]).reshape(3, 3).T
-            position = np.array([tr["x"], tr["y"], tr["z"]])
-            width = fov["right"] - fov["left"] + 1
-            height = fov["bottom"] - fov["top"] + 1
-            cx = intr["centerPointU"] / 64 - fov["left"]
-            cy = intr["centerPointV"] / 64 - fov["top"]
-            fx, fy = intr["focalLengthU"] / 64, intr["focalLengthV"] / 64
-            dist = np.array([intr["radialDistortion1"], intr["radialDistortion2"],
-                             intr["tangentalDistortion1"], intr["tangentalDistortion2"]])
-        except (AttributeError, KeyError, ValueError) as exc:
-            raise InputError(f"{path}: camera entry is incomplete or malformed ({exc!r})") from None
+        name = cam.attrib.get("serial")
+        check = Field(f"{path} camera {name if name is not None else number + 1}")
+        if name is None:
+            raise check.fail("serial", "is missing")
+        check.text(name, "serial", limit=256)
+        fov = _attributes(cam, "fov_video", ("left", "right", "top", "bottom"), check, 0, MAX_SIDE)
+        tr = _attributes(cam, "transform", ("x", "y", "z", *(f"r{i}{j}" for i in (1, 2, 3) for j in (1, 2, 3))),
+                         check, -MAX_MM, MAX_MM)
+        intr = _attributes(cam, "intrinsic", ("focalLengthU", "focalLengthV", "centerPointU", "centerPointV",
+                                              "radialDistortion1", "radialDistortion2", "tangentalDistortion1",
+                                              "tangentalDistortion2"), check, -64 * MAX_PIXEL, 64 * MAX_PIXEL)
+        rq = check.rotation_matrix(np.array([tr[f"r{i}{j}"] for i in (1, 2, 3) for j in (1, 2, 3)]).reshape(3, 3).T,
+                                   "transform r11..r33")
+        position = np.array([tr["x"], tr["y"], tr["z"]])
+        width = check.side(int(fov["right"] - fov["left"] + 1), "fov_video width (right - left + 1)")
+        height = check.side(int(fov["bottom"] - fov["top"] + 1), "fov_video height (bottom - top + 1)")
+        cx = intr["centerPointU"] / 64 - fov["left"]
+        cy = intr["centerPointV"] / 64 - fov["top"]
+        fx = check.number(intr["focalLengthU"] / 64, "intrinsic focalLengthU / 64", 0, MAX_PIXEL, open_lo=True)
+        fy = check.number(intr["focalLengthV"] / 64, "intrinsic focalLengthV / 64", 0, MAX_PIXEL, open_lo=True)
+        dist = np.array([intr["radialDistortion1"], intr["radialDistortion2"],
+                         intr["tangentalDistortion1"], intr["tangentalDistortion2"]])
         if image_widths and name in image_widths:
             cx += (image_widths[name] - width) / 2
             width = image_widths[name]
+        intrinsics = Intrinsics(fx, fy, cx, cy, source=f"file:{path.name}")
+        try:
+            intrinsics.check_image(width, height)
+        except InputError as exc:
+            raise check.fail("intrinsic", f"must suit its {width}x{height} field of view ({exc})") from None
         r = _QUALISYS_TO_CV @ rq.T
         t = _QUALISYS_TO_CV @ (-rq.T @ position)
-        cams.append(CameraCalibration(name, (int(width), int(height)),
-                                      Intrinsics(fx, fy, cx, cy, source=f"file:{path.name}"), r, t, dist))
+        cams.append(CameraCalibration(name, (width, height), intrinsics, r, t, dist))
     if not cams:
         raise InputError(f"{path} holds no camera")
     return sorted(cams, key=lambda c: natural_key(c.name))

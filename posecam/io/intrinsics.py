@@ -15,6 +15,7 @@ from pathlib import Path
 from posecam.geometry.camera import Intrinsics
 from posecam.errors import InputError
 from posecam.io.exif import focal_length_35mm
+from posecam.io.validate import MAX_PIXEL, Field
 from posecam.media import check_input
 
 
@@ -24,7 +25,7 @@ class IntrinsicsOptions:
     fy: float | None = None
     cx: float | None = None
     cy: float | None = None
-    file: str | None = None      # JSON (fx, fy, cx, cy or a 3x3 "matrix") or calibration TOML
+    file: str | None = None      # JSON (fx, fy, cx, cy or a 3x3 "matrix"), OpenCV YAML/XML or a calibration
     camera: str | None = None    # camera name inside a calibration TOML
 
     def __post_init__(self) -> None:
@@ -43,18 +44,93 @@ class IntrinsicsOptions:
                              "give the file too (--intrinsics FILE)")
 
 
-def _from_json(path: Path) -> Intrinsics:
+MAX_FILE_BYTES = 16 << 20   # an intrinsics or calibration file is small; larger ones are not read
+# the camera matrix's name in OpenCV FileStorage files (calibrateCamera samples, stereo tools)
+FILESTORAGE_MATRIX = ("camera_matrix", "cameraMatrix", "K", "M1", "intrinsic_matrix", "intrinsics")
+
+
+def read_small(path: Path, what: str) -> bytes:
+    """The bytes of a small text file (intrinsics, calibration), refused when over MAX_FILE_BYTES."""
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-        if "matrix" in doc:
-            return Intrinsics.from_matrix(doc["matrix"], source=f"file:{path.name}")
-        return Intrinsics(doc["fx"], doc.get("fy", doc["fx"]), doc["cx"], doc["cy"], source=f"file:{path.name}")
-    except RecursionError:
-        raise InputError(f"{path}: JSON nested too deeply to be intrinsics") from None
+        with open(path, "rb") as f:
+            data = f.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise InputError(f"{path} cannot be read ({exc.strerror})") from None
-    except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError, ValueError) as exc:
+    if len(data) > MAX_FILE_BYTES:
+        raise InputError(f"{path}: an {what} file of more than {MAX_FILE_BYTES >> 20} MB is not read")
+    return data
+
+
+def _checked(values: dict, check: Field, source: str) -> Intrinsics:
+    fx = check.number(values["fx"], "fx", 0, MAX_PIXEL, open_lo=True)
+    fy = check.number(values["fy"], "fy", 0, MAX_PIXEL, open_lo=True)
+    cx = check.number(values["cx"], "cx", -MAX_PIXEL, MAX_PIXEL)
+    cy = check.number(values["cy"], "cy", -MAX_PIXEL, MAX_PIXEL)
+    return Intrinsics(float(fx), float(fy), float(cx), float(cy), source=source)
+
+
+def _from_matrix(k: object, check: Field, field: str, source: str) -> Intrinsics:
+    m = check.numbers(k, field, ((3, 3),), -MAX_PIXEL, MAX_PIXEL)
+    if m[2].tolist() != [0, 0, 1] or m[1, 0] != 0:
+        raise check.fail(field, "must be a camera matrix [[fx, s, cx], [0, fy, cy], [0, 0, 1]]", m.tolist())
+    return _checked({"fx": m[0, 0], "fy": m[1, 1], "cx": m[0, 2], "cy": m[1, 2]}, check, source)
+
+
+def _from_json(path: Path, data: bytes) -> Intrinsics:
+    check = Field(str(path))
+    try:
+        doc = json.loads(data.decode("utf-8"), parse_constant=_no_constant)
+    except RecursionError:
+        raise InputError(f"{path}: JSON nested too deeply to be intrinsics") from None
+    except (json.JSONDecodeError, UnicodeDecodeError, ValueError) as exc:
         raise InputError(f"{path}: not an intrinsics JSON with fx, fy, cx, cy or a 3x3 matrix ({exc})") from None
+    check.table(doc, "the document")
+    source = f"file:{path.name}"
+    if "matrix" in doc:
+        return _from_matrix(doc["matrix"], check, "matrix", source)
+    missing = [k for k in ("fx", "cx", "cy") if k not in doc]
+    if missing:
+        raise InputError(f"{path}: not an intrinsics JSON with fx, fy, cx, cy or a 3x3 matrix "
+                         f"(missing {', '.join(missing)})")
+    return _checked({**doc, "fy": doc.get("fy", doc["fx"])}, check, source)
+
+
+def _no_constant(name: str) -> None:
+    raise ValueError(f"{name} is not a number")
+
+
+def is_filestorage(data: bytes) -> bool:
+    """True for an OpenCV FileStorage file: YAML (`%YAML`) or XML with <opencv_storage>."""
+    head = data[:4096].lstrip()
+    return head.startswith(b"%YAML") or (head.startswith(b"<") and b"<opencv_storage>" in head)
+
+
+def _from_filestorage(path: Path, data: bytes) -> Intrinsics:
+    """The camera matrix of an OpenCV FileStorage YAML/XML (cv2.FileStorage: `camera_matrix`
+    and the like, as calibrateCamera's samples write). Read from memory, so any file name works."""
+    import cv2
+
+    check = Field(str(path))
+    try:
+        storage = cv2.FileStorage(data.decode("utf-8"), cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
+    except (cv2.error, UnicodeDecodeError) as exc:
+        raise InputError(f"{path} is not a readable OpenCV FileStorage file "
+                         f"({str(exc).strip().splitlines()[-1][:120]})") from None
+    try:
+        for key in FILESTORAGE_MATRIX:
+            node = storage.getNode(key)
+            if node.isNone():
+                continue
+            if not node.isMap() or node.getNode("rows").real() != 3 or node.getNode("cols").real() != 3:
+                raise check.fail(key, "must be a 3x3 matrix (!!opencv-matrix rows: 3 cols: 3)")
+            matrix = node.mat()
+            if matrix is None or matrix.shape != (3, 3):
+                raise check.fail(key, "must be a 3x3 matrix (!!opencv-matrix rows: 3 cols: 3)")
+            return _from_matrix(matrix.astype(float).tolist(), check, key, f"file:{path.name}")
+    finally:
+        storage.release()
+    raise InputError(f"{path}: an OpenCV FileStorage file without a camera matrix "
+                     f"(one of {', '.join(FILESTORAGE_MATRIX)})")
 
 
 def _from_toml(path: Path, camera: str | None, width: int, height: int) -> Intrinsics:
@@ -96,7 +172,12 @@ def _resolve(opts: IntrinsicsOptions, width: int, height: int, image_path: str |
             raise InputError(f"intrinsics file {path} is a folder")
         if is_calibration(path):
             return _from_toml(path, opts.camera, width, height)
-        return _from_json(path)
+        data = read_small(path, "intrinsics")
+        if is_filestorage(data):
+            return _from_filestorage(path, data)
+        if path.suffix.lower() == ".xml":   # not OpenCV's: a Qualisys calibration
+            return _from_toml(path, opts.camera, width, height)
+        return _from_json(path, data)
     if image_path is not None:
         f35 = focal_length_35mm(image_path)
         if f35:

@@ -32,6 +32,8 @@ from posecam.geometry.camera import Intrinsics
 from posecam.geometry.floor import Floor
 from posecam.errors import InputError
 from posecam.io.atomic import atomic_path
+from posecam.io.jsonstream import JsonStream
+from posecam.io.validate import MAX_FPS, MAX_INDEX, MAX_JOINTS, MAX_MM, MAX_PEOPLE, MAX_PIXEL, MAX_SECONDS, Field
 from posecam.media import check_input
 from posecam.results import Frame, Person, Recording
 
@@ -71,17 +73,6 @@ def person_to_dict(p: Person) -> dict:
                    height_estimated=_number(p.height_estimated, 3), height_sd=_number(p.height_sd, 3),
                    depth_sd=_number(p.depth_sd, 1))
     return out
-
-
-def _person_metric(p: dict) -> dict:
-    """The metric-scale fields of a person read from JSON (absent in older files)."""
-    def number(key):
-        value = p.get(key)
-        return float("nan") if value is None else float(value)
-
-    return {"height": number("height"), "height_source": str(p.get("height_source", "")),
-            "height_estimated": number("height_estimated"), "height_sd": number("height_sd"),
-            "depth_sd": number("depth_sd")}
 
 
 def _header(r: Recording) -> dict:
@@ -184,50 +175,163 @@ def write_poses(path: str | os.PathLike, recordings: list[Recording], angles: tu
         write_json(out, recordings) if suffix == ".json" else write_csv(out, recordings, angles)
 
 
-def _array(values, columns: int | None, joints: int, what: str) -> np.ndarray:
-    """A (joints, columns) or (joints,) float array from JSON lists; null -> NaN."""
-    a = np.array(values, dtype=object)
-    a = np.where(np.equal(a, None), np.nan, a).astype(float)
-    want = (joints, columns) if columns else (joints,)
-    if a.shape != want:
-        raise ValueError(f"{what} has shape {list(a.shape)}, expected {list(want)} for {joints} joints")
-    return a
-
-
-def _angles(values: dict | None) -> dict[str, float] | None:
-    """A person's angles from JSON (null -> NaN), or None when the file has none."""
-    return None if values is None else {str(k): np.nan if v is None else float(v) for k, v in values.items()}
+MAX_INPUTS = 10000       # inputs in one pose file
+MAX_DEGREES = 720.0      # |angle|
+MAX_HEIGHT_M = 100.0     # a person's height and its uncertainty, in metres
+FRAMES_OF_REFERENCE = ("camera", "world")   # or "reference camera NAME"
 
 
 def read_poses(path: str | os.PathLike) -> list[Recording]:
-    """Read a JSON file written by `posecam predict` (or `fuse`) back into recordings."""
+    """Read a JSON file written by `posecam predict` (or `fuse`) back into recordings.
+
+    The file is streamed (posecam.io.jsonstream) and every field checked as it comes
+    (posecam.io.validate): at most MAX_PEOPLE people per frame, frame indices whole numbers
+    that increase, times, sizes, intrinsics and coordinates finite and in range."""
     check_input(path, "pose file")
+    where = str(path)
     try:
-        doc = json.loads(Path(path).read_text(encoding="utf-8"))
-        joints = tuple(doc["joints"])
-        n = len(joints)
-        recordings = []
-        for inp in doc["inputs"]:
-            k = inp.get("intrinsics")
-            frames = [
-                Frame(f["index"], f["time"], [
-                    Person(p["id"], p["score"], np.array(p["bbox"], float),
-                           _array(p["keypoints_2d"], 2, n, "keypoints_2d"),
-                           _array(p["keypoints_3d"], 3, n, "keypoints_3d"),
-                           _array(p["confidence"], None, n, "confidence"), _angles(p.get("angles")),
-                           **_person_metric(p))
-                    for p in f["people"]
-                ])
-                for f in inp["frames"]
-            ]
-            recordings.append(Recording(
-                inp["source"], inp["width"], inp["height"],
-                Intrinsics(k["fx"], k["fy"], k["cx"], k["cy"], k.get("source", "file")) if k else None,
-                joints, frames, doc.get("model", ""), inp.get("fps"), inp.get("frame", "camera"),
-                Floor.from_dict(inp["floor"]) if inp.get("floor") else None,
-            ))
+        with open(path, encoding="utf-8") as f:
+            return _read_document(JsonStream(f, where), Field(where))
     except RecursionError:
         raise InputError(f"{path} is not a posecam pose file (JSON nested too deeply)") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, KeyError, TypeError, ValueError) as exc:
-        raise InputError(f"{path} is not a posecam pose file ({type(exc).__name__}: {exc})") from None
-    return recordings
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{path} is not a posecam pose file (not UTF-8 text: {exc.reason})") from None
+    except OSError as exc:
+        raise InputError(f"{path} cannot be read ({exc.strerror})") from None
+
+
+def _read_document(stream: JsonStream, check: Field) -> list[Recording]:
+    header, inputs, shape = {}, [], {}
+    for key in stream.keys():
+        if key == "inputs":
+            for n in stream.items(MAX_INPUTS, "inputs"):
+                inputs.append(_read_input(stream, Field(f"{check.where} inputs[{n}]"), shape))
+        else:
+            header[key] = stream.value()
+    stream.end()
+    if "joints" not in header or not inputs and "inputs" not in header:
+        raise InputError(f"{check.where} is not a posecam pose file (no joints or inputs)")
+    names = check.items(header["joints"], "joints", MAX_JOINTS)
+    joints = tuple(check.text(j, "joints", limit=64) for j in names)
+    if not joints or len(set(joints)) != len(joints):
+        raise check.fail("joints", "must be distinct joint names, at least one", list(joints)[:20])
+    if shape.get("joints", len(joints)) != len(joints):
+        raise check.fail(shape["where"], f"keypoints_2d has shape [{shape['joints']}, 2], expected "
+                                         f"[{len(joints)}, 2] for {len(joints)} joints")
+    model = check.text(header.get("model", ""), "model")
+    return [Recording(joints=joints, model=model, **fields) for fields in inputs]
+
+
+def _read_input(stream: JsonStream, check: Field, shape: dict) -> dict:
+    fields, frames = {}, []
+    for key in stream.keys():
+        if key == "frames":
+            last = -1
+            for n in stream.items(MAX_INDEX, "frames"):
+                frame = _read_frame(stream, Field(f"{check.where} frames[{n}]"), shape)
+                if frame.index <= last:
+                    raise check.fail(f"frames[{n}].index", f"must increase (the frame before is {last})",
+                                     frame.index)
+                last = frame.index
+                frames.append(frame)
+        else:
+            fields[key] = stream.value()
+    for needed in ("source", "width", "height"):
+        if needed not in fields:
+            raise check.fail(needed, "is missing")
+    k = fields.get("intrinsics")
+    intrinsics = None
+    if k is not None:
+        check.table(k, "intrinsics")
+        for needed in ("fx", "fy", "cx", "cy"):
+            if needed not in k:
+                raise check.fail(f"intrinsics.{needed}", "is missing")
+        intrinsics = Intrinsics(*(float(check.number(k[n], f"intrinsics.{n}", 0, MAX_PIXEL, open_lo=n in ("fx", "fy")))
+                                  for n in ("fx", "fy", "cx", "cy")),
+                                check.text(k.get("source", "file"), "intrinsics.source"))
+    frame = check.text(fields.get("frame", "camera"), "frame")
+    if frame not in FRAMES_OF_REFERENCE and not frame.startswith("reference camera "):
+        raise check.fail("frame", "must be camera, world or reference camera NAME", frame)
+    fps = check.number(fields.get("fps"), "fps", 0, MAX_FPS, optional=True, open_lo=True)
+    return {"source": check.text(fields["source"], "source"), "width": check.side(fields["width"], "width"),
+            "height": check.side(fields["height"], "height"), "intrinsics": intrinsics, "frames": frames,
+            "fps": None if fps is None else float(fps), "frame_of_reference": frame,
+            "floor": _floor(fields.get("floor"), check)}
+
+
+def _optional(value: float | None) -> float:
+    return np.nan if value is None else float(value)
+
+
+def _read_frame(stream: JsonStream, check: Field, shape: dict) -> Frame:
+    fields, people = {}, []
+    for key in stream.keys():
+        if key == "people":
+            for n in stream.items(MAX_PEOPLE, f"{check.where}.people"):
+                people.append(_read_person(stream.value(), Field(f"{check.where} people[{n}]"), shape))
+        else:
+            fields[key] = stream.value()
+    if "index" not in fields:
+        raise check.fail("index", "is missing")
+    index = check.number(fields["index"], "index", 0, MAX_INDEX, whole=True)
+    time = check.number(fields.get("time"), "time", -MAX_SECONDS, MAX_SECONDS, optional=True)
+    return Frame(index, _optional(time), people)
+
+
+def _read_person(p: object, check: Field, shape: dict) -> Person:
+    """One person, every field checked; the joint count is the file's (the first person's
+    until the file's joints are read)."""
+    check.table(p, "person")
+    for needed in ("id", "keypoints_2d", "keypoints_3d", "confidence"):
+        if needed not in p:
+            raise check.fail(needed, "is missing")
+    uv = p["keypoints_2d"]
+    joints = shape.setdefault("joints", len(uv) if isinstance(uv, list) and 0 < len(uv) <= MAX_JOINTS else 0)
+    shape.setdefault("where", check.where)
+    return Person(
+        check.number(p["id"], "id", -MAX_INDEX, MAX_INDEX, whole=True),
+        _optional(check.number(p.get("score"), "score", 0, 1, optional=True)),
+        check.numbers(p.get("bbox", [None] * 4), "bbox", ((4,),), -MAX_PIXEL, MAX_PIXEL, nulls=True),
+        check.numbers(uv, "keypoints_2d", ((joints, 2),), -MAX_PIXEL, MAX_PIXEL, nulls=True),
+        check.numbers(p["keypoints_3d"], "keypoints_3d", ((joints, 3),), -MAX_MM, MAX_MM, nulls=True),
+        check.numbers(p["confidence"], "confidence", ((joints,),), 0, 1, nulls=True),
+        _angles(p.get("angles"), check),
+        **_person_metric(p, check),
+    )
+
+
+def _angles(values: object, check: Field) -> dict[str, float] | None:
+    """A person's angles in degrees (null -> NaN), or None when the file has none."""
+    if values is None:
+        return None
+    check.table(values, "angles")
+    if len(values) > MAX_JOINTS:
+        raise check.fail("angles", f"must hold at most {MAX_JOINTS} angles", f"{len(values)} angles")
+    return {k: _optional(check.number(v, f"angles.{k}", -MAX_DEGREES, MAX_DEGREES, optional=True))
+            for k, v in values.items()}
+
+
+def _person_metric(p: dict, check: Field) -> dict:
+    """The metric-scale fields of a person (posecam.metric; absent in older files)."""
+    def number(key: str, hi: float) -> float:
+        return _optional(check.number(p.get(key), key, 0, hi, optional=True))
+
+    return {"height": number("height", MAX_HEIGHT_M), "height_estimated": number("height_estimated", MAX_HEIGHT_M),
+            "height_sd": number("height_sd", MAX_HEIGHT_M), "depth_sd": number("depth_sd", MAX_MM),
+            "height_source": check.text(p.get("height_source", ""), "height_source", limit=64)}
+
+
+def _floor(value: object, check: Field) -> Floor | None:
+    """An input's fitted floor (posecam.geometry.floor), or None."""
+    if not value:
+        return None
+    d = check.table(value, "floor")
+    if "normal" not in d or "distance" not in d:
+        raise check.fail("floor", "must hold normal and distance")
+    normal = check.numbers(d["normal"], "floor.normal", ((3,),), -1, 1)
+    if abs(float(np.linalg.norm(normal)) - 1) > 1e-3:
+        raise check.fail("floor.normal", "must be a unit vector", normal.tolist())
+    return Floor(normal, float(check.number(d["distance"], "floor.distance", -MAX_MM, MAX_MM)),
+                 _optional(check.number(d.get("spread"), "floor.spread", 0, MAX_MM, optional=True)),
+                 check.number(d.get("contacts", 0), "floor.contacts", 0, MAX_INDEX, whole=True),
+                 check.number(d.get("tracks", 0), "floor.tracks", 0, MAX_INDEX, whole=True))
