@@ -31,7 +31,7 @@ from posecam.inference.pose_model import PoseCandidate, make_pose_model
 from posecam.inference.roi import Roi
 from posecam.inference.session import load_model
 from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
-from posecam.media import Media, open_media
+from posecam.media import FrameSelection, Media, open_media
 from posecam.results import Frame, Person, Recording
 from posecam.skeleton import BLAZEPOSE_LANDMARKS, H36M_JOINTS, blazepose_to_h36m
 from posecam.tracking import Track, Tracker, TrackerOptions, foreign_joints, oks
@@ -211,18 +211,22 @@ class PoseEstimator:
             frame.index = index
             yield frame
 
-    def stream_file(self, path: str | Path, intrinsics: IntrinsicsSource = None) -> FileStream:
+    def stream_file(self, path: str | Path, intrinsics: IntrinsicsSource = None,
+                    frames: FrameSelection | None = None) -> FileStream:
         """Open an image, a video or a folder of images: its Recording (no frames yet), and its
         frames, predicted one at a time as they are read (people tracked in a video).
         `intrinsics`: this input's camera (`Intrinsics`), or how to find it (`IntrinsicsOptions`:
-        flags, a file, a calibration's camera); None: the photo's EXIF, else the default lens."""
-        media = open_media(path)
+        flags, a file, a calibration's camera); None: the photo's EXIF, else the default lens.
+        `frames`: part of a video or sequence (source indices and times kept; the Recording's
+        fps is the rate of the frames kept)."""
+        media = open_media(path, frames)
         if isinstance(intrinsics, Intrinsics):
             k = intrinsics.check_image(media.width, media.height)
         else:
             k = resolve_intrinsics(intrinsics or IntrinsicsOptions(), media.width, media.height,
                                    image_path=media.path if media.kind == "image" else None)
-        rec = Recording(str(path), media.width, media.height, k, self.joints, model=self.model_name, fps=media.fps)
+        rec = Recording(str(path), media.width, media.height, k, self.joints, model=self.model_name,
+                        fps=media.sample_fps)
 
         def frames() -> Iterator[tuple[Frame, np.ndarray]]:
             tracker = self._tracker()
@@ -234,11 +238,11 @@ class PoseEstimator:
         return FileStream(rec, media, frames())
 
     def predict_file(self, path: str | Path, intrinsics: IntrinsicsSource = None, on_frame: OnFrame | None = None,
-                     smooth: bool = False) -> Recording:
+                     smooth: bool = False, frames: FrameSelection | None = None) -> Recording:
         """Poses for every frame of an image, a video or a folder of images, held in the
         Recording (`stream_file(...).poses()` for long videos); each frame is decoded once and
         handed to `on_frame` (progress bars, overlays) with its result."""
-        stream = self.stream_file(path, intrinsics)
+        stream = self.stream_file(path, intrinsics, frames)
         stream.recording.frames = list(stream.poses(smooth, on_frame))
         return stream.recording
 

@@ -9,6 +9,10 @@ A folder is one of two things (`folder_kind`):
   as in a phone's IMG_0001.JPG, IMG_0002.JPG, ...). Each photo is an input of its own, with
   its own size, intrinsics and EXIF (`expand_inputs`).
 
+Part of a video or sequence (`FrameSelection`: `--start/--end/--stride`, in frames or seconds)
+is read by seeking to the first frame and grabbing, not decoding, the frames skipped between
+two kept ones; the kept frames keep their index and time in the source.
+
 Only regular files and folders are opened (a FIFO or a device would block forever), and
 OpenCV never sees a file name: images are decoded from their bytes, videos whose names
 OpenCV cannot take (not UTF-8) are opened through a temporary link with an ASCII name.
@@ -43,6 +47,42 @@ VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv")   # videos posecam writes, and
 DEFAULT_FPS = 30.0   # the frame rate of an image sequence, and of a video or a recording that gives none
 MAX_PIXELS = 1 << 28        # 268 Mpx: larger images are refused before decoding
 _NUMBERED = re.compile(r"^(.*?)(\d+)$")
+_FRAMES_OR_SECONDS = re.compile(r"^(\d+)$|^(\d+(?:\.\d*)?|\.\d+)s$")
+
+
+@dataclass(frozen=True)
+class FrameSelection:
+    """Part of a video or frame sequence: from `start` up to, not including, `end`, every
+    `stride`-th frame. Each is a frame count ("120") or seconds ("2s", "0.5s"); seconds are
+    turned into frames at the input's frame rate (rounded to the nearest frame)."""
+
+    start: str | None = None
+    end: str | None = None
+    stride: str | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("start", "end", "stride"):
+            value = getattr(self, name)
+            if value is not None and not _FRAMES_OR_SECONDS.match(str(value).strip()):
+                raise InputError(f"--{name} takes a frame number (120) or seconds (2s, 0.5s), got {value!r}")
+        if self.stride is not None and self._frames(self.stride, 1000.0) == 0 and self._frames(self.stride, 1.0) == 0:
+            raise InputError(f"--stride must be at least one frame, got {self.stride!r}")
+
+    @staticmethod
+    def _frames(value: str, fps: float) -> int:
+        m = _FRAMES_OR_SECONDS.match(str(value).strip())
+        return int(m.group(1)) if m.group(1) is not None else round(float(m.group(2)) * fps)
+
+    def frames(self, fps: float, count: int) -> range:
+        """The kept frame indices of an input of `count` frames at `fps`."""
+        first = self._frames(self.start, fps) if self.start is not None else 0
+        stop = min(self._frames(self.end, fps), count) if self.end is not None else count
+        step = max(1, self._frames(self.stride, fps)) if self.stride is not None else 1
+        if first >= stop:
+            end = f"--end {self.end}" if self.end is not None and self._frames(self.end, fps) < count \
+                else f"the end of the input ({count} frames at {fps:g} fps)"
+            raise InputError(f"--start {self.start} (frame {first}) is not before {end}: no frame to read")
+        return range(first, stop, step)
 
 
 @dataclass
@@ -57,13 +97,26 @@ class Media:
     frame_count: int
     image: np.ndarray | None = field(default=None, repr=False)   # a still image, decoded once
     files: list[Path] = field(default_factory=list, repr=False)  # a sequence's frames, in order
+    selection: FrameSelection | None = None                      # part of a video or sequence
+
+    @property
+    def selected(self) -> range:
+        """The indices of the frames `frames()` yields (all of them without a selection)."""
+        return self.selection.frames(self.fps, self.frame_count) if self.selection else range(self.frame_count)
+
+    @property
+    def sample_fps(self) -> float | None:
+        """The rate of the frames yielded: the input's, divided by the selection's stride."""
+        return self.fps / self.selected.step if self.fps else self.fps
 
     def frames(self) -> Iterator[tuple[int, float, np.ndarray]]:
-        """Yield (index, time in s, RGB uint8 image); memory stays flat for any length."""
+        """Yield (index, time in s, RGB uint8 image) of the selected frames, index and time
+        those of the source; memory stays flat for any length."""
         if self.kind == "image":
             yield 0, 0.0, self.image if self.image is not None else read_image(self.path)
         elif self.kind == "sequence":
-            for i, p in enumerate(self.files):
+            for i in self.selected:
+                p = self.files[i]
                 rgb = read_image(p)
                 if rgb.shape[:2] != (self.height, self.width):
                     raise InputError(f"{p} is {rgb.shape[1]}x{rgb.shape[0]}, the other frames of "
@@ -73,17 +126,34 @@ class Media:
             yield from self._video_frames()
 
     def _video_frames(self) -> Iterator[tuple[int, float, np.ndarray]]:
-        index = 0
+        wanted = self.selected
+        # without --end, read to the video's real end (a declared count may be off)
+        stop = wanted.stop if self.selection and self.selection.end is not None else None
+        index, ok = wanted.start, True
         with _video_capture(self.path) as cap:
-            while True:
+            if index:
+                _seek(cap, index)
+            while stop is None or index < stop:
                 ok, bgr = cap.read()
                 if not ok:
                     break
                 yield index, index / self.fps, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
-                index += 1
-        if index < self.frame_count:
+                index += wanted.step
+                for _ in range(wanted.step - 1):   # skipped frames: grabbed, not decoded into images
+                    cap.grab()
+        if not ok and index < self.frame_count:
             warn(f"{self.path} ended after {index} of its {self.frame_count} declared frames "
                  "(a truncated or damaged video?)")
+
+
+def _seek(cap: cv2.VideoCapture, index: int) -> None:
+    """Put `cap` at frame `index`: OpenCV's seek where it lands there exactly, else by grabbing."""
+    if cap.set(cv2.CAP_PROP_POS_FRAMES, index) and int(cap.get(cv2.CAP_PROP_POS_FRAMES)) == index:
+        return
+    cap.set(cv2.CAP_PROP_POS_FRAMES, 0)
+    for _ in range(index):
+        if not cap.grab():
+            return
 
 
 @contextmanager
@@ -261,8 +331,20 @@ def expand_inputs(paths: list[str | os.PathLike]) -> list[Path]:
     return expanded
 
 
-def open_media(path: str | os.PathLike) -> Media:
-    """Open an image, a video or a folder of frames; raise InputError if it cannot be read."""
+def open_media(path: str | os.PathLike, selection: FrameSelection | None = None) -> Media:
+    """Open an image, a video or a folder of frames (only the `selection` of a video or
+    folder); raise InputError if it cannot be read, or a still image comes with a selection."""
+    media = _open(path)
+    if selection is None or selection == FrameSelection():
+        return media
+    if media.kind == "image":
+        raise InputError(f"--start, --end and --stride pick frames of a video or sequence; {path} is an image")
+    media.selection = selection
+    media.selected   # noqa: B018 -- a start past the end is refused now, before any work
+    return media
+
+
+def _open(path: str | os.PathLike) -> Media:
     path = check_input(path)
     if path.is_dir():
         kind, files = folder_kind(path)

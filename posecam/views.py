@@ -10,6 +10,7 @@ flags, or posecam's default lens.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 from posecam.errors import InputError, warn
@@ -18,7 +19,7 @@ from posecam.geometry.camera import Rig
 from posecam.io.calibration import read_calibration
 from posecam.io.intrinsics import IntrinsicsOptions, is_calibration
 from posecam.io.poses import read_poses
-from posecam.media import open_media
+from posecam.media import FrameSelection, open_media
 from posecam.multiview.fuse import FuseOptions, check_lengths
 from posecam.results import Recording
 
@@ -51,19 +52,21 @@ def view_intrinsics(videos: list[str], intrinsics: IntrinsicsOptions | None = No
 
 def load_views(inputs: list[str], options: EstimatorOptions | None = None, intrinsics: IntrinsicsOptions | None = None,
                calibration: str | None = None, rig: Rig | None = None, fuse: FuseOptions | None = None,
-               on_frame: OnFrame | None = None, estimator: PoseEstimator | None = None) -> list[Recording]:
+               on_frame: OnFrame | None = None, estimator: PoseEstimator | None = None,
+               frames: FrameSelection | None = None) -> list[Recording]:
     """One recording per view (a pose JSON file may hold several). Every input is opened, and
     the views' lengths compared from their headers (a warning on any difference; InputError
     past what `fuse`'s offsets allow), before anything is predicted. The videos are predicted
     by `estimator` (default: one built from `options`); `on_frame(frame, rgb, media)` sees
-    every frame (progress bars)."""
+    every frame (progress bars). `frames`: the part of every view to fuse (a pose file's
+    frames are picked by their source index)."""
     videos = [p for p in inputs if Path(p).suffix.lower() != ".json"]
-    media = {p: open_media(p) for p in videos}
+    media = {p: open_media(p, frames) for p in videos}
     ks = dict(zip(videos, view_intrinsics(videos, intrinsics, calibration, rig)))
-    poses = {p: read_poses(p) for p in inputs if p not in media}
+    poses = {p: [select_frames(r, frames) for r in read_poses(p)] for p in inputs if p not in media}
     names, lengths = [], []
     for path in inputs:
-        counts = [media[path].frame_count] if path in media else [len(r.frames) for r in poses[path]]
+        counts = [len(media[path].selected)] if path in media else [len(r.frames) for r in poses[path]]
         names += [Path(path).name] * len(counts)
         lengths += counts
     differ = check_lengths(names, lengths, fuse or FuseOptions())
@@ -73,5 +76,15 @@ def load_views(inputs: list[str], options: EstimatorOptions | None = None, intri
         estimator = PoseEstimator(options or EstimatorOptions())
     recordings = []
     for path in inputs:
-        recordings += [estimator.predict_file(path, ks[path], on_frame)] if path in media else poses[path]
+        recordings += [estimator.predict_file(path, ks[path], on_frame, frames=frames)] if path in media else poses[path]
     return recordings
+
+
+def select_frames(rec: Recording, frames: FrameSelection | None) -> Recording:
+    """The frames of a pose file's recording that `frames` keeps, by their source index (a
+    recording without a frame rate is taken at 30 fps, as the smoother takes it)."""
+    if frames is None or not rec.frames:
+        return rec
+    fps = rec.fps or 30.0
+    kept = frames.frames(fps, max(f.index for f in rec.frames) + 1)
+    return dataclasses.replace(rec, frames=[f for f in rec.frames if f.index in kept], fps=fps / kept.step)

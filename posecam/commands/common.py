@@ -17,7 +17,7 @@ if TYPE_CHECKING:
 
     from posecam.estimate import EstimatorOptions
     from posecam.io.intrinsics import IntrinsicsOptions
-    from posecam.media import Media
+    from posecam.media import FrameSelection, Media
     from posecam.results import Frame
 
 
@@ -92,6 +92,25 @@ def height_option(f: Callable) -> Callable:
                         help="People's heights in metres, which fix their metric scale: one value for everyone, "
                              "a list matched to the people tallest first (1.72,1.21), or per id (--height 0=1.72 "
                              "--height 1=1.21).")(f)
+
+
+def frame_options(f: Callable) -> Callable:
+    """--start, --end and --stride, shared by `predict` and `fuse`, read by `make_frame_selection`."""
+    for opt in reversed([
+        click.option("--start", help="First frame to read: a frame number (120) or a time (2s, 1.5s); default: 0."),
+        click.option("--end", help="Stop before this frame (a frame number or a time, e.g. 4s); default: the end."),
+        click.option("--stride", help="Read every Nth frame (a number of frames, or a time such as 0.1s); default: 1."),
+    ]):
+        f = opt(f)
+    return f
+
+
+def make_frame_selection(kwargs: dict) -> FrameSelection | None:
+    """The FrameSelection of the `frame_options` flags, taken out of a command's kwargs (None: all frames)."""
+    from posecam.media import FrameSelection
+
+    start, end, stride = (kwargs.pop(n) for n in ("start", "end", "stride"))
+    return FrameSelection(start, end, stride) if (start, end, stride) != (None, None, None) else None
 
 
 def angle_options(f: Callable) -> Callable:
@@ -211,8 +230,8 @@ def frame_progress(progress: Progress) -> Callable[[Frame, object, Media], None]
 
     def step(frame: Frame, rgb, media: Media) -> None:
         if media.path not in bars:
-            bars[media.path] = progress.add_task(Path(media.path).name, total=media.frame_count)
-        progress.update(bars[media.path], completed=frame.index + 1)
+            bars[media.path] = progress.add_task(Path(media.path).name, total=len(media.selected))
+        progress.advance(bars[media.path])
 
     return step
 

@@ -8,8 +8,9 @@ from typing import TYPE_CHECKING
 
 import click
 
-from posecam.commands.common import (angle_options, check_angles, check_output, estimator_options, frame_progress, intrinsics_options,
-                                     make_estimator_options, make_intrinsics_options, many_options, progress_bar,
+from posecam.commands.common import (angle_options, check_angles, check_output, estimator_options, frame_options,
+                                     frame_progress, intrinsics_options, make_estimator_options, make_frame_selection,
+                                     make_intrinsics_options, many_options, progress_bar,
                                      refuse_alone, report_written, stdout_report, shown, warn)
 from posecam.errors import InputError
 
@@ -58,6 +59,7 @@ def print_report(result: FusionResult, console) -> None:
               help="Largest frame offset --sync auto tries, in frames either way.")
 @click.option("--viz", type=click.Path(), help="FILE.png or FILE.jpg: the fused pose projected into every view.")
 @angle_options
+@frame_options
 @estimator_options
 @many_options("take")
 @intrinsics_options(per_camera=True)
@@ -111,6 +113,12 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
         raise InputError("--out-dir writes one file per take; it does not go with -o, --viz, --viz3d, --save-calibration, "
                          "--angles or --plot")
     estimator, intrinsics = make_estimator_options(flags), make_intrinsics_options(flags)
+    selection = make_frame_selection(flags)
+    if selection and many:
+        raise InputError("--start, --end and --stride pick frames of one take; they do not go with --out-dir")
+    if selection and selection.stride not in (None, "1") and (sync == "auto" or any(offset_list or [])):
+        raise InputError("--stride does not go with --sync auto or non-zero --offsets: the views' offsets would fall "
+                         "between the frames kept; use --start/--end alone")
     if calibration and (intrinsics.file or intrinsics.fx is not None or intrinsics.fy is not None):
         raise InputError("--calibration gives every camera's intrinsics; it does not go with --intrinsics or --fx/--fy")
     staged = OutputSet([None if markers else output, save_calibration, viz, viz3d, plot],
@@ -126,7 +134,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
                          ray_address, smooth)
     with progress_bar() as progress:
         recordings = load_views(list(inputs), estimator, intrinsics, calibration, rig, opts,
-                                on_frame=frame_progress(progress))
+                                on_frame=frame_progress(progress), frames=selection)
     with err.status("fusing") as status:
         result = fuse_recordings(recordings, opts, progress=lambda msg: status.update(msg))
     for line in result.warnings:

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import click
 
-from posecam.commands.common import (angle_options, check_angles, check_output, estimator_options, height_option, intrinsics_options, make_estimator_options,
+from posecam.commands.common import (angle_options, check_angles, check_output, estimator_options, frame_options,
+                                     height_option, intrinsics_options, make_estimator_options, make_frame_selection,
                                      make_intrinsics_options, many_options, progress_bar, refuse_alone,
                                      report_written, stdout_report, shown, warn)
 from posecam.errors import InputError
@@ -70,12 +71,13 @@ def explain_empty(sm: InputSummary, min_detection_score: float, min_presence: fl
 
 
 def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=None, draw=None, smooth: bool = True,
-                   keep: bool = False, emitted=None, metric=None) -> tuple[list, list[InputSummary]]:
+                   keep: bool = False, emitted=None, metric=None, frames=None) -> tuple[list, list[InputSummary]]:
     """Predict each input through `FileStream.poses` with a progress bar; every frame is drawn
     (`draw(frame, rgb)`) as it is predicted, put at its track's metric scale (`metric`,
     MetricOptions), then smoothed (videos), handed to `emitted(frame,
     recording)` (angles, plots), written (`writer`, a PoseWriter) and counted. The recordings
-    hold their frames only with `keep` (markers and the 3D view need them)."""
+    hold their frames only with `keep` (markers and the 3D view need them); `frames`: the
+    FrameSelection of each video or sequence."""
     from posecam.commands.common import frame_progress
 
     moved = frame_progress(progress)
@@ -87,7 +89,7 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
 
     recordings, summaries = [], []
     for path in inputs:
-        stream = estimator.stream_file(path, intrinsics)
+        stream = estimator.stream_file(path, intrinsics, frames)
         summary = InputSummary(stream.recording)
         if writer:
             writer.begin(stream.recording)
@@ -117,6 +119,7 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
 @click.option("--viz", type=click.Path(), help="Draw the result: FILE.png/.jpg for an image, FILE.mp4 for a video.")
 @click.option("--viz3d", type=click.Path(), help="FILE.html: a self-contained 3D view of one input's poses.")
 @angle_options
+@frame_options
 @click.option("--smooth/--no-smooth", default=True, show_default=True,
               help="Smooth each person's joints over time (zero-phase 6 Hz Butterworth) in videos and frame "
                    "sequences; --viz draws the unsmoothed poses.")
@@ -161,16 +164,19 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
             raise InputError(f"{flag} holds one input; pass a single input (or write .json)")
     opts, intrinsics = make_estimator_options(flags), make_intrinsics_options(flags)
     metric = MetricOptions(heights=Heights.parse(heights), floor=floor)
+    selection = make_frame_selection(flags)
     if out_dir or jobs > 1 or ray_address is not None:
         if output or viz or viz3d or plot or angles:
             raise InputError("--out-dir writes one file per input; it does not go with -o, --viz, --viz3d, --angles "
                              "or --plot")
         from posecam.commands.many import predict_many
 
+        if selection:
+            raise InputError("--start, --end and --stride pick frames of one run's inputs; they do not go with --out-dir")
         return predict_many(list(inputs), opts, intrinsics, out_dir, f".{out_format}", jobs, ray_address, smooth, metric)
-    first = open_media(inputs[0])
+    first = open_media(inputs[0], selection)
     for path in inputs[1:]:  # fail on a bad input before spending time on the good ones
-        open_media(path)
+        open_media(path, selection)
     if viz:
         check_output(viz, PICTURE_SUFFIXES if first.kind == "image" else VIDEO_SUFFIXES, f"--viz for {first.kind} input")
     if markers:
@@ -182,7 +188,7 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     with staged, ExitStack() as stack, progress_bar() as progress:  # all outputs or none
         sink = writer = None
         if viz and first.kind != "image":
-            sink = stack.enter_context(VideoSink(staged.path(viz), first.fps, first.width, first.height))
+            sink = stack.enter_context(VideoSink(staged.path(viz), first.sample_fps, first.width, first.height))
         if output and not markers:
             handle = stack.enter_context(open(staged.path(output), "w", encoding="utf-8", newline=""))
             writer = PoseWriter(handle, Path(output).suffix.lower()[1:], angle_names(estimator.joints) if angles else ())
@@ -198,7 +204,7 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
             sink.write(picture) if sink else write_image(staged.path(viz), picture)
 
         recordings, summaries = predict_inputs(estimator, inputs, intrinsics, progress, writer, draw if viz else None,
-                                               smooth, keep, emitted if angles or plot else None, metric)
+                                               smooth, keep, emitted if angles or plot else None, metric, selection)
         if writer:
             writer.close()
         written = write_markers(markers, recordings[0], trc_y_up, staged) if markers else [output]
