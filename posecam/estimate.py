@@ -26,6 +26,7 @@ from posecam.filters import StreamingSmoother
 from posecam.metric import MetricOptions, MetricStage
 from posecam.geometry.camera import Intrinsics
 from posecam.geometry.lift import solve_root_translation
+from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.inference.detector import Detection, load_detector
 from posecam.inference.pose_model import PoseCandidate, make_pose_model
 from posecam.inference.roi import Roi
@@ -178,7 +179,7 @@ class PoseEstimator:
             again = foreign_joints(redo.keypoints_2d[idx], redo.confidence[idx], own, others)
             if (redo.score >= self.options.min_presence, -again.sum()) > (c.score >= self.options.min_presence, -foreign.sum()):
                 c, foreign = redo, again
-        if foreign.sum() > (c.confidence[idx] >= 0.5).sum() / 2:
+        if foreign.sum() > (c.confidence[idx] >= MIN_CONFIDENCE).sum() / 2:
             return None, False
         if foreign.any():   # the neighbour's joints leave the pose, and the root is placed without them
             conf = c.confidence.copy()

@@ -7,7 +7,8 @@ import pytest
 
 from posecam.errors import ModelError
 from posecam.inference.contract import InputSpec, ModelContract
-from posecam.inference.session import BUNDLED, load_model
+from posecam.inference.contract import DETECTORS, ON_REQUEST, POSE_MODELS
+from posecam.inference.session import load_model
 
 LANDMARKS = ModelContract("landmarks", "test", InputSpec("x", "NHWC", (256, 256)),
                           {"landmarks": "a", "presence": "b", "world": "c"}, ("nose",))
@@ -53,8 +54,9 @@ def test_contract_round_trips_through_metadata(contract):
     assert ModelContract.from_metadata(contract.to_metadata(), "m.onnx") == contract
 
 
-@pytest.mark.parametrize("name", sorted(n for n in BUNDLED if n != "heavy"))
-def test_bundled_models_meet_the_contract(name):
-    model = load_model(name)
-    assert model.contract.kind in ("detector", "landmarks")
+@pytest.mark.parametrize("name, kind", [*((n, "landmarks") for n in POSE_MODELS if n not in ON_REQUEST),
+                                        *((n, "detector") for n in DETECTORS)])
+def test_bundled_models_meet_the_contract(name, kind):
+    model = load_model(name, kind=kind)
+    assert model.contract.kind == kind
     assert model.contract.input.size[0] > 0

@@ -43,7 +43,7 @@ def test_landmark_model_matches_litert_on_a_person_crop(variant):
 
 
 def test_detector_matches_litert_on_a_photo():
-    model = load_model("detector", kind="detector")
+    model = load_model("blazepose", kind="detector")
     x = to_input_tensor(_letterboxed(read_image(DATA / "basketball2.png"), 224)[None], model.contract.input)
     ours = model.run({"input_1": x})
     ref = _litert_outputs("pose_detection.tflite", x)
@@ -54,7 +54,7 @@ def test_detector_matches_litert_on_a_photo():
 
 def test_converter_rebuilds_the_bundled_model_exactly(tmp_path):
     build = pytest.importorskip("export.convert.build_models")
-    out = build.build("detector", tmp_path)
+    out = build.build("blazepose", tmp_path)
     bundled = onnx.load(build.MODELS_DIR / "blazepose_detector.onnx")
     rebuilt = onnx.load(out)
     assert [n.op_type for n in rebuilt.graph.node] == [n.op_type for n in bundled.graph.node]

@@ -1,6 +1,6 @@
 """Build posecam's bundled models: MediaPipe's BlazePose TFLite files and MoveNet MultiPose (TF.js).
 
-    python -m export.convert.build_models                  # detector, lite, full, movenet -> posecam/models/
+    python -m export.convert.build_models                  # blazepose (detector), lite, full, movenet -> posecam/models/
     python -m export.convert.build_models movenet          # the multi-person detector alone
     python -m export.convert.build_models heavy --out DIR  # heavy on request (28 MB source, not bundled)
 
@@ -23,12 +23,12 @@ import onnx
 from export.assets import PACKAGES, FILES, asset_path, sha256
 from export.convert import tfjs_onnx
 from export.convert.tflite_onnx import convert
-from posecam.inference.contract import InputSpec, ModelContract
+from posecam.inference.contract import DETECTORS, ON_REQUEST, POSE_MODELS, InputSpec, ModelContract
 from posecam.skeleton import BLAZEPOSE_LANDMARKS
 
 MODELS_DIR = Path(__file__).resolve().parents[2] / "posecam" / "models"
-BUNDLED = ("detector", "lite", "full", "movenet")
-ON_REQUEST = ("heavy",)
+FILES_BY_NAME = {**DETECTORS, **POSE_MODELS}   # the runtime's registry: name -> file in posecam/models/
+BUNDLED = tuple(n for n in ("blazepose", "lite", "full", "movenet") if n not in ON_REQUEST)   # committed, in card order
 
 DETECTOR = ModelContract(
     kind="detector", name="blazepose-detector",
@@ -58,13 +58,12 @@ class TfjsModel:
     """A TF.js graph model from the asset packages and what it becomes."""
 
     source: str           # FILES stem: <source>.json + <source>.bin
-    out: str              # file name in posecam/models/
     float_inputs: bool    # int32 image input -> float32 (see tfjs_onnx.convert)
     metadata: dict
 
 
 TFJS = {
-    "movenet": TfjsModel("movenet-multipose", "movenet_multipose.onnx", True, MOVENET.to_metadata()),
+    "movenet": TfjsModel("movenet-multipose", True, MOVENET.to_metadata()),
 }
 
 
@@ -78,11 +77,11 @@ def landmark_contract(variant: str) -> ModelContract:
 
 
 def source_file(variant: str) -> str:
-    return "pose_detection.tflite" if variant == "detector" else f"pose_landmark_{variant}.tflite"
+    return "pose_detection.tflite" if variant == "blazepose" else f"pose_landmark_{variant}.tflite"
 
 
 def output_file(variant: str) -> str:
-    return TFJS[variant].out if variant in TFJS else f"blazepose_{variant}.onnx"
+    return FILES_BY_NAME[variant]
 
 
 def tfjs_sources(variant: str) -> tuple[Path, Path]:
@@ -95,12 +94,13 @@ def tfjs_sources(variant: str) -> tuple[Path, Path]:
 
 
 def build(variant: str, out_dir: Path = MODELS_DIR) -> Path:
-    """Convert one variant ("detector", "lite", "full", "heavy", "movenet") into out_dir."""
+    """Convert one variant (a name of the runtime's registry: "blazepose" (the BlazePose detector),
+    "lite", "full", "heavy", "movenet") into out_dir."""
     if variant in TFJS:
         model = tfjs_onnx.convert(tfjs_sources(variant)[0], float_inputs=TFJS[variant].float_inputs)
         metadata = TFJS[variant].metadata
     else:
-        contract = DETECTOR if variant == "detector" else landmark_contract(variant)
+        contract = DETECTOR if variant == "blazepose" else landmark_contract(variant)
         model = convert(asset_path(source_file(variant)), outputs=list(contract.outputs.values()))
         metadata = contract.to_metadata()
     for key, value in metadata.items():
@@ -120,11 +120,11 @@ def write_card(variants: tuple[str, ...], out_dir: Path = MODELS_DIR) -> Path:
         if v in TFJS:
             package = PACKAGES[FILES[f"{TFJS[v].source}.json"][0]]
             graph, weights = tfjs_sources(v)
-            tfjs_rows.append(f"| `{TFJS[v].out}` | `{graph.name}` + `{weights.name}` from {package.registry} "
+            tfjs_rows.append(f"| `{output_file(v)}` | `{graph.name}` + `{weights.name}` from {package.registry} "
                              f"`{package.spec}` | `{sha256(graph)}`<br>`{sha256(weights)}` | `{result}` |")
             continue
         package = PACKAGES[FILES[source_file(v)][0]]
-        rows.append(f"| `blazepose_{v}.onnx` | `{source_file(v)}` from {package.registry} `{package.spec}` "
+        rows.append(f"| `{output_file(v)}` | `{source_file(v)}` from {package.registry} `{package.spec}` "
                     f"| `{sha256(asset_path(source_file(v)))}` | `{result}` |")
     text = CARD.format(rows="\n".join(rows), tfjs_rows="\n".join(tfjs_rows))
     path = out_dir / "MODEL_CARD.md"
@@ -152,7 +152,7 @@ landmarks): segmentation and heatmap heads are pruned. posecam's contract metada
 Rebuild (fetches the packages into `.cache/assets`, needs the `export` extra and ai-edge-litert):
 
 ```bash
-python -m export.convert.build_models            # detector, lite, full, movenet
+python -m export.convert.build_models            # blazepose (detector), lite, full, movenet
 python -m export.convert.build_models heavy      # heavy, on request: --model heavy then finds it here
 ```
 

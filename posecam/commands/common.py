@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import click
 
 from posecam.errors import InputError, OutputError, ReaderLeft, printable
-from posecam.inference.contract import DETECTORS
+from posecam.inference.contract import DETECTORS, POSE_MODELS
 
 if TYPE_CHECKING:
     from rich.progress import Progress
@@ -26,7 +26,8 @@ def estimator_options(f: Callable) -> Callable:
     for opt in reversed([
         click.option("--device", type=click.Choice(["cpu", "cuda"]), default="cpu", show_default=True,
                      help="Run the pose model on the CPU or on an NVIDIA GPU (needs onnxruntime-gpu)."),
-        click.option("--model", default="full", show_default=True, help="lite, full, heavy or a posecam .onnx file."),
+        click.option("--model", default="full", show_default=True,
+                     help=f"{', '.join(POSE_MODELS)} or a posecam .onnx file."),
         click.option("--skeleton", type=click.Choice(["17", "33"]), default="17", show_default=True,
                      help="17 Human3.6M-style joints (root: pelvis) or all 33 BlazePose landmarks (root: mid_hip, "
                           "the hips' midpoint)."),

@@ -36,12 +36,12 @@ from dataclasses import dataclass, field
 from posecam.errors import ModelError
 
 CONTRACT_VERSION = "1"
-# The bundled detectors by --detector name (light to import, for the CLI); how each is decoded
-# comes from its file's metadata.
-DETECTORS = {
-    "movenet": "movenet_multipose.onnx",
-    "blazepose": "blazepose_detector.onnx",
-}
+# The bundled models (light to import, for the CLI's choices): the names --model and --detector
+# take and their files in posecam/models/, built by `python -m export.convert.build_models NAME`
+# ("heavy" on request, not committed). How each is run comes from its file's metadata.
+POSE_MODELS = {"lite": "blazepose_lite.onnx", "full": "blazepose_full.onnx", "heavy": "blazepose_heavy.onnx"}
+DETECTORS = {"movenet": "movenet_multipose.onnx", "blazepose": "blazepose_detector.onnx"}
+ON_REQUEST = ("heavy",)
 KINDS = ("detector", "landmarks", "root_depth")
 DECODERS = {  # detector decoders and the outputs each needs
     "blazepose_ssd": ("boxes", "scores"),

@@ -13,15 +13,13 @@ The decoder comes from the model's contract metadata (``posecam.decoder``), neve
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 
 import cv2
 import numpy as np
 
 from posecam.errors import ModelError
-from posecam.inference.contract import DETECTORS
 from posecam.inference.roi import Roi, body_roi
-from posecam.inference.session import MODELS_DIR, Model, load_model, to_input_tensor
+from posecam.inference.session import Model, load_model, to_input_tensor
 
 
 
@@ -239,15 +237,11 @@ def oks(points_a: np.ndarray, conf_a: np.ndarray, points_b: np.ndarray, conf_b: 
 Detector = BlazePoseDetector | MoveNetDetector
 def load_detector(name_or_path: str, threads: int | None = None, min_score: float | None = None,
                   input_size: int | None = None, device: str = "cpu") -> Detector:
-    """A bundled detector by name (see DETECTORS) or a detector .onnx file, decoded as its
+    """A bundled detector by name (see contract.DETECTORS) or a detector .onnx file, decoded as its
     metadata says. `min_score` is the score that starts a track (None: the detector's
     `default_score`); MoveNet's detections down to a third of it are kept too (they keep
     tracks alive), BlazePose's from it."""
-    path = str(MODELS_DIR / DETECTORS[name_or_path]) if name_or_path in DETECTORS else name_or_path
-    if name_or_path in DETECTORS and not Path(path).is_file():
-        raise ModelError(f"detector '{name_or_path}' is not built in this install ({path}); "
-                         "build it with: pip install -e '.[export,test]' && python -m export.convert.build_models")
-    model = load_model(path, threads, kind="detector", device=device)
+    model = load_model(name_or_path, threads, kind="detector", device=device)
     if model.contract.decoder == "movenet_multipose":
         score = MoveNetDetector.default_score if min_score is None else min_score
         return MoveNetDetector(model, score / 3, input_size)

@@ -14,6 +14,7 @@ import numpy as np
 
 from posecam.geometry.camera import Intrinsics
 from posecam.geometry.lift import back_project, solve_root_translation
+from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.inference.roi import Roi
 from posecam.inference.session import Model, to_input_tensor
 
@@ -95,7 +96,7 @@ class RootDepthPoseModel(_CropModel):
             uv = roi.to_image(out["uv"][i].astype(np.float64), self.size)
             z = out["depth"][i].astype(np.float64) + float(out["z_root"][i, 0]) * f_ratio  # z_i = d_i + z_a
             conf = np.clip(out["confidence"][i].astype(np.float64), 0.0, 1.0)
-            confident = uv[conf >= 0.5] if (conf >= 0.5).sum() >= 2 else uv
+            confident = uv[conf >= MIN_CONFIDENCE] if (conf >= MIN_CONFIDENCE).sum() >= 2 else uv
             result.append(PoseCandidate(
                 float(conf.mean()), uv, back_project(uv, z, k), conf, Roi.around_points(confident),
             ))

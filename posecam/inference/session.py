@@ -9,32 +9,30 @@ from pathlib import Path
 import numpy as np
 import onnxruntime as ort
 
-from posecam.inference.contract import InputSpec, ModelContract
+from posecam.inference.contract import DETECTORS, ON_REQUEST, POSE_MODELS, InputSpec, ModelContract
 from posecam.errors import InputError, ModelError
 
 MODELS_DIR = Path(__file__).resolve().parents[1] / "models"
-BUNDLED = {
-    "lite": "blazepose_lite.onnx",
-    "full": "blazepose_full.onnx",
-    "heavy": "blazepose_heavy.onnx",
-    "detector": "blazepose_detector.onnx",
-}
-# Building needs torch's extra and ai-edge-litert (in `test`); run from a checkout of posecam.
 MAX_THREADS = 256
 DEVICES = ("cpu", "cuda")
-REBUILD_HINT = "pip install -e '.[export,test]' && python -m export.convert.build_models heavy"
+# Building needs torch's extra and ai-edge-litert (in `test`); run from a checkout of posecam.
+REBUILD_HINT = "pip install -e '.[export,test]' && python -m export.convert.build_models"
 
 
-def resolve_model(name_or_path: str) -> Path:
-    """'lite', 'full', 'heavy' or a path to an .onnx file -> an existing file."""
-    if name_or_path in BUNDLED:
-        path = MODELS_DIR / BUNDLED[name_or_path]
+def resolve_model(name_or_path: str, kind: str | None = None) -> Path:
+    """A bundled model's name (a pose model, or with kind "detector" a detector; see
+    contract.POSE_MODELS, DETECTORS) or a path to an .onnx file -> an existing file."""
+    bundled = DETECTORS if kind == "detector" else POSE_MODELS
+    if name_or_path in bundled:
+        path = MODELS_DIR / bundled[name_or_path]
         if not path.is_file():
-            raise ModelError(f"model '{name_or_path}' is not built in this install ({path}); build it with: {REBUILD_HINT}")
+            committed = "" if name_or_path in ON_REQUEST else " (it ships with posecam: a broken install?)"
+            raise ModelError(f"model '{name_or_path}' is not built in this install ({path}){committed}; "
+                             f"build it with: {REBUILD_HINT} {name_or_path}")
         return path
     path = Path(name_or_path)
     if not path.is_file():
-        raise ModelError(f"model file {path} does not exist (use lite, full, heavy or a path to an .onnx file)")
+        raise ModelError(f"model file {path} does not exist (use {', '.join(bundled)} or a path to an .onnx file)")
     return path
 
 
@@ -98,7 +96,7 @@ def load_model(name_or_path: str, threads: int | None = None, kind: str | None =
     chosen = providers(device)
     if threads is not None and not 1 <= threads <= MAX_THREADS:
         raise InputError(f"threads must be between 1 and {MAX_THREADS}, got {threads}")
-    path = resolve_model(name_or_path)
+    path = resolve_model(name_or_path, kind)
     opts = ort.SessionOptions()
     opts.intra_op_num_threads = threads or min(os.cpu_count() or 1, 8)
     opts.inter_op_num_threads = 1

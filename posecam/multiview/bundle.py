@@ -22,7 +22,7 @@ from scipy.sparse import lil_matrix
 from posecam.errors import FusionError
 from posecam.geometry.camera import Rig
 from posecam.skeleton import skeleton_of
-from posecam.geometry.triangulate import triangulate
+from posecam.geometry.triangulate import observation_weights, triangulate
 
 
 @dataclass
@@ -70,7 +70,7 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     ref = rig.names.index(rig.reference) if rig.reference else 0
     frames = np.unique(np.linspace(0, n_f - 1, min(n_f, opts.max_frames)).round().astype(int))
     uv, conf = uv[:, frames], conf[:, frames]
-    w = np.where((conf >= 0.5) & np.isfinite(uv).all(axis=-1), conf, 0.0)
+    w = observation_weights(uv, conf)
     points = triangulate(cams, uv, conf)                                  # (F, J, 3) start
     used = ((w > 0).sum(axis=0) >= 2) & np.isfinite(points).all(axis=-1)
     point_index = -np.ones(used.shape, dtype=int)
