@@ -51,8 +51,10 @@ def test_camera_names_must_match_the_videos(tmp_path):
 def test_lengths_are_compared_from_the_headers_before_any_prediction(estimator, tmp_path):
     """A 30-frame video against a 25-frame pose file: a warning naming both, from the video's
     header; against a 5-frame one (past the offsets fuse may try): refused, nothing predicted."""
+    from dataclasses import replace
+
     rec = estimator.predict_file(EXAMPLES / "balance.jpg")
-    rec.frames = rec.frames * 25
+    rec.frames = [replace(rec.frames[0], index=i, time=i / 30) for i in range(25)]
     write_poses(tmp_path / "side.json", [rec])
     video = str(DATA / "balance_cam01_30f.mp4")
     with pytest.warns(PosecamWarning, match=r"differ in length \(balance_cam01_30f.mp4 30, side.json 25 frames\)"):
