@@ -171,6 +171,63 @@ def take_bench(take: str, cache: Path) -> None:
           + ", ".join(f"{c.centre[2] / 1000:.2f} m" for c in cams))
 
 
+def lens_of(rec):
+    """The stage's lens from the people alone: the recording's 2D as if no intrinsics were given."""
+    import dataclasses
+
+    from posecam.geometry.camera import Intrinsics
+    from posecam.metric import MetricOptions, MetricStage
+
+    k = Intrinsics.default(rec.width, rec.height)
+    stage = MetricStage(dataclasses.replace(rec, frames=[], intrinsics=k), MetricOptions(delay=len(rec.frames)))
+    for f in rec.frames:
+        stage.push(f)
+    stage.flush()
+    return stage.lens, k
+
+
+def lens_bench(cache: Path) -> None:
+    from posecam import read_poses
+
+    print("\n== focal length from the people alone (no intrinsics), vs the lab's")
+    for take in ("single", "multi"):
+        for cam, rec in zip(lab_cameras(take), predictions(take, lab_cameras(take), cache)):
+            fit, k = lens_of(rec)
+            lab = cam.intrinsics.fx
+            line = (f"  {take:6s} {cam.name}: lab {lab:.0f} px, default lens {k.fx:.0f} px ({100 * (k.fx / lab - 1):+.0f} %); people: ")
+            if fit is None:
+                print(line + "nobody upright")
+            elif fit.focal is not None:
+                print(line + f"{fit.focal:.0f} +- {fit.sd:.0f} px ({100 * (fit.focal / lab - 1):+.1f} %)")
+            else:
+                print(line + f"refused: {fit.reason}")
+    rec = read_poses(cache / "vtest_default.json")[0]
+    fit, k = lens_of(rec)
+    print(f"  vtest.avi: no lab value; default lens {k.fx:.0f} px; people: "
+          + (f"{fit.focal:.0f} +- {fit.sd:.0f} px" if fit and fit.focal else f"refused: {fit.reason if fit else 'nobody upright'}"))
+
+
+def speed(runs: int = 5) -> None:
+    """`posecam predict`'s path (FileStream.poses) on the single take's cam01, with the metric stage
+    and without it (the code before), alternated in one run; medians."""
+    from posecam import EstimatorOptions, IntrinsicsOptions, PoseEstimator
+    from posecam.metric import MetricOptions
+
+    est = PoseEstimator(EstimatorOptions())
+    video = REPO / "examples" / "demo" / "single" / "cam01.mp4"
+    times = {"before (no metric stage)": [], "after (metric stage, defaults)": []}
+    variants = [("before (no metric stage)", None), ("after (metric stage, defaults)", MetricOptions())]
+    for r in range(runs):
+        for label, metric in variants if r % 2 else variants[::-1]:
+            t = time.perf_counter()
+            stream = est.stream_file(video, IntrinsicsOptions())
+            n = sum(1 for _ in stream.poses(True, metric=metric))
+            times[label].append(n / (time.perf_counter() - t))
+    print(f"\n== predict speed, {video.name} (100 frames, smoothing on), median of {runs}")
+    for label, fps in times.items():
+        print(f"  {label:32s}{np.median(fps):7.1f} frames/s")
+
+
 def vtest_bench(cache: Path) -> None:
     from posecam import EstimatorOptions, PoseEstimator, read_poses, write_poses
     from posecam.metric import MetricStage
@@ -207,6 +264,8 @@ def main() -> None:
     for take in ("single", "multi"):
         take_bench(take, a.cache)
     vtest_bench(a.cache)
+    lens_bench(a.cache)
+    speed()
 
 
 if __name__ == "__main__":

@@ -16,7 +16,7 @@ to each input and are given with each call.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -77,13 +77,13 @@ class FileStream:
     recording: Recording
     media: Media
     frames: Iterator[tuple[Frame, np.ndarray]]
-    floor_refused: str = ""             # why `poses(metric=...)` fitted no floor
+    notes: list[str] = field(default_factory=list)   # what `poses(metric=...)` warns of (no floor, the lens)
 
     def poses(self, smooth: bool = False, on_frame: OnFrame | None = None,
               metric: MetricOptions | None = None) -> Iterator[Frame]:
         """The input's frames, finished: each predicted frame goes to `on_frame` (progress bars,
         overlays) as it comes, then, with `metric`, to its track's metric scale (posecam.metric;
-        afterwards `recording.floor` is set, or `floor_refused` says why not), then, with `smooth`
+        afterwards `recording.floor` is set, and `notes` holds its warnings), then, with `smooth`
         and a video or a sequence, through the streaming smoother (a few seconds late; the whole
         video's smoothing). Nothing is kept."""
         smoother = StreamingSmoother(self.recording) if smooth and self.media.kind != "image" else None
@@ -99,7 +99,7 @@ class FileStream:
             yield from finish(scaler.push(frame) if scaler else (frame,))
         if scaler:
             yield from finish(scaler.flush())
-            self.floor_refused = scaler.floor_refused
+            self.notes = scaler.notes
         if smoother:
             yield from smoother.flush()
 

@@ -26,7 +26,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from posecam.errors import InputError
-from posecam.geometry.floor import Floor, FloorFit, fit_floor
+from posecam.geometry.camera import Intrinsics
+from posecam.geometry.floor import Floor, FloorFit, LensFit, fit_floor, focal_from_people
+from posecam.geometry.lift import solve_root_translation
 from posecam.heights import Heights
 from posecam.results import Frame, Person, Recording
 from posecam.skeleton import BLAZEPOSE_LANDMARKS, H36M_JOINTS
@@ -44,6 +46,9 @@ ADULT_CLUSTER = 0.85            # tracks at least this fraction of the tallest a
 MODEL_SD = 0.06                 # relative uncertainty of the pose model's adult size for one person
 GIVEN_SD = 0.01                 # relative uncertainty of a given height (typed to the centimetre)
 MIN_TRACK_CONTACTS = 5          # foot contacts a track needs for the floor to scale it
+REFIT_EVERY = 30                # frames between fits of the floor (and at the end)
+LENS_SAMPLES = 64               # per track: upright frames kept for the lens
+LENS_DISAGREES = 2.0            # standard uncertainties between the default lens and the people's for a warning
 
 # name -> (legs: (hip, knee, ankle) per side, pelvis, thorax, head) as joint-index tuples to average
 _SEGMENTS = {
@@ -57,7 +62,8 @@ _SEGMENTS = {
 class MetricOptions:
     heights: Heights = field(default_factory=Heights)   # known heights (posecam.heights)
     floor: bool = True          # fit the floor (static camera) and scale each track to it
-    delay: int = 120            # frames held back before they are given out
+    lens: bool = True           # with the default lens, take the focal length from the people where they pin it
+    delay: int = 120            # frames held back before they are given out (the lens is decided on them)
 
     def __post_init__(self) -> None:
         if self.delay < 0:
@@ -128,16 +134,27 @@ class _Track:
     heights: _Sample = field(default_factory=_Sample)     # per-frame stature (mm)
     feet: _Sample = field(default_factory=_Sample)        # (stature, ankles (2, 3)) of frames with the feet seen
     downs: _Sample = field(default_factory=_Sample)       # down directions of upright frames
+    upright: _Sample = field(default_factory=lambda: _Sample(LENS_SAMPLES))   # (head, feet) pixels of upright frames
+
+    _cache: tuple = (-1, np.nan, MODEL_SD)              # (heights seen, stature, breathing)
+
+    def _statistics(self) -> tuple[float, float]:
+        if self._cache[0] != self.heights.seen:
+            h = np.asarray(self.heights.rows)
+            mid = float(np.median(h)) if len(h) else np.nan
+            spread = float(1.4826 * np.median(np.abs(h - mid)) / mid) if len(h) >= 3 else MODEL_SD
+            self._cache = (self.heights.seen, mid, spread)
+        return self._cache[1], self._cache[2]
 
     @property
     def stature(self) -> float:
-        return float(np.median(self.heights.rows)) if self.heights.rows else np.nan
+        """The track's height (mm): the median of its frames' statures."""
+        return self._statistics()[0]
 
     @property
     def breathing(self) -> float:
         """Relative spread of the track's per-frame statures (1.4826 MAD / median)."""
-        h = np.asarray(self.heights.rows)
-        return float(1.4826 * np.median(np.abs(h - np.median(h))) / np.median(h)) if len(h) >= 3 else MODEL_SD
+        return self._statistics()[1]
 
 
 @dataclass(frozen=True)
@@ -155,19 +172,33 @@ class TrackScale:
 class MetricStage:
     """Scale each person of a stream of frames by their track's scale: push each frame as it
     comes, take the frames that come back (`delay` frames late), `flush()` at the end. After the
-    flush, `floor` is the ground plane (or None, and `floor_refused` says why)."""
+    flush, `floor` is the ground plane (or None, and `floor_refused` says why), `lens` the focal
+    length the people give, and `notes` the warnings for the user.
+
+    With the default lens (`rec.intrinsics.source == "default"`), the people's focal length
+    (posecam.geometry.floor.focal_from_people) is tried on the first `delay` frames, before any
+    is given out; where it is pinned, `rec.intrinsics` becomes it (source "people") and every
+    person's root is solved again with it."""
 
     def __init__(self, rec: Recording, options: MetricOptions | None = None):
         self.rec, self.options = rec, options or MetricOptions()
         self._tracks: dict[int, _Track] = {}
         self._pending: list[Frame] = []
         self._fit: FloorFit | None = None
-        self._stale = True
+        self._since_fit = REFIT_EVERY           # frames observed since the floor was last fitted
         self.floor: Floor | None = None
         self.floor_refused = ""
+        self.lens: LensFit | None = None
+        self.notes: list[str] = []
+        self._k: Intrinsics | None = None       # the people's lens, once taken: every pose is solved again with it
+        self._frames_seen = 0
         self._measurable = _segments(rec.joints) is not None
 
     def push(self, frame: Frame) -> list[Frame]:
+        self._since_fit += 1
+        self._frames_seen += 1
+        if self._k is not None:
+            frame = self._relensed(frame)
         if self._measurable:
             for p in frame.people:
                 self._observe(p)
@@ -177,9 +208,66 @@ class MetricStage:
         return self._emit(len(self._pending) - self.options.delay)
 
     def flush(self) -> list[Frame]:
+        self._since_fit = REFIT_EVERY       # the last fit sees every frame
         out = self._emit(len(self._pending))
         self.rec.floor = self.floor
+        if self._k is None:
+            self._check_lens()
+        if self.floor_refused and self._tracks and self._frames_seen > 1:
+            self.notes.append(f"no floor: {self.floor_refused}; each person keeps their track's own scale")
         return out
+
+    def _lens_fit(self) -> LensFit | None:
+        """The people's focal length from the upright frames so far; None where it is not asked
+        for (a lens was given, `lens` off) or nobody stood upright."""
+        k = self.rec.intrinsics
+        if not (self.options.lens and self._measurable and k is not None and k.source == "default"):
+            return None
+        rows = [(tid, head, feet) for tid, t in self._tracks.items() for head, feet in t.upright.rows]
+        if not rows:
+            return None
+        return focal_from_people(np.array([r[1] for r in rows]), np.array([r[2] for r in rows]),
+                                 np.array([r[0] for r in rows]), np.array([k.cx, k.cy]), self.rec.height)
+
+    def _decide_lens(self) -> None:
+        """Before the first frame goes out: the people's focal length in place of the default
+        lens, where they pin it (the frames so far are solved again and observed anew)."""
+        self.lens = fit = self._lens_fit()
+        if fit is None or fit.focal is None:
+            return
+        k = self.rec.intrinsics
+        self._k = Intrinsics(fit.focal, fit.focal, k.cx, k.cy, f"people (+-{fit.sd:.0f} px)")
+        self.rec.intrinsics = self._k
+        self._pending = [self._relensed(f) for f in self._pending]
+        self._tracks, self._since_fit = {}, REFIT_EVERY
+        for f in self._pending:
+            for p in f.people:
+                self._observe(p)
+
+    def _check_lens(self) -> None:
+        """At the end, with the default lens kept: the people's focal length over every frame,
+        and a note where it disagrees with the default lens (or pins it only now)."""
+        fit = self._lens_fit()
+        if fit is None:
+            return
+        self.lens, k = fit, self.rec.intrinsics
+        if fit.focal is not None:
+            self.notes.append(f"the people pin the focal length at {fit.focal:.0f} +- {fit.sd:.0f} px over the whole "
+                              f"input (the default lens has {k.fx:.0f}; the first {self.options.delay} frames did not "
+                              f"pin it): run again with --fx {fit.focal:.0f}")
+        elif np.isfinite(fit.estimate) and abs(fit.estimate - k.fx) > LENS_DISAGREES * fit.sd:
+            self.notes.append(f"the default lens (f = {k.fx:.0f} px) disagrees with the people's geometry "
+                              f"(f = {fit.estimate:.0f} +- {fit.sd:.0f} px from their verticals and horizon): "
+                              f"depths may be {fit.estimate / k.fx:.1f}x off; give --fx or --intrinsics")
+
+    def _relensed(self, frame: Frame) -> Frame:
+        """The frame's people with their roots solved again through the people's lens."""
+        people = []
+        for p in frame.people:
+            rel = p.keypoints_3d - p.root
+            people.append(dataclasses.replace(p, keypoints_3d=rel + solve_root_translation(rel, p.keypoints_2d,
+                                                                                              p.confidence, self._k)))
+        return dataclasses.replace(frame, people=people)
 
     def _observe(self, p: Person) -> None:
         t = self._tracks.setdefault(p.id, _Track())
@@ -191,7 +279,10 @@ class MetricStage:
         t.feet.add((h, ankles))
         if down is not None:
             t.downs.add(down)
-        self._stale = True
+            seg = _segments(self.rec.joints)
+            ends = [list(seg["head"]), [leg[2] for leg in seg["legs"]]]
+            if min(p.confidence[i].min() for i in ends) >= MIN_CONF:
+                t.upright.add((p.keypoints_2d[ends[0]].mean(axis=0), p.keypoints_2d[ends[1]].mean(axis=0)))
 
     def _floor_fit(self) -> FloorFit | None:
         """The floor from every track's contacts, each frame's brought to its track's stature:
@@ -216,9 +307,9 @@ class MetricStage:
     def _scales(self) -> dict[int, TrackScale]:
         """Every track's scale, from the statistics so far."""
         fit = self._fit
-        if self.options.floor and self._stale:
+        if self.options.floor and self._since_fit >= REFIT_EVERY:
             fit = self._fit = self._floor_fit()
-            self._stale = False
+            self._since_fit = 0
         on_floor = fit is not None and fit.floor is not None
         stat = {tid: t.stature for tid, t in self._tracks.items() if np.isfinite(t.stature)}
         # the floor's relative sizes; the adult-sized people keep the pose model's scale
@@ -252,6 +343,8 @@ class MetricStage:
     def _emit(self, n: int) -> list[Frame]:
         if n <= 0:
             return []
+        if self._frames_seen == len(self._pending):     # nothing given out yet
+            self._decide_lens()
         scales = self._scales() if self._measurable else {}
         out = [self._scaled(f, scales) for f in self._pending[:n]]
         self._pending = self._pending[n:]

@@ -221,3 +221,54 @@ def test_predict_records_the_given_height(tmp_path):
 def test_predict_refuses_a_height_in_centimetres():
     r = run_posecam("predict", DATA / "messi5.jpg", "--height", "172")
     assert r.returncode == 2 and "centimetres" in r.stderr and "Traceback" not in r.stderr
+
+
+def walkers(n_tracks: int = 6, frames: int = 40, tilt: float = TILT, seed: int = 7) -> dict:
+    """Upright people of different heights walking across the floor at different places:
+    {(track, frame): true camera-space pose}, seen by a camera tilted down by `tilt`."""
+    global TILT
+    rng = np.random.default_rng(seed)
+    saved, TILT, out = TILT, tilt, {}
+    try:
+        for t in range(n_tracks):
+            start = np.array([rng.uniform(-3000, 3000), 0.0, rng.uniform(4000, 9000)])
+            step, h = rng.normal(0, 60, 3) * [1, 0, 1], rng.uniform(1500, 1900)
+            for i in range(frames):
+                out[(t, i)] = to_camera(standing(h) + start + i * step)
+    finally:
+        TILT = saved
+    return out
+
+
+def heads_and_feet(poses: dict, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    uv = {key: project(pose, K) + rng.normal(0, 1.0, (17, 2)) for key, pose in poses.items()}
+    return (np.array([p[10] for p in uv.values()]), np.array([p[[3, 6]].mean(axis=0) for p in uv.values()]),
+            np.array([key[0] for key in uv]))
+
+
+def test_the_lens_from_people_walking_on_a_floor():
+    from posecam.geometry.floor import focal_from_people
+
+    heads, feet, tracks = heads_and_feet(walkers())
+    fit = focal_from_people(heads, feet, tracks, np.array([K.cx, K.cy]), 1080)
+    assert fit.focal == pytest.approx(K.fx, rel=0.05) and 0 < fit.sd < 0.1 * K.fx, fit
+    one_place = focal_from_people(heads[:30], feet[:30] * [0, 1] + [900, 0], tracks[:30], np.array([K.cx, K.cy]), 1080)
+    assert one_place.focal is None and "one place" in one_place.reason
+    level = focal_from_people(*heads_and_feet(walkers(tilt=0.0)), np.array([K.cx, K.cy]), 1080)
+    assert level.focal is None and "parallel" in level.reason
+
+
+def test_the_stage_takes_the_lens_from_the_people_in_place_of_the_default():
+    poses = walkers(frames=30)
+    default = Intrinsics(700.0, 700.0, K.cx, K.cy, "default")
+    rec = Recording("walk.mp4", 1920, 1080, default, H36M_JOINTS, fps=30.0, frames=[Frame(i, i / 30) for i in range(30)])
+    for (t, i), true in poses.items():      # the pose model: the right shape, placed through the default lens
+        uv, rel = project(true, K), true - true[0]
+        xyz = rel + solve_root_translation(rel, uv, np.ones(17), default)
+        rec.frames[i].people.append(Person(t, 0.9, np.r_[uv.min(0), uv.max(0)], uv, xyz, np.full(17, 0.9)))
+    assert np.median([p.root[2] / poses[(p.id, f.index)][0, 2] for f in rec.frames for p in f.people]) < 0.6
+    out = scale_recording(rec, MetricOptions(floor=False))
+    assert out.intrinsics.source.startswith("people") and out.intrinsics.fx == pytest.approx(K.fx, rel=0.05)
+    ratio = [p.root[2] / poses[(p.id, f.index)][0, 2] for f in out.frames for p in f.people]
+    assert np.median(ratio) == pytest.approx(1.0, abs=0.05)

@@ -101,8 +101,8 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
                 writer.frame(frame)
             if keep:
                 stream.recording.frames.append(frame)
-        if stream.floor_refused and summary.people and stream.media.kind != "image":
-            warn(f"no floor for {path}: {stream.floor_refused}; each person keeps their track's own scale")
+        for note in stream.notes:
+            warn(f"{path}: {note}")
         empty = explain_empty(summary, estimator.min_detection_score, estimator.options.min_presence)
         if empty:
             warn(empty)

@@ -105,25 +105,38 @@ class PoseWriter:
         self.out, self.fmt, self.angles = out, fmt, tuple(angles)
         self._rec: Recording | None = None
         self._inputs = self._frames = 0
+        self._open = False              # the current input's header is written
         self._csv = csv.writer(out, lineterminator="\n") if fmt == "csv" else None
 
     def begin(self, rec: Recording) -> None:
-        if self.fmt == "csv":
-            if not self._inputs:
-                self._csv.writerow(CSV_HEADER + self.angles)
-        else:
-            if not self._inputs:
+        """A new input. Its header is written with its first frame (or when it ends), so that
+        what the first frames settle (the lens the people give, posecam.metric) is in it."""
+        self._end_input()
+        if self.fmt == "csv" and not self._inputs:
+            self._csv.writerow(CSV_HEADER + self.angles)
+        self._rec, self._frames, self._open = rec, 0, False
+        self._inputs += 1
+
+    def _header_once(self) -> None:
+        if self.fmt == "json" and not self._open:
+            rec = self._rec
+            if self._inputs == 1:
                 self.out.write(f'{{"posecam": {_dumps(__version__)}, "model": {_dumps(rec.model)},\n'
                                f' "joints": {_dumps(list(rec.joints))}, "root_joint": {_dumps(rec.root_joint)},\n'
                                ' "inputs": [')
             else:
-                self.out.write("]" + self._floor() + "},")
+                self.out.write(",")
             self.out.write("\n  " + _dumps(_header(rec))[:-1] + ', "frames": [')
-        self._rec, self._frames = rec, 0
-        self._inputs += 1
+        self._open = True
+
+    def _end_input(self) -> None:
+        if self._rec is not None and self.fmt == "json":
+            self._header_once()
+            self.out.write("]" + self._floor() + "}")
 
     def frame(self, f: Frame) -> None:
         r = self._rec
+        self._header_once()
         if self.fmt == "json":
             self.out.write(("," if self._frames else "") + "\n   " + _dumps(frame_to_dict(f)))
         else:
@@ -139,8 +152,10 @@ class PoseWriter:
         self._frames += 1
 
     def close(self) -> None:
-        if self.fmt == "json":
-            self.out.write("]" + self._floor() + "}]}\n" if self._inputs else "")
+        self._end_input()
+        if self.fmt == "json" and self._inputs:
+            self.out.write("]}\n")
+        self._rec = None
 
     def _floor(self) -> str:
         """The input's ground plane, known once its frames are all through (posecam.metric)."""
