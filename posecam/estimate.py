@@ -34,7 +34,7 @@ from posecam.inference.session import load_model
 from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
 from posecam.media import FrameSelection, Media, open_media
 from posecam.results import Frame, Person, Recording
-from posecam.skeleton import BLAZEPOSE_LANDMARKS, H36M_JOINTS, blazepose_to_h36m
+from posecam.skeleton import BLAZEPOSE_LANDMARKS, H36M_JOINTS, blazepose_to_h36m, skeleton_of
 from posecam.tracking import Track, Tracker, TrackerOptions, foreign_joints, oks
 
 SKELETONS = ("17", "33")
@@ -119,6 +119,7 @@ class PoseEstimator:
         self.pose_model = make_pose_model(pose)
         self.model_name = pose.contract.name
         self.joints = self._output_joints()
+        self.skeleton = skeleton_of(self.joints)
         # pose joints in the detector's keypoint order, to tell whose joints a pose holds
         names = self.pose_model.joints
         self._to_detector = np.array([names.index(n) for n in self.detector.joints]) \
@@ -140,7 +141,7 @@ class PoseEstimator:
             xyz, _ = blazepose_to_h36m(xyz, conf)
             uv, conf = blazepose_to_h36m(uv, conf)
         box = np.concatenate([c.keypoints_2d.min(axis=0), c.keypoints_2d.max(axis=0)])
-        return Person(track_id, c.score, box, uv, xyz, conf)
+        return Person(track_id, c.score, box, uv, xyz, conf, skeleton=self.skeleton)
 
     def _step(self, image_rgb: np.ndarray, k: Intrinsics, tracker: Tracker) -> Frame:
         """One frame: detect if the tracker asks for it, run the pose model on every track."""

@@ -8,12 +8,13 @@ import numpy as np
 
 from posecam.geometry.camera import Intrinsics
 from posecam.geometry.floor import Floor
-from posecam.skeleton import root_name, root_point
+from posecam.skeleton import H36M, Skeleton, skeleton_of
 
 
 @dataclass
 class Person:
-    """One person in one frame. Arrays follow the joint order of the recording."""
+    """One person in one frame. Arrays follow the joint order of the recording, whose skeleton
+    `skeleton` is (the 17 joints unless told: posecam's readers and estimators tell)."""
 
     id: int
     score: float
@@ -28,6 +29,7 @@ class Person:
     height_estimated: float = float("nan")  # m: the height estimated from the track, whatever was given
     height_sd: float = float("nan")         # m: its standard uncertainty
     depth_sd: float = float("nan")          # mm: standard uncertainty of the root's depth (z)
+    skeleton: Skeleton = field(default=H36M, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if np.ndim(self.confidence) != 1:
@@ -40,8 +42,11 @@ class Person:
     @property
     def root(self) -> np.ndarray:
         """The root in mm: the pelvis of the 17 joints, the midpoint of the hips of the 33
-        BlazePose landmarks (the same point); for other joint sets, the first joint."""
-        return root_point(self.keypoints_3d)
+        BlazePose landmarks (the same point), as `skeleton` says."""
+        if len(self.skeleton.joints) != len(self.confidence):
+            raise ValueError(f"Person.root: the person has {len(self.confidence)} joints, its skeleton "
+                             f"{self.skeleton.name} {len(self.skeleton.joints)}; give Person(..., skeleton=...)")
+        return self.skeleton.root_point(self.keypoints_3d)
 
 
 @dataclass
@@ -72,4 +77,4 @@ class Recording:
     @property
     def root_joint(self) -> str:
         """What `Person.root` is: "pelvis" (17 joints), "mid_hip" (33 landmarks: the hips' midpoint)."""
-        return root_name(self.joints)
+        return skeleton_of(self.joints).root

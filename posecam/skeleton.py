@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from posecam.errors import InputError
+
 # The 33 BlazePose landmarks, in model output order.
 BLAZEPOSE_LANDMARKS: tuple[str, ...] = (
     "nose", "left_eye_inner", "left_eye", "left_eye_outer", "right_eye_inner",
@@ -120,26 +122,14 @@ SKELETONS = {"17": H36M, "33": BLAZEPOSE33}
 
 
 def skeleton_of(joints: tuple[str, ...]) -> Skeleton:
-    """The skeleton whose joints these are (a ResNet-U's joints are the 17 of H36M)."""
-    return next(s for s in SKELETONS.values() if s.joints == tuple(joints))
-
-
-def root_point(points: np.ndarray) -> np.ndarray:
-    """The root of (..., J, D) points of a known skeleton, told apart by J (pelvis for 17 joints,
-    hip midpoint for 33); for any other joint set, the first joint."""
-    points = np.asarray(points)
+    """The skeleton whose joints these are, by name and order (a ResNet-U's joints are the 17 of
+    H36M); InputError for any other joint set."""
     for s in SKELETONS.values():
-        if points.shape[-2] == len(s.joints):
-            return s.root_point(points)
-    return points[..., 0, :]
-
-
-def root_name(joints: tuple[str, ...]) -> str:
-    """The name of the root that `root_point` gives for these joints."""
-    for s in SKELETONS.values():
-        if len(joints) == len(s.joints):
-            return s.root
-    return joints[0]
+        if s.joints == tuple(joints):
+            return s
+    shown = ", ".join(list(joints)[:5]) + (", ..." if len(joints) > 5 else "")
+    raise InputError(f"the joints ({len(joints)}: {shown}) are neither posecam's 17 joints nor the 33 BlazePose "
+                     "landmarks, in their order")
 
 
 def _h36m_mixing_matrix() -> np.ndarray:

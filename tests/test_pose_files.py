@@ -9,7 +9,7 @@ from posecam.geometry.camera import Intrinsics
 from posecam.errors import InputError
 from posecam.io.poses import CSV_HEADER, read_poses, write_poses
 from posecam.results import Frame, Person, Recording
-from posecam.skeleton import BLAZEPOSE_LANDMARKS, H36M_JOINTS
+from posecam.skeleton import BLAZEPOSE_LANDMARKS, H36M_JOINTS, skeleton_of
 
 
 def _recording() -> Recording:
@@ -106,7 +106,11 @@ def test_deeply_nested_pose_file_is_refused(tmp_path):
 @pytest.mark.parametrize("joints, root", [(H36M_JOINTS, "pelvis"), (BLAZEPOSE_LANDMARKS, "mid_hip")])
 def test_json_names_the_root_joint(tmp_path, joints, root):
     j = len(joints)
-    person = Person(0, 0.9, np.zeros(4), np.zeros((j, 2)), np.ones((j, 3)), np.ones(j))
+    person = Person(0, 0.9, np.zeros(4), np.zeros((j, 2)), np.ones((j, 3)), np.ones(j), skeleton=skeleton_of(joints))
     rec = Recording("a.jpg", 640, 480, Intrinsics(500, 500, 320, 240), joints, [Frame(0, 0.0, [person])])
     write_poses(tmp_path / "p.json", [rec])
     assert json.loads((tmp_path / "p.json").read_text())["root_joint"] == root
+    unnamed = Person(0, 0.9, np.zeros(4), np.zeros((j, 2)), np.ones((j, 3)), np.ones(j))   # no skeleton: the 17 joints
+    if j != 17:
+        with pytest.raises(ValueError, match="give Person"):   # nothing guessed from the joint count
+            unnamed.root

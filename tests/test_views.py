@@ -102,3 +102,18 @@ def test_fuse_takes_predicts_options_and_checks_them_before_any_work(args, code,
     assert r.exit_code == code and words in r.stderr, r.stderr
     assert r.stderr.startswith("posecam: error:") and len(r.stderr.splitlines()) == 1
     assert not (tmp_path / "x.json").exists()
+
+
+def test_pose_files_with_joints_posecam_does_not_know_are_refused_in_one_line(estimator, tmp_path):
+    """17 joints under other names (or in another order) have no pelvis posecam could find: the
+    file is refused when read, not with a traceback halfway through fusion."""
+    from conftest import invoke_posecam
+
+    write_poses(tmp_path / "a.json", [estimator.predict_file(EXAMPLES / "balance.jpg")])
+    doc = json.loads((tmp_path / "a.json").read_text())
+    doc["joints"] = doc["joints"][1:] + doc["joints"][:1]          # the same names, another order
+    (tmp_path / "b.json").write_text(json.dumps(doc))
+    with pytest.raises(InputError, match="b.json.*neither posecam's 17 joints nor the 33"):
+        read_poses(tmp_path / "b.json")
+    r = invoke_posecam("fuse", tmp_path / "a.json", tmp_path / "b.json", "-o", tmp_path / "x.json")
+    assert r.exit_code == 2 and "neither posecam's 17 joints" in r.stderr and len(r.stderr.splitlines()) == 1, r.stderr

@@ -36,6 +36,7 @@ from posecam.io.jsonstream import JsonStream
 from posecam.io.validate import MAX_FPS, MAX_INDEX, MAX_JOINTS, MAX_MM, MAX_PEOPLE, MAX_PIXEL, MAX_SECONDS, Field
 from posecam.media import check_input
 from posecam.results import Frame, Person, Recording
+from posecam.skeleton import skeleton_of
 
 POSE_SUFFIXES = (".json", ".csv")   # the pose files posecam writes (and reads, .json)
 CSV_HEADER = ("source", "frame", "person", "joint", "u", "v", "x", "y", "z", "confidence", "height", "height_source",
@@ -234,7 +235,16 @@ def _read_document(stream: JsonStream, check: Field) -> list[Recording]:
         raise check.fail(shape["where"], f"keypoints_2d has shape [{shape['joints']}, 2], expected "
                                          f"[{len(joints)}, 2] for {len(joints)} joints")
     model = check.text(header.get("model", ""), "model")
-    return [Recording(joints=joints, model=model, **fields) for fields in inputs]
+    try:
+        skeleton = skeleton_of(joints)
+    except InputError as exc:
+        raise InputError(f"{check.where}: {exc}") from None
+    recordings = [Recording(joints=joints, model=model, **fields) for fields in inputs]
+    for rec in recordings:
+        for frame in rec.frames:
+            for person in frame.people:
+                person.skeleton = skeleton
+    return recordings
 
 
 def _read_input(stream: JsonStream, check: Field, shape: dict) -> dict:

@@ -144,7 +144,7 @@ def _fix_left_right(rig: Rig, people: list[Observations], joints: tuple[str, ...
 def _to_recording(fused: list[FusedPerson], rig: Rig, ref_index: int, ref: Recording) -> Recording:
     cam = rig.cameras[ref_index]
     frames = [Frame(f.index, f.time, []) for f in ref.frames]
-    pid = 0
+    skeleton, pid = skeleton_of(ref.joints), 0
     for person in fused:
         if not len(person.frames):
             continue
@@ -152,7 +152,7 @@ def _to_recording(fused: list[FusedPerson], rig: Rig, ref_index: int, ref: Recor
             pts = person.points[i]
             uv = cam.project(pts)
             box = np.concatenate([np.nanmin(uv, axis=0), np.nanmax(uv, axis=0)])
-            frames[i].people.append(Person(pid, float(person.score[i]), box, uv, pts, person.conf[i]))
+            frames[i].people.append(Person(pid, float(person.score[i]), box, uv, pts, person.conf[i], skeleton=skeleton))
         pid += 1
     return Recording("fused", ref.width, ref.height, cam.intrinsics, ref.joints, frames, ref.model, ref.fps,
                      rig.frame_of_reference)

@@ -70,10 +70,7 @@ def scene(rec: Recording, rig: Rig | None = None) -> dict:
                             (rec.width, rec.height), frame)]
     else:
         cameras = []
-    try:
-        bones = skeleton_of(rec.joints).bone_indices.tolist()
-    except StopIteration:
-        bones = []
+    bones = skeleton_of(rec.joints).bone_indices.tolist()
     return {"title": os.path.basename(str(rec.source)), "frame": frame, "fps": rec.fps or DEFAULT_FPS,
             "frames": frames, "bones": bones, "cameras": cameras, "floor": _floor(frames, points, cameras),
             "plane": _plane(rec, points)}
