@@ -17,7 +17,8 @@ MIN_CONTACTS = 20           # foot contacts (frames) over all tracks, at least
 MIN_UPRIGHT = 10            # frames of people standing upright, at least
 MAX_TILT_DEG = 20.0         # the contacts' plane vs the people's vertical
 MAX_SPREAD = 0.06           # robust spread of the contacts off the plane, as a fraction of d
-MIN_EXTENT_MM = 800.0       # the contacts span this much in two directions to tilt the plane themselves
+MIN_EXTENT_MM = 800.0       # the places the feet stand at span this much, or the plane is not pinned
+PLACE = 10                  # consecutive contacts of a track that make one place
 
 
 @dataclass(frozen=True)
@@ -63,9 +64,12 @@ def fit_floor(contacts: dict[int, np.ndarray], upright: np.ndarray) -> FloorFit:
     """The floor from the foot contacts of each track, (N_t, 3) camera points of one common
     scale per track (the scale is what the fit solves), and the upright people's down
     directions (M, 3) (from the head to the feet, unit). Alternates: the plane's normal from the
-    scaled contacts (total least squares, each track weighted alike) or, when they span too little
-    ground to tilt it, from the people's vertical; then each track's scale that puts the median of
-    its contacts on the plane (d = 1 for now)."""
+    scaled contacts (total least squares, each track weighted alike) or, when they lie along a
+    line rather than over the ground, the plane through that line tilted about it as the people
+    stand; then each track's
+    scale that puts the median of its contacts on the plane (d = 1 for now). Refused when the
+    contacts stay in a patch (people standing in one place: the plane would be the bodies' guess,
+    not the feet's)."""
     n_contacts = sum(len(c) for c in contacts.values())
     if n_contacts < MIN_CONTACTS:
         return FloorFit(None, {}, {}, f"too few foot contacts ({n_contacts} frames; {MIN_CONTACTS} needed)")
@@ -82,12 +86,22 @@ def fit_floor(contacts: dict[int, np.ndarray], upright: np.ndarray) -> FloorFit:
         pts = np.vstack([c * scales[t] for t, c in contacts.items()])
         w = np.concatenate([np.full(len(c), 1.0 / len(c)) for c in contacts.values()])
         centre = (pts * w[:, None]).sum(axis=0) / w.sum()
-        _, sv, vt = np.linalg.svd((pts - centre) * np.sqrt(w)[:, None], full_matrices=False)
-        extent = 4 * sv[:2] / np.sqrt(w.sum())                          # ~ the span of the contacts, 2 sigma each way
+        _, _, vt = np.linalg.svd((pts - centre) * np.sqrt(w)[:, None], full_matrices=False)
         fitted = vt[2] * np.sign(vt[2] @ vertical)
-        if extent[1] * np.median(list(depth.values())) < MIN_EXTENT_MM:
-            break                                                       # a patch: the people's vertical stays
-        normal = fitted
+        # the ground the feet cover: the places they stand at (medians of PLACE consecutive contacts,
+        # so that depth noise along the rays does not count), their extent along the main axes
+        places = np.array([np.median(c[i:i + PLACE] * scales[t], axis=0)
+                           for t, c in contacts.items() for i in range(0, len(c), PLACE)])
+        span = np.ptp((places - centre) @ vt[:2].T, axis=0) * np.median(list(depth.values()))   # mm
+        if span[0] < MIN_EXTENT_MM:
+            return FloorFit(None, {}, {}, f"the feet stay in one place (their contacts span {span[0] / 1000:.1f} m; "
+                                          f"{MIN_EXTENT_MM / 1000:.1f} m needed)")
+        if span[1] >= MIN_EXTENT_MM:
+            normal = fitted                                             # the feet span the ground: their plane
+        else:                                                           # a line of contacts: the plane holds it,
+            line = vt[0]                                                # tilted about it as the people stand
+            normal = vertical - (vertical @ line) * line
+            normal /= np.linalg.norm(normal)
     tilt = np.degrees(np.arccos(np.clip(normal @ vertical, -1, 1)))
     if tilt > MAX_TILT_DEG:
         return FloorFit(None, {}, {}, f"the foot contacts' plane leans {tilt:.0f} deg from the people's vertical "
@@ -212,6 +226,9 @@ def focal_from_people(heads: np.ndarray, feet: np.ndarray, tracks: np.ndarray, p
     boot = [fb for fb in (focal_of([units[i] for i in rng.integers(0, len(units), len(units))])
                           for _ in range(50)) if fb is not None]
     sd = float(np.std(boot)) if len(boot) >= 10 else np.inf
+    if not np.isfinite(sd):
+        return LensFit(None, sd, v, f"the people do not pin the focal length (f = {f:.0f} px, not found again "
+                                    "from most resamplings of them)", f)
     if not sd / f <= MAX_FOCAL_SD:
         return LensFit(None, sd, v, f"the people pin the focal length only to +-{100 * sd / f:.0f} % "
                                     f"(f = {f:.0f} px)", f)
