@@ -86,7 +86,7 @@ class FileStream:
         afterwards `recording.floor` is set, and `notes` holds its warnings), then, with `smooth`
         and a video or a sequence, through the streaming smoother (a few seconds late; the whole
         video's smoothing). Nothing is kept."""
-        smoother = StreamingSmoother(self.recording) if smooth and self.media.kind != "image" else None
+        smoother = StreamingSmoother(self.recording) if smooth and self.media.kind not in ("image", "stream") else None
         scaler = MetricStage(self.recording, metric) if metric else None
 
         def finish(frames) -> Iterator[Frame]:

@@ -13,6 +13,12 @@ Part of a video or sequence (`FrameSelection`: `--start/--end/--stride`, in fram
 is read by seeking to the first frame and grabbing, not decoding, the frames skipped between
 two kept ones; the kept frames keep their index and time in the source.
 
+A **live source** is a camera index (`0`, `1`: a number that is not a file here) or a stream
+URL that OpenCV's FFmpeg opens (`rtsp://`, `http://`, `udp://`, ...; `is_stream`). It has no
+frame count: it is read until it ends, `--end`, or the caller stops asking for frames; times
+are frame index / the stream's declared rate. Opening and each read give up after
+STREAM_TIMEOUT_MS.
+
 Only regular files and folders are opened (a FIFO or a device would block forever), and
 OpenCV never sees a file name: images are decoded from their bytes, videos whose names
 OpenCV cannot take (not UTF-8) are opened through a temporary link with an ASCII name.
@@ -30,6 +36,7 @@ import stat
 import struct
 import sys
 import tempfile
+import threading
 from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
 from dataclasses import dataclass, field
@@ -47,6 +54,8 @@ VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv")   # videos posecam writes, and
 DEFAULT_FPS = 30.0   # the frame rate of an image sequence, and of a video or a recording that gives none
 MAX_PIXELS = 1 << 28        # 268 Mpx: larger images are refused before decoding
 _NUMBERED = re.compile(r"^(.*?)(\d+)$")
+STREAM_SCHEMES = ("rtsp://", "rtsps://", "rtmp://", "http://", "https://", "udp://", "tcp://", "srt://")
+STREAM_TIMEOUT_MS = 10_000
 _FRAMES_OR_SECONDS = re.compile(r"^(\d+)$|^(\d+(?:\.\d*)?|\.\d+)s$")
 
 
@@ -89,20 +98,22 @@ class FrameSelection:
 class Media:
     """An opened input: its size, frame rate and frame count (1 for an image)."""
 
-    path: Path
-    kind: str            # "image", "video" or "sequence"
+    path: Path | str     # a live source's camera index or URL as given
+    kind: str            # "image", "video", "sequence" or "stream"
     width: int
     height: int
     fps: float | None
-    frame_count: int
+    frame_count: int     # 0: unknown (a live source)
     image: np.ndarray | None = field(default=None, repr=False)   # a still image, decoded once
     files: list[Path] = field(default_factory=list, repr=False)  # a sequence's frames, in order
     selection: FrameSelection | None = None                      # part of a video or sequence
+    stop: threading.Event | None = field(default=None, repr=False)   # once set, a live source ends
 
     @property
     def selected(self) -> range:
         """The indices of the frames `frames()` yields (all of them without a selection)."""
-        return self.selection.frames(self.fps, self.frame_count) if self.selection else range(self.frame_count)
+        count = self.frame_count or sys.maxsize
+        return self.selection.frames(self.fps, count) if self.selection else range(count)
 
     @property
     def sample_fps(self) -> float | None:
@@ -130,10 +141,10 @@ class Media:
         # without --end, read to the video's real end (a declared count may be off)
         stop = wanted.stop if self.selection and self.selection.end is not None else None
         index, ok = wanted.start, True
-        with _video_capture(self.path) as cap:
+        with _stream_capture(str(self.path)) if self.kind == "stream" else _video_capture(self.path) as cap:
             if index:
                 _seek(cap, index)
-            while stop is None or index < stop:
+            while (stop is None or index < stop) and not (self.stop is not None and self.stop.is_set()):
                 ok, bgr = cap.read()
                 if not ok:
                     break
@@ -318,10 +329,14 @@ def folder_kind(folder: str | os.PathLike) -> tuple[str, list[Path]]:
     return "photos", files
 
 
-def expand_inputs(paths: list[str | os.PathLike]) -> list[Path]:
-    """Inputs as given, with each folder of photos replaced by its photos (see the module doc)."""
+def expand_inputs(paths: list[str | os.PathLike]) -> list[Path | str]:
+    """Inputs as given, with each folder of photos replaced by its photos (see the module doc);
+    live sources stay the strings they are."""
     expanded = []
     for p in paths:
+        if is_stream(p):
+            expanded.append(str(p))
+            continue
         p = check_input(p)
         if p.is_dir():
             kind, files = folder_kind(p)
@@ -334,7 +349,7 @@ def expand_inputs(paths: list[str | os.PathLike]) -> list[Path]:
 def open_media(path: str | os.PathLike, selection: FrameSelection | None = None) -> Media:
     """Open an image, a video or a folder of frames (only the `selection` of a video or
     folder); raise InputError if it cannot be read, or a still image comes with a selection."""
-    media = _open(path)
+    media = _open_stream(str(path)) if is_stream(path) else _open(path)
     if selection is None or selection == FrameSelection():
         return media
     if media.kind == "image":
@@ -365,3 +380,37 @@ def _open(path: str | os.PathLike) -> Media:
         raise InputError(f"{path} is neither a readable image nor a readable video")
     h, w = frame.shape[:2]
     return Media(path, "video", w, h, fps if fps and fps > 0 else DEFAULT_FPS, max(count, 1))
+
+
+def is_stream(source: str | os.PathLike) -> bool:
+    """True for a live source: a stream URL, or a camera index that is not a file or folder here."""
+    if not isinstance(source, str):
+        return False
+    return source.lower().startswith(STREAM_SCHEMES) or (source.isdigit() and not os.path.exists(source))
+
+
+@contextmanager
+def _stream_capture(source: str) -> Iterator[cv2.VideoCapture]:
+    """An opened capture of a camera index or a stream URL (FFmpeg, with open and read timeouts)."""
+    if source.isdigit():
+        cap = cv2.VideoCapture(int(source))
+    else:
+        cap = cv2.VideoCapture(source, cv2.CAP_FFMPEG, [cv2.CAP_PROP_OPEN_TIMEOUT_MSEC, STREAM_TIMEOUT_MS,
+                                                        cv2.CAP_PROP_READ_TIMEOUT_MSEC, STREAM_TIMEOUT_MS])
+    try:
+        yield cap
+    finally:
+        cap.release()
+
+
+def _open_stream(source: str) -> Media:
+    with _stream_capture(source) as cap:
+        ok, frame = cap.read() if cap.isOpened() else (False, None)
+        fps = cap.get(cv2.CAP_PROP_FPS)
+    if not ok:
+        if source.isdigit():
+            raise InputError(f"camera {source} cannot be opened (no such camera here, or it gives no frame)")
+        raise InputError(f"stream {source} cannot be opened (OpenCV's FFmpeg got no frame from it within "
+                         f"{STREAM_TIMEOUT_MS // 1000} s)")
+    h, w = frame.shape[:2]
+    return Media(source, "stream", w, h, fps if 0 < fps < 1000 else DEFAULT_FPS, 0)

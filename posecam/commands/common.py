@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import signal
+import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -93,6 +95,28 @@ def height_option(f: Callable) -> Callable:
                         help="People's heights in metres, which fix their metric scale: one value for everyone, "
                              "a list matched to the people tallest first (1.72,1.21), or per id (--height 0=1.72 "
                              "--height 1=1.21).")(f)
+
+
+@contextmanager
+def stop_on_interrupt() -> Iterator[threading.Event]:
+    """While a live source is read, the first Ctrl-C asks the frames to stop (the event is set;
+    the outputs are finished and kept, exit 0); a second one interrupts as usual (exit 130,
+    nothing kept)."""
+    stop = threading.Event()
+    if threading.current_thread() is not threading.main_thread():
+        yield stop
+        return
+
+    def ask(signum, frame) -> None:
+        stop.set()
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        click.echo("posecam: stopping after this frame (Ctrl-C again to abandon the outputs)", err=True)
+
+    previous = signal.signal(signal.SIGINT, ask)
+    try:
+        yield stop
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def frame_options(f: Callable) -> Callable:
@@ -231,7 +255,8 @@ def frame_progress(progress: Progress) -> Callable[[Frame, object, Media], None]
 
     def step(frame: Frame, rgb, media: Media) -> None:
         if media.path not in bars:
-            bars[media.path] = progress.add_task(Path(media.path).name, total=len(media.selected))
+            bars[media.path] = progress.add_task(str(media.path) if media.kind == "stream" else Path(media.path).name,
+                                                 total=len(media.selected) if media.frame_count else None)
         progress.advance(bars[media.path])
 
     return step

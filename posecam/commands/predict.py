@@ -10,7 +10,7 @@ import click
 from posecam.commands.common import (angle_options, check_angles, check_output, estimator_options, frame_options,
                                      height_option, intrinsics_options, make_estimator_options, make_frame_selection,
                                      make_intrinsics_options, many_options, progress_bar, refuse_alone,
-                                     report_written, stdout_report, shown, warn)
+                                     report_written, stdout_report, shown, stop_on_interrupt, warn)
 from posecam.errors import InputError
 
 
@@ -71,13 +71,14 @@ def explain_empty(sm: InputSummary, min_detection_score: float, min_presence: fl
 
 
 def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=None, draw=None, smooth: bool = True,
-                   keep: bool = False, emitted=None, metric=None, frames=None) -> tuple[list, list[InputSummary]]:
+                   keep: bool = False, emitted=None, metric=None, frames=None, stop=None) -> tuple[list, list[InputSummary]]:
     """Predict each input through `FileStream.poses` with a progress bar; every frame is drawn
     (`draw(frame, rgb)`) as it is predicted, put at its track's metric scale (`metric`,
     MetricOptions), then smoothed (videos), handed to `emitted(frame,
     recording)` (angles, plots), written (`writer`, a PoseWriter) and counted. The recordings
     hold their frames only with `keep` (markers and the 3D view need them); `frames`: the
-    FrameSelection of each video or sequence."""
+    FrameSelection of each video or sequence; `stop` (an Event): a live source ends when it is set,
+    and its pose file is flushed frame by frame."""
     from posecam.commands.common import frame_progress
 
     moved = frame_progress(progress)
@@ -90,6 +91,7 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
     recordings, summaries = [], []
     for path in inputs:
         stream = estimator.stream_file(path, intrinsics, frames)
+        stream.media.stop = stop
         summary = InputSummary(stream.recording)
         if writer:
             writer.begin(stream.recording)
@@ -99,6 +101,8 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
             summary.add(frame)
             if writer:
                 writer.frame(frame)
+                if stream.media.kind == "stream":
+                    writer.out.flush()
             if keep:
                 stream.recording.frames.append(frame)
         for note in stream.notes:
@@ -118,6 +122,8 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
                    "(needs posecam[c3d]): one input, one file per person (FILE_id<ID>.trc when several).")
 @click.option("--viz", type=click.Path(), help="Draw the result: FILE.png/.jpg for an image, FILE.mp4 for a video.")
 @click.option("--viz3d", type=click.Path(), help="FILE.html: a self-contained 3D view of one input's poses.")
+@click.option("--show", is_flag=True, help="Show each frame's poses in a window as they come (needs a display and "
+                                           "OpenCV with a GUI); q or Esc in the window stops a live source.")
 @angle_options
 @frame_options
 @click.option("--smooth/--no-smooth", default=True, show_default=True,
@@ -131,11 +137,14 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
 @many_options("input")
 @intrinsics_options()
 def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1, ray_address=None, viz3d=None,
-                    smooth=True, trc_y_up=False, angles=False, plot=None, heights=(), floor=True, **flags) -> None:
+                    smooth=True, trc_y_up=False, angles=False, plot=None, show=False, heights=(), floor=True,
+                    **flags) -> None:
     """3D poses (mm) of every person in INPUTS.
 
-    INPUTS are images, videos or folders of images. Each person's joints come out in camera
-    coordinates in millimetres: x right, y down, z forward, the camera at the origin.
+    INPUTS are images, videos or folders of images, or one live source: a camera index (0) or a
+    stream URL (rtsp://, http://, ...), read until it ends or Ctrl-C (the outputs are kept, exit
+    0). Each person's joints come out in camera coordinates in millimetres: x right, y down,
+    z forward, the camera at the origin.
     """
     from posecam.estimate import PoseEstimator
     from posecam.heights import Heights
@@ -143,9 +152,9 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     from posecam.metric import MetricOptions
     from posecam.io.poses import POSE_SUFFIXES, PoseWriter
     from posecam.io.trc import MARKER_SUFFIXES, check_markers_output, write_markers
-    from posecam.media import VIDEO_SUFFIXES, expand_inputs, open_media
+    from posecam.media import VIDEO_SUFFIXES, expand_inputs, is_stream, open_media
     from posecam.viz.draw import draw_people
-    from posecam.viz.sinks import PICTURE_SUFFIXES, VideoSink, write_image
+    from posecam.viz.sinks import PICTURE_SUFFIXES, VideoSink, WindowSink, check_window, write_image
     from posecam.viz.view3d import write_view3d
     from posecam.angles import add_angles, angle_names
     from posecam.viz.plot import AngleSeries, write_plot
@@ -174,6 +183,10 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
         if selection:
             raise InputError("--start, --end and --stride pick frames of one run's inputs; they do not go with --out-dir")
         return predict_many(list(inputs), opts, intrinsics, out_dir, f".{out_format}", jobs, ray_address, smooth, metric)
+    if show:
+        check_window()
+    if len(inputs) > 1 and any(is_stream(p) for p in inputs):
+        raise InputError("a camera or a stream is predicted alone; give it as the only input")
     first = open_media(inputs[0], selection)
     for path in inputs[1:]:  # fail on a bad input before spending time on the good ones
         open_media(path, selection)
@@ -189,6 +202,8 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
         sink = writer = None
         if viz and first.kind != "image":
             sink = stack.enter_context(VideoSink(staged.path(viz), first.sample_fps, first.width, first.height))
+        window = stack.enter_context(WindowSink(f"posecam: {inputs[0]}")) if show else None
+        stop = stack.enter_context(stop_on_interrupt()) if first.kind == "stream" else None
         if output and not markers:
             handle = stack.enter_context(open(staged.path(output), "w", encoding="utf-8", newline=""))
             writer = PoseWriter(handle, Path(output).suffix.lower()[1:], angle_names(estimator.joints) if angles else ())
@@ -201,10 +216,16 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
 
         def draw(frame, rgb) -> None:
             picture = draw_people(rgb, frame.people, estimator.joints)
-            sink.write(picture) if sink else write_image(staged.path(viz), picture)
+            if window:
+                window.write(picture)
+                if window.closed and stop is not None:
+                    stop.set()
+            if viz:
+                sink.write(picture) if sink else write_image(staged.path(viz), picture)
 
-        recordings, summaries = predict_inputs(estimator, inputs, intrinsics, progress, writer, draw if viz else None,
-                                               smooth, keep, emitted if angles or plot else None, metric, selection)
+        recordings, summaries = predict_inputs(estimator, inputs, intrinsics, progress, writer,
+                                               draw if viz or show else None, smooth, keep,
+                                               emitted if angles or plot else None, metric, selection, stop)
         if writer:
             writer.close()
         written = write_markers(markers, recordings[0], trc_y_up, staged) if markers else [output]

@@ -1,12 +1,15 @@
-"""Writers for pictures: one image file, or a video written frame by frame.
+"""Writers for pictures: one image file, a video written frame by frame, or a live window.
 
-Both appear only when complete: a `VideoSink` used as a context manager keeps its file on a
-clean exit and throws it away on an exception (Ctrl-C included).
+The files appear only when complete: a `VideoSink` used as a context manager keeps its file on
+a clean exit and throws it away on an exception (Ctrl-C included). A `WindowSink` shows each
+picture as it comes (`--show`); it needs a display and an OpenCV built with a GUI, which
+posecam's own `opencv-python-headless` is not (`check_window` says what is missing).
 """
 
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 from types import TracebackType
 
@@ -52,3 +55,35 @@ class VideoSink:
                  tb: TracebackType | None) -> None:
         self._writer.release()
         self._ctx.__exit__(kind, exc, tb)
+
+
+def check_window() -> None:
+    """Refuse `--show` where no window can open: no display, or an OpenCV without a GUI."""
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        raise InputError("--show needs a display, and there is none here (DISPLAY is not set); "
+                         "write the pictures with --viz FILE.mp4 instead")
+    gui = next((line.split(":", 1)[1].strip() for line in cv2.getBuildInformation().splitlines()
+                if line.strip().startswith("GUI:")), "NONE")
+    if gui.upper() == "NONE":
+        raise InputError("--show needs OpenCV with a GUI; this one is headless (pip install opencv-python, "
+                         "in place of opencv-python-headless)")
+
+
+class WindowSink:
+    """`with WindowSink(title) as window: window.write(rgb)`; `closed` turns True when the user
+    presses q or Esc in the window."""
+
+    def __init__(self, title: str):
+        check_window()
+        self.title, self.closed = title, False
+
+    def __enter__(self) -> "WindowSink":
+        cv2.namedWindow(self.title, cv2.WINDOW_NORMAL)
+        return self
+
+    def write(self, image_rgb: np.ndarray) -> None:
+        cv2.imshow(self.title, cv2.cvtColor(image_rgb, cv2.COLOR_RGB2BGR))
+        self.closed = self.closed or (cv2.waitKey(1) & 0xFF) in (ord("q"), 27)
+
+    def __exit__(self, kind, exc, tb) -> None:
+        cv2.destroyWindow(self.title)
