@@ -329,21 +329,33 @@ def folder_kind(folder: str | os.PathLike) -> tuple[str, list[Path]]:
     return "photos", files
 
 
-def expand_inputs(paths: list[str | os.PathLike]) -> list[Path | str]:
-    """Inputs as given, with each folder of photos replaced by its photos (see the module doc);
-    live sources stay the strings they are."""
-    expanded = []
+def expand_inputs(paths: list[str | os.PathLike], strict: bool = True) -> tuple[list[Path | str], list[str]]:
+    """Inputs as given, with each folder of photos replaced by its photos (see the module doc;
+    live sources stay the strings they are), and what was left out: without `strict`, a
+    folder's photo that cannot be read (opened as `open_media` opens it) is left out, its
+    one-line reason in the second list; with `strict` (or a file given by name) it raises InputError."""
+    expanded, skipped = [], []
     for p in paths:
         if is_stream(p):
             expanded.append(str(p))
             continue
         p = check_input(p)
-        if p.is_dir():
-            kind, files = folder_kind(p)
-            expanded += files if kind == "photos" else [p]
-        else:
+        if not p.is_dir():
             expanded.append(p)
-    return expanded
+            continue
+        kind, files = folder_kind(p)
+        if kind == "sequence":
+            expanded.append(p)
+            continue
+        for photo in files:
+            if not strict:
+                try:
+                    open_media(photo)
+                except InputError as exc:
+                    skipped.append(str(exc))
+                    continue
+            expanded.append(photo)
+    return expanded, skipped
 
 
 def open_media(path: str | os.PathLike, selection: FrameSelection | None = None) -> Media:

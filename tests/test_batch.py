@@ -2,6 +2,7 @@
 
 import json
 import shutil
+from pathlib import Path
 
 import pytest
 
@@ -78,3 +79,29 @@ def test_fuse_takes_one_file_each_with_workers_and_resume(tmp_path):
 def test_fuse_out_dir_wants_take_folders(tmp_path):
     r = run_posecam("fuse", DATA / "messi5.jpg", EXAMPLES / "balance.jpg", "--out-dir", tmp_path)
     assert r.returncode == 2 and "is not one" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_a_folder_run_leaves_an_unreadable_photo_out_and_counts_it(tmp_path):
+    """Two photos and a file that only claims to be one: the two are predicted, the third is left
+    out with a warning naming it and counted in the summary; --strict stops on it (exit 2)."""
+    from conftest import invoke_posecam
+
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    shutil.copy(DATA / "messi5.jpg", folder / "messi.jpg")
+    shutil.copy(EXAMPLES / "balance.jpg", folder / "balance.jpg")
+    (folder / "broken.jpg").write_bytes(b"\xff\xd8\xff\xe0 not really a JPEG")
+    r = invoke_posecam("predict", folder, "-o", tmp_path / "all.json")
+    assert r.exit_code == 0, r.stderr
+    assert [line for line in r.stderr.splitlines() if "broken.jpg" in line][0].startswith("posecam: warning: left out:")
+    assert "left out: 1 unreadable photo" in r.stdout
+    sources = [Path(i["source"]).name for i in json.loads((tmp_path / "all.json").read_text())["inputs"]]
+    assert sorted(sources) == ["balance.jpg", "messi.jpg"]
+    r = invoke_posecam("predict", folder, "-o", tmp_path / "strict.json", "--strict")
+    assert r.exit_code == 2 and "broken.jpg" in r.stderr and r.stderr.startswith("posecam: error:"), r.stderr
+    assert not (tmp_path / "strict.json").exists()
+    out = tmp_path / "dir"
+    out.mkdir()
+    r = invoke_posecam("predict", folder, "--out-dir", out)
+    assert r.exit_code == 0 and "2 written, 0 skipped, 1 unreadable left out" in r.stderr, r.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["balance.json", "messi.json"]

@@ -46,7 +46,7 @@ def export_command(checkpoint, output, name, verify, quantize, images, max_crops
         raise
     opts = ExportOptions(name=name or Path(output).stem, verify=verify, quantize=quantize, max_crops=max_crops)
     if images:
-        opts.images = [str(p) for p in expand_inputs(images)]
+        opts.images = [str(p) for p in expand_inputs(images)[0]]
     int8 = int8_path(output) if quantize else None
     staged = OutputSet([output, int8], [checkpoint, *opts.images])  # checked before the work
     with staged, err.status("exporting") as status:  # both files or neither

@@ -12,7 +12,8 @@ from posecam.commands.common import progress_bar
 from posecam.errors import InputError
 
 
-def _run(tasks: list, total: int, work, out_dir: str, jobs: int, ray_address: str | None, what: str) -> None:
+def _run(tasks: list, total: int, work, out_dir: str, jobs: int, ray_address: str | None, what: str,
+         unreadable: int = 0) -> None:
     from posecam.batch import run_tasks
 
     skipped = total - len(tasks)
@@ -23,7 +24,8 @@ def _run(tasks: list, total: int, work, out_dir: str, jobs: int, ray_address: st
         for output in run_tasks(tasks, work, jobs, ray_address):
             progress.advance(bar)
             progress.console.print(f"wrote {output}", highlight=False)
-    click.echo(f"posecam: {len(tasks)} written, {skipped} skipped, in {Path(out_dir)}", err=True)
+    left_out = f", {unreadable} unreadable left out" if unreadable else ""
+    click.echo(f"posecam: {len(tasks)} written, {skipped} skipped{left_out}, in {Path(out_dir)}", err=True)
 
 
 def _need_out_dir(out_dir: str | None) -> None:
@@ -32,15 +34,15 @@ def _need_out_dir(out_dir: str | None) -> None:
 
 
 def predict_many(inputs: list[str], options, intrinsics, out_dir: str | None, suffix: str, jobs: int,
-                 ray_address: str | None, smooth: bool, metric=None) -> None:
-    """Predict every input into DIR/<input name><suffix>."""
+                 ray_address: str | None, smooth: bool, metric=None, unreadable: int = 0) -> None:
+    """Predict every input into DIR/<input name><suffix> (`unreadable`: photos left out, for the summary)."""
     from posecam.batch import plan_predictions, predict_task, threads_per_worker
 
     _need_out_dir(out_dir)
     tasks = plan_predictions(inputs, out_dir, suffix)
     options = threads_per_worker(options, jobs) if jobs > 1 else options
     _run(tasks, len(inputs), partial(predict_task, options=options, intrinsics=intrinsics, smooth=smooth, metric=metric), out_dir,
-         jobs, ray_address, "inputs")
+         jobs, ray_address, "inputs", unreadable)
 
 
 def fuse_many(takes: list[str], options, estimator, intrinsics, calibration: str | None,

@@ -35,7 +35,7 @@ class InputSummary:
             totals[2] += float(p.confidence.mean())
 
 
-def print_summary(summaries: list[InputSummary], console) -> None:
+def print_summary(summaries: list[InputSummary], console, unreadable: int = 0) -> None:
     from rich.table import Table
 
     root = summaries[0].rec.root_joint if summaries else "root"
@@ -57,6 +57,9 @@ def print_summary(summaries: list[InputSummary], console) -> None:
         k = rec.intrinsics
         name = "" if same else f" of {shown(Path(rec.source).name)}"
         console.print(f"intrinsics{name} ({shown(k.source)}): fx={k.fx:.1f} fy={k.fy:.1f} cx={k.cx:.1f} cy={k.cy:.1f}")
+    if unreadable:
+        console.print(f"left out: {unreadable} unreadable photo{'s' if unreadable > 1 else ''} (see the warnings; "
+                      "--strict stops at the first)")
 
 
 def explain_empty(sm: InputSummary, min_detection_score: float, min_presence: float) -> str | None:
@@ -130,6 +133,8 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
               help="Smooth each person's joints over time (zero-phase 6 Hz Butterworth) in videos and frame "
                    "sequences; --viz draws the unsmoothed poses.")
 @click.option("--trc-y-up", is_flag=True, help="TRC/C3D: Y-up axes as OpenSim expects (camera turned 180 degrees about x).")
+@click.option("--strict", is_flag=True, help="Stop at a folder's first unreadable photo (exit 2) instead of leaving it out "
+                                             "with a warning and counting it in the summary.")
 @click.option("--floor/--no-floor", default=True, show_default=True,
               help="Fit the ground plane under everyone's feet (static camera) and put each person on it.")
 @height_option
@@ -138,6 +143,7 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
 @intrinsics_options()
 def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1, ray_address=None, viz3d=None,
                     smooth=True, trc_y_up=False, angles=False, plot=None, show=False, heights=(), floor=True,
+                    strict=False,
                     **flags) -> None:
     """3D poses (mm) of every person in INPUTS.
 
@@ -159,7 +165,12 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     from posecam.angles import add_angles, angle_names
     from posecam.viz.plot import AngleSeries, write_plot
 
-    inputs = [str(p) for p in expand_inputs(inputs)]   # a folder of photos: each photo an input
+    paths, unreadable = expand_inputs(inputs, strict)   # a folder of photos: each photo an input
+    for line in unreadable:
+        warn(f"left out: {line}")
+    if not paths:
+        raise InputError(f"no readable input: the {len(unreadable)} photos given cannot be read")
+    inputs = [str(p) for p in paths]
     if viz and len(inputs) > 1:
         raise InputError("--viz draws one input; pass a single input with --viz")
     check_output(output, (*POSE_SUFFIXES, *MARKER_SUFFIXES), "output")
@@ -182,7 +193,8 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
 
         if selection:
             raise InputError("--start, --end and --stride pick frames of one run's inputs; they do not go with --out-dir")
-        return predict_many(list(inputs), opts, intrinsics, out_dir, f".{out_format}", jobs, ray_address, smooth, metric)
+        return predict_many(list(inputs), opts, intrinsics, out_dir, f".{out_format}", jobs, ray_address, smooth, metric,
+                            len(unreadable))
     if show:
         check_window()
     if len(inputs) > 1 and any(is_stream(p) for p in inputs):
@@ -234,5 +246,5 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
         if plot:
             write_plot(staged.path(plot), series, Path(inputs[0]).name)
         with stdout_report() as console:   # stdout is an output too: written before the files are
-            print_summary(summaries, console)
+            print_summary(summaries, console, len(unreadable))
             report_written([*written, viz, viz3d, plot], console)
