@@ -57,7 +57,8 @@ def print_report(result: FusionResult, console) -> None:
                                 "shows the same instant as the first view's frame i.")
 @click.option("--max-offset", type=click.IntRange(0), default=10, show_default=True,
               help="Largest frame offset --sync auto tries, in frames either way.")
-@click.option("--viz", type=click.Path(), help="FILE.png or FILE.jpg: the fused pose projected into every view.")
+@click.option("--viz", type=click.Path(), help="FILE.png or FILE.jpg: the fused pose projected into every view, in "
+                                               "one frame (named on it); FILE.mp4: every fused frame.")
 @angle_options
 @frame_options
 @estimator_options
@@ -82,6 +83,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     from posecam.filters import smooth_recording
     from posecam.io.poses import POSE_SUFFIXES, write_poses
     from posecam.io.trc import MARKER_SUFFIXES, check_markers_output, write_markers
+    from posecam.media import VIDEO_SUFFIXES
     from posecam.viz.sinks import PICTURE_SUFFIXES
     from posecam.multiview.fuse import FuseOptions, fuse_recordings
     from posecam.viz.view3d import write_view3d
@@ -96,7 +98,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     if markers:
         check_markers_output(markers, [*inputs, calibration])
     check_output(save_calibration, (".toml",), "--save-calibration")
-    check_output(viz, PICTURE_SUFFIXES, "--viz")
+    check_output(viz, (*PICTURE_SUFFIXES, *VIDEO_SUFFIXES), "--viz")
     if offsets and sync == "auto":
         raise InputError("give either --offsets or --sync auto")
     refuse_alone("max_offset", "--sync auto", sync == "auto")
@@ -157,7 +159,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
         if viz:
             from posecam.viz.fusion_grid import write_grid
 
-            write_grid(staged.path(viz), result, recordings)
+            write_grid(staged.path(viz), result, recordings, fused)
         if plot:
             from posecam.viz.plot import AngleSeries, write_plot
 

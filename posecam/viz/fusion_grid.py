@@ -1,55 +1,112 @@
-"""Draw fused poses projected into every view, side by side, as one PNG/JPEG image."""
+"""Draw fused poses projected into every view, side by side: one PNG/JPEG still, or a video of
+every fused frame (`fuse --viz FILE.png|FILE.mp4`). Each picture names its frame.
+
+Each view's video is read forward once (from the first frame needed, seeking where it can);
+a view whose video cannot be read (a pose file whose source is elsewhere) gets a black tile.
+"""
 
 from __future__ import annotations
 
 import dataclasses
 import os
+from collections.abc import Iterator
+from pathlib import Path
 
 import cv2
 import numpy as np
 
 from posecam.errors import InputError, PosecamError
+from posecam.media import VIDEO_SUFFIXES, FrameSelection, open_media
 from posecam.multiview.fuse import FusionResult
-from posecam.media import open_media
-from posecam.results import Recording
+from posecam.results import Frame, Recording
 from posecam.viz.draw import draw_people
-from posecam.viz.sinks import write_image
+from posecam.viz.sinks import PICTURE_SUFFIXES, VideoSink, write_image
 
 TILE_HEIGHT = 480
+COLUMNS = 4          # views per row of the grid
 
 
-def _frame_image(rec: Recording, index: int) -> np.ndarray:
-    """Frame `index` of the view's video, or a black image when it cannot be read."""
-    try:
-        for i, _, rgb in open_media(rec.source).frames():
-            if i == index:
-                return rgb
-    except PosecamError:
-        pass
-    return np.zeros((rec.height, rec.width, 3), np.uint8)
+class _ViewReader:
+    """One view's video read forward: `at(index)` is its frame `index`, black where it has none."""
+
+    def __init__(self, rec: Recording, first: int):
+        self.black = np.zeros((rec.height, rec.width, 3), np.uint8)
+        self.index, self.image = -1, self.black
+        try:
+            self.frames: Iterator | None = open_media(rec.source, FrameSelection(str(max(first, 0)))).frames()
+        except PosecamError:
+            self.frames = None
+
+    def at(self, index: int) -> np.ndarray:
+        while self.frames is not None and self.index < index:
+            try:
+                self.index, _, self.image = next(self.frames)
+            except (StopIteration, PosecamError):
+                self.frames = None
+        return self.image if self.index == index else self.black
 
 
-def write_grid(path: str | os.PathLike, result: FusionResult, recordings: list[Recording]) -> None:
-    """A middle frame, seen by every view, with the most people: the fused poses projected into
-    each view (each view's image at its offset)."""
-    if not str(path).lower().endswith((".png", ".jpg", ".jpeg")):
-        raise InputError(f"--viz must end in .png or .jpg, got {path}")
-    frames = result.recording.frames
-    seen_by_all = [k for k, f in enumerate(frames)
-                   if all(0 <= f.index + o < len(r.frames) for r, o in zip(recordings, result.offsets))] or [0]
+def _tile(cam, rec: Recording, frame: Frame, image: np.ndarray) -> np.ndarray:
+    # each pose in this camera's coordinates, so the label gives its depth from this camera
+    people = [dataclasses.replace(p, keypoints_2d=cam.project(p.keypoints_3d), keypoints_3d=cam.to_camera(p.keypoints_3d))
+              for p in frame.people]
+    for p in people:
+        p.bbox = np.concatenate([p.keypoints_2d.min(axis=0), p.keypoints_2d.max(axis=0)])
+    img = draw_people(image, people, rec.joints)
+    scale = TILE_HEIGHT / img.shape[0]
+    return cv2.resize(img, (round(img.shape[1] * scale), TILE_HEIGHT))
+
+
+def _grid(tiles: list[np.ndarray], frame: Frame) -> np.ndarray:
+    """The tiles in rows of COLUMNS (padded black), with the frame's index and time on top."""
+    width = max(t.shape[1] for t in tiles)
+    tiles = [np.pad(t, ((0, 0), (0, width - t.shape[1]), (0, 0))) for t in tiles]
+    tiles += [np.zeros_like(tiles[0])] * (-len(tiles) % min(COLUMNS, len(tiles)))
+    rows = [np.hstack(tiles[i:i + COLUMNS]) for i in range(0, len(tiles), COLUMNS)]
+    picture = np.ascontiguousarray(np.vstack(rows))
+    label = f"frame {frame.index}  {frame.time:.2f} s"
+    for colour, thick in (((0, 0, 0), 5), ((255, 255, 255), 2)):
+        cv2.putText(picture, label, (12, 34), cv2.FONT_HERSHEY_SIMPLEX, 0.9, colour, thick, cv2.LINE_AA)
+    return picture
+
+
+def _still_frame(frames: list[Frame], views: list[set[int]], offsets: list[int]) -> int:
+    """A middle frame, seen by every view, with the most people (its position in `frames`)."""
+    seen_by_all = [k for k, f in enumerate(frames) if all(f.index + o in v for v, o in zip(views, offsets))] or [0]
     most = max(len(frames[k].people) for k in seen_by_all)
     candidates = [k for k in seen_by_all if len(frames[k].people) == most]
-    i = candidates[len(candidates) // 2]
-    tiles = []
-    for cam, v in zip(result.rig.cameras, result.views):     # the cameras fusion kept
-        rec, o = recordings[v], result.offsets[v]
-        # each pose in this camera's coordinates, so the label gives its depth from this camera
-        people = [dataclasses.replace(p, keypoints_2d=cam.project(p.keypoints_3d),
-                                      keypoints_3d=cam.to_camera(p.keypoints_3d))
-                  for p in frames[i].people]
-        for p in people:
-            p.bbox = np.concatenate([p.keypoints_2d.min(axis=0), p.keypoints_2d.max(axis=0)])
-        img = draw_people(_frame_image(rec, frames[i].index + o), people, rec.joints)
-        scale = TILE_HEIGHT / img.shape[0]
-        tiles.append(cv2.resize(img, (round(img.shape[1] * scale), TILE_HEIGHT)))
-    write_image(path, np.hstack(tiles))
+    return candidates[len(candidates) // 2]
+
+
+def write_grid(path: str | os.PathLike, result: FusionResult, recordings: list[Recording],
+               fused: Recording | None = None) -> None:
+    """The fused poses (`fused`, default `result.recording`) projected into each view, each
+    view's image at its offset: FILE.png/.jpg for one frame (see `_still_frame`), FILE.mp4 for
+    every fused frame."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in (*PICTURE_SUFFIXES, *VIDEO_SUFFIXES):
+        raise InputError(f"--viz must end in {', '.join(PICTURE_SUFFIXES + VIDEO_SUFFIXES)}, got {path}")
+    frames = (fused or result.recording).frames
+    if not frames:
+        raise InputError("--viz: the fusion gave no frame to draw")
+    kept = list(zip(result.rig.cameras, result.views))     # the cameras fusion kept
+    offsets = [result.offsets[v] for _, v in kept]
+    if suffix in PICTURE_SUFFIXES:
+        views = [{f.index for f in recordings[v].frames} for _, v in kept]
+        frames = [frames[_still_frame(frames, views, offsets)]]
+    readers = [_ViewReader(recordings[v], frames[0].index + o) for (_, v), o in zip(kept, offsets)]
+
+    def pictures() -> Iterator[np.ndarray]:
+        for f in frames:
+            yield _grid([_tile(cam, recordings[v], f, reader.at(f.index + o))
+                         for (cam, v), o, reader in zip(kept, offsets, readers)], f)
+
+    pictures_left = pictures()
+    first = next(pictures_left)
+    if suffix in PICTURE_SUFFIXES:
+        write_image(path, first)
+        return
+    with VideoSink(path, (fused or result.recording).fps or 30.0, first.shape[1], first.shape[0]) as sink:
+        sink.write(first)
+        for picture in pictures_left:
+            sink.write(picture)

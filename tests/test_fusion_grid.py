@@ -1,0 +1,56 @@
+"""`fuse --viz`: the fused poses projected into every view, one named still or a video of
+every frame; on the real clip's own frames and on synthetic views whose videos do not exist."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+
+from conftest import DATA, run_posecam
+
+
+def _synthetic_views(tmp_path, n_frames=40):
+    from synth_rig import make_rig, monocular_views, skeleton_motion
+
+    from posecam.io.calibration import write_toml
+    from posecam.io.poses import write_poses
+
+    cams = make_rig()
+    paths = []
+    for rec in monocular_views(cams, skeleton_motion(n_frames)):
+        paths.append(tmp_path / f"{rec.source}.json")
+        write_poses(paths[-1], [rec])
+    write_toml(tmp_path / "calib.toml", cams)
+    return cams, paths, tmp_path / "calib.toml"
+
+
+def test_fused_video_has_every_frame_and_names_it(tmp_path):
+    cams, paths, calib = _synthetic_views(tmp_path)
+    video, still, out = tmp_path / "grid.mp4", tmp_path / "grid.png", tmp_path / "fused.json"
+    run = run_posecam("fuse", *paths, "--calibration", calib, "--start", "5", "-o", out, "--viz", video)
+    assert run.returncode == 0, run.stderr
+    frames = json.loads(out.read_text())["inputs"][0]["frames"]
+    cap = cv2.VideoCapture(str(video))
+    assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == len(frames) == 35
+    ok, first = cap.read()
+    tile_w = first.shape[1] // len(cams)
+    assert ok and first.shape[0] == 480 and len(cams) <= 4
+    # black tiles (the synthetic views have no video) with the skeletons drawn in every view
+    for v in range(len(cams)):
+        tile = first[60:, v * tile_w:(v + 1) * tile_w]
+        assert (tile.max(axis=2) > 100).sum() > 200, v
+    run = run_posecam("fuse", *paths, "--calibration", calib, "--start", "5", "--viz", still)
+    assert run.returncode == 0, run.stderr
+    picture = cv2.imread(str(still))
+    label = picture[5:45, 5:300].astype(int)
+    assert (label.min(axis=2) > 200).sum() > 100     # "frame N  T s", white on the black tile
+    # the still is one of the video's frames, and its label is that frame's, not its neighbours'
+    cap.set(cv2.CAP_PROP_POS_FRAMES, 0)
+    video_frames = [cap.read()[1].astype(int) for _ in frames]
+    k = int(np.argmin([np.abs(f - picture).mean() for f in video_frames]))
+    assert np.abs(video_frames[k] - picture).mean() < 3.0 and 5 < k < 30    # a middle frame
+    same = np.abs(video_frames[k][5:45, 5:300] - label).mean()
+    neighbour = np.abs(video_frames[k + 1][5:45, 5:300] - label).mean()     # "frame k+1": other digits
+    assert same < 2.0 < neighbour, (same, neighbour)
