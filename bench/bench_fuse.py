@@ -1,164 +1,386 @@
 """Multi-view benchmark on Pose2Sim's two demo takes (4 real portrait cameras, 100 frames, 60 fps,
-unsynchronised; `pose2sim==0.10.49` wheel): Demo_SinglePerson and Demo_MultiPerson (two people).
+unsynchronised; `pose2sim==0.10.49` wheel, copied to examples/demo/): single (one adult, 1.72 m)
+and multi (an adult of 1.72 m and a child of 1.21 m).
 
-Truth: the lab's Qualisys calibration (Calib.qca.txt), the frame offsets it implies (those under
-which the keypoints of all views triangulated through it reproject best; the pair-by-pair scan
-against cam01, free of any association, is printed beside them), and the lab triangulation of
-each person (2D keypoints through the lab rig at those offsets).
-Prints, with and without the calibration given: relative rotation error per camera pair and
-their median, focal error per camera, offsets found by --sync auto, and the distance of each
-fused pelvis to the nearest lab-triangulated pelvis in its frame (median and mean, mm).
+The yardstick is written here, outside the code under test, from the lab's Qualisys calibration
+(Calib.qca.txt) and the 2D keypoints of the cached predictions, with nothing but OpenCV's
+undistortion and a plain DLT:
+- truth offsets, sub-frame: each view's person tracks linearly interpolated at offsets in steps
+  of 0.1 frame; "pairwise": per view, the offset against cam01 whose two-view DLT (best pair of
+  people per frame) reprojects with the smallest median error; "combination": every combination
+  of the three offsets within +-6 frames, then quarter frames around the best, all four views
+  triangulated together (a cam01 person with the best-matching person of each view);
+- truth poses: every cam01 person, with the best-matching person of each other view at the
+  combination offsets, triangulated by DLT through the lab rig (the pelvis, in lab mm).
+Each run of `fuse_recordings` (from the cached pose JSON) is scored against it: per camera
+pair the angle between estimated and lab relative rotation, per camera the focal length error
+and the camera centre error (cam01's frame, mm), the offsets against the truth, and every fused
+pelvis's distance to the nearest true pelvis of its frame (median, mm).
 
-Usage: python bench/bench_fuse.py [--cache DIR] [--take single|multi]. Per-view predictions
-are cached as posecam JSON under DIR/<take>/camNN.json (predict once, fuse many times).
+Before / after in one run: `--before DIR` runs the same fuses with another checkout's posecam
+(`git archive <commit> posecam | tar -x -C DIR`) in a subprocess and scores them the same way.
+
+Usage: python bench/bench_fuse.py [--cache DIR] [--take single|multi|both] [--before DIR]
+Per-view predictions are made once with the default `posecam predict` (timed: the time to
+predict the videos is the peer of the time to fuse them) and cached under DIR/<take>/camNN.json.
 """
 
 from __future__ import annotations
 
 import argparse
 import itertools
+import json
+import os
+import subprocess
+import sys
 import time
+from dataclasses import fields
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from export.assets import _extract
-from posecam import PoseEstimator, read_poses, write_poses
-from posecam.geometry.camera import Rig
-from posecam.io.calibration import read_calibration
-from posecam.multiview.fuse import FuseOptions, FusionResult, fuse_recordings, view_names
-
-TAKES = {"single": "Demo_SinglePerson", "multi": "Demo_MultiPerson"}
+ROOT = Path(__file__).resolve().parents[1]
+TAKES = {"single": ("examples/demo/single", "1.72"), "multi": ("examples/demo/multi", "1.72,1.21")}
 NAMES = ("cam01", "cam02", "cam03", "cam04")
-MAX_OFFSET = 10
+PAIR_RANGE = 10          # frames either way, pairwise scan
+COMBO_RANGE = 6          # frames either way, every combination of the three offsets
+MAX_PAIR_PX = 25.0       # a two-view DLT above this median error is not the same person
 
 
-def load(cache: Path, take: str):
-    """The take's per-view recordings (predicted once, then read from the cache) and lab rig."""
-    recs = []
-    (cache / take).mkdir(parents=True, exist_ok=True)
-    for name in NAMES:
-        path = cache / take / f"{name}.json"
-        if not path.exists():
-            video = _extract("pose2sim", f"Pose2Sim/{take}/videos/{name}.mp4")
-            write_poses(path, [PoseEstimator().predict_file(video)])
-        recs.append(read_poses(path)[0])
-    lab = read_calibration(_extract("pose2sim", f"Pose2Sim/{take}/calibration/Calib.qca.txt"))
-    cams, _ = lab.match(view_names(recs), [(r.width, r.height) for r in recs])
-    return recs, Rig(cams, None)
+# ---- the yardstick: lab rig, interpolated tracks, plain DLT ---------------------------------
 
+def lab_rig(take: str) -> list[dict]:
+    """The lab cameras as plain arrays (K, distortion, R, t in mm), cam01..cam04."""
+    from posecam.io.calibration import read_calibration
 
-def lab_offsets(recs, lab: Rig) -> list[int]:
-    """Per camera, the offset against cam01 under which the lab rig explains the pair best, free of
-    any association: per frame, the best-matching pair of people (smallest median reprojection
-    error of their two-view triangulation), then the median over frames."""
-    out = [0]
-    for v in range(1, len(recs)):
-        pair = Rig([lab.cameras[0], lab.cameras[v]])
-        cost = {}
-        for o in range(-MAX_OFFSET, MAX_OFFSET + 1):
-            per_frame = []
-            for i, f in enumerate(recs[0].frames):
-                if not 0 <= i + o < len(recs[v].frames):
-                    continue
-                best = np.inf
-                for p, q in itertools.product(f.people, recs[v].frames[i + o].people):
-                    uv = np.stack([p.keypoints_2d, q.keypoints_2d])[:, None]
-                    conf = np.stack([p.confidence, q.confidence])[:, None]
-                    err = pair.reprojection_errors(pair.triangulate(uv, conf), uv, conf)
-                    if np.isfinite(err).sum() > 10:
-                        best = min(best, float(np.nanmedian(err)))
-                if np.isfinite(best):
-                    per_frame.append(best)
-            cost[o] = np.median(per_frame) if len(per_frame) > 30 else np.inf
-        out.append(min(cost, key=cost.get))
-    return out
-
-
-def pelvis_errors(result: FusionResult, truth: FusionResult, to_world=None) -> np.ndarray:
-    """Distance (mm) of every fused pelvis to the nearest true pelvis of its frame."""
+    rig = read_calibration(ROOT / TAKES[take][0] / "Calib.qca.txt")
     out = []
-    for f, t in zip(result.recording.frames, truth.recording.frames):
-        if not t.people:
-            continue
-        true = np.stack([p.keypoints_3d[0] for p in t.people])
-        for p in f.people:
-            x = p.keypoints_3d[0] if to_world is None else to_world(p.keypoints_3d[0])
-            if np.all(np.isfinite(x)):
-                out.append(np.min(np.linalg.norm(true - x, axis=1)))
-    return np.array(out)
-
-
-def rotation_errors(result: FusionResult, lab: Rig) -> dict[tuple[str, str], float]:
-    """Angle (deg) between estimated and lab relative rotations, for every kept camera pair."""
-    cams, truth = result.rig.cameras, [lab.cameras[v] for v in result.views]
-    out = {}
-    for a, b in itertools.combinations(range(len(cams)), 2):
-        d = (cams[b].rotation @ cams[a].rotation.T) @ (truth[b].rotation @ truth[a].rotation.T).T
-        out[(cams[a].name, cams[b].name)] = float(np.degrees(np.linalg.norm(cv2.Rodrigues(d)[0])))
+    for name in NAMES:
+        c = rig.camera(name)
+        out.append({"K": c.intrinsics.matrix.copy(), "dist": np.asarray(c.distortion, float), "R": c.rotation.copy(),
+                    "t": np.asarray(c.translation, float), "size": c.size})
     return out
 
 
-def run(label: str, recs, opts: FuseOptions) -> FusionResult:
-    t0 = time.perf_counter()
-    result = fuse_recordings(recs, opts)
-    print(f"-- {label}: {time.perf_counter() - t0:.1f} s, cameras {', '.join(c.name for c in result.rig.cameras)}, "
-          f"offsets {result.offsets} (confidence {', '.join(f'{c.offset_confidence:.2f}' for c in result.cameras)}), "
-          f"people {max(len(f.people) for f in result.recording.frames)}")
-    for w in result.warnings:
-        print(f"   warning: {w}")
-    return result
+def tracks(path: Path, cam: dict, size: tuple[int, int]) -> dict[int, tuple[np.ndarray, np.ndarray]]:
+    """Person id -> (F, J, 2) undistorted normalised keypoints through the lab camera, (F, J) conf."""
+    doc = json.loads(path.read_text())
+    rec = doc["inputs"][0] if "inputs" in doc else doc
+    frames = rec["frames"]
+    n, j = len(frames), len(doc["joints"])
+    k = cam["K"].copy()
+    k[0, 2] += (size[0] - cam["size"][0]) / 2           # 1088-px Qualisys field, 1080-px video
+    k[1, 2] += (size[1] - cam["size"][1]) / 2
+    out: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    for i, f in enumerate(frames):
+        for p in f["people"]:
+            uv, conf = out.setdefault(p["id"], (np.full((n, j, 2), np.nan), np.zeros((n, j))))
+            uv[i] = np.array(p["keypoints_2d"], float)
+            conf[i] = np.array(p["confidence"], float)
+    for pid, (uv, conf) in out.items():
+        ok = np.isfinite(uv).all(axis=-1)
+        flat = np.ascontiguousarray(np.nan_to_num(uv).reshape(-1, 1, 2))
+        norm = cv2.undistortPoints(flat, k, cam["dist"]).reshape(uv.shape)
+        out[pid] = (np.where(ok[..., None], norm, np.nan), np.where(ok, conf, 0.0))
+    return out
 
 
-def report_rig(result: FusionResult, lab: Rig, truth: FusionResult) -> None:
-    rot = rotation_errors(result, lab)
-    print("   relative rotation error (deg): " + ", ".join(f"{a}-{b} {e:.1f}" for (a, b), e in rot.items())
-          + f"; MEDIAN {np.median(list(rot.values())):.2f}")
-    focal = [(c.name, 100 * (c.intrinsics.fx / lab.cameras[v].intrinsics.fx - 1))
-             for c, v in zip(result.rig.cameras, result.views)]
-    print("   focal error (%): " + ", ".join(f"{n} {e:+.1f}" for n, e in focal)
-          + f"; max |error| {max(abs(e) for _, e in focal):.1f}")
-    ce = np.stack([c.centre for c in result.rig.cameras])
-    cl = np.stack([lab.cameras[v].centre for v in result.views])
-    scale = np.linalg.norm(cl - cl.mean(0), axis=1).sum() / np.linalg.norm(ce - ce.mean(0), axis=1).sum()
-    print(f"   metric scale: lab / estimated camera spread {scale:.3f}")
-    c1 = lab.cameras[result.views[0]]
-    err = pelvis_errors(result, truth, lambda x: (x - c1.translation) @ c1.rotation)
-    print(f"   fused pelvis vs lab triangulation: median {np.median(err):.0f} mm, mean {np.mean(err):.0f} mm "
-          f"({len(err)} pelvises)")
+def at(track: tuple[np.ndarray, np.ndarray], offset: float, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The track at frames i + offset, i = 0..n-1, linearly interpolated (conf 0 outside)."""
+    uv, conf = track
+    x = np.arange(n) + offset
+    lo = np.floor(x).astype(int)
+    a = (x - lo)[:, None, None]
+    ok = (lo >= 0) & (lo + 1 < len(uv)) | (a[:, 0, 0] == 0) & (lo >= 0) & (lo < len(uv))
+    lo_c, hi_c = np.clip(lo, 0, len(uv) - 1), np.clip(lo + 1, 0, len(uv) - 1)
+    out = (1 - a) * uv[lo_c] + a * uv[hi_c]
+    c = np.minimum(conf[lo_c], np.where(a[..., 0] > 0, conf[hi_c], 1.0))
+    return np.where(ok[:, None, None], out, np.nan), np.where(ok[:, None], c, 0.0)
 
 
-def bench(cache: Path, take: str) -> None:
-    recs, lab = load(cache, take)
-    print(f"== {take}")
-    # truth: people associated and triangulated through the lab rig at the offsets it implies
-    pairwise = lab_offsets(recs, lab)
-    offsets = fuse_recordings(recs, FuseOptions(calibration=lab, sync=True, method="triangulate")).offsets
-    truth = fuse_recordings(recs, FuseOptions(calibration=lab, offsets=offsets, method="triangulate"))
-    print(f"   offsets the lab calibration implies: {offsets} (all views triangulated together; "
-          f"pair by pair against cam01: {pairwise})")
+def dlt(cams: list[dict], uv: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Plain DLT of (V, N, 2) normalised points with weights (V, N) (0: unused) -> (N, 3) lab
+    points and (V, N) reprojection errors in pixels (NaN where unused)."""
+    P = np.stack([np.c_[c["R"], c["t"]] for c in cams])                                  # (V, 3, 4)
+    w = np.where(np.isfinite(uv).all(axis=-1), w, 0.0)
+    u = np.nan_to_num(uv)
+    rows = np.concatenate([u[..., 0:1, None] * P[:, None, 2:3] - P[:, None, 0:1],
+                           u[..., 1:2, None] * P[:, None, 2:3] - P[:, None, 1:2]], axis=2)  # (V, N, 2, 4)
+    rows = rows * w[..., None, None]
+    a = rows.transpose(1, 0, 2, 3).reshape(uv.shape[1], -1, 4)
+    ok = (w > 0).sum(axis=0) >= 2
+    pts = np.full((uv.shape[1], 3), np.nan)
+    if ok.any():
+        h = np.linalg.svd(a[ok])[2][:, -1]
+        pts[ok] = h[:, :3] / h[:, 3:4]
+    pc = np.einsum("vij,nj->vni", P[:, :, :3], pts) + P[:, None, :, 3]
+    err = np.linalg.norm(pc[..., :2] / pc[..., 2:3] - u, axis=-1) * np.array([c["K"][0, 0] for c in cams])[:, None]
+    return pts, np.where(w > 0, err, np.nan)
 
-    est = run("no calibration, lab offsets", recs, FuseOptions(offsets=offsets))
-    report_rig(est, lab, truth)
-    auto = run("no calibration, --sync auto", recs, FuseOptions(sync=True))
-    report_rig(auto, lab, truth)
-    for label, opts in (("lab calibration, --sync auto (the implied offsets)", FuseOptions(calibration=lab, sync=True)),
-                        ("lab calibration, the pair-by-pair offsets", FuseOptions(calibration=lab, offsets=pairwise))):
-        res = run(label, recs, opts)
-        err = pelvis_errors(res, truth)
-        print(f"   fused pelvis vs lab triangulation: median {np.median(err):.0f} mm, mean {np.mean(err):.0f} mm "
-              f"({len(err)} pelvises)")
+
+def pair_error(cams, a, b) -> np.ndarray:
+    """(F,) median two-view DLT error per frame of tracks a, b (each (uv, conf), conf >= 0.5)."""
+    uv = np.stack([a[0], b[0]])
+    w = np.stack([a[1], b[1]]) >= 0.5
+    n, j = uv.shape[1:3]
+    _, err = dlt(cams, uv.reshape(2, -1, 2), w.reshape(2, -1).astype(float))
+    err = err.reshape(2, n, j)
+    good = np.isfinite(err).sum(axis=(0, 2)) >= 12
+    with np.errstate(all="ignore"):
+        med = np.nanmedian(err.transpose(1, 0, 2).reshape(n, -1), axis=1) if good.any() else np.full(n, np.nan)
+    return np.where(good, med, np.nan)
+
+
+class Truth:
+    """Truth offsets and pelvises of one take (module docstring)."""
+
+    def __init__(self, take: str, cache: Path) -> None:
+        cams = lab_rig(take)
+        docs = [json.loads((cache / take / f"{n}.json").read_text()) for n in NAMES]
+        sizes = [(d["inputs"][0]["width"], d["inputs"][0]["height"]) for d in docs]
+        self.cams = cams
+        self.views = [tracks(cache / take / f"{n}.json", c, s) for n, c, s in zip(NAMES, cams, sizes)]
+        self.n = len(docs[0]["inputs"][0]["frames"])
+        self._matches: dict = {}
+        stored = cache / take / "truth.json"
+        if stored.exists():
+            doc = json.loads(stored.read_text())
+            self.pairwise, self.combination = doc["pairwise"], doc["combination"]
+        else:
+            self.pairwise = [0.0] + [self._pairwise(v) for v in range(1, 4)]
+            self.combination = self._combination()
+            stored.write_text(json.dumps({"pairwise": self.pairwise, "combination": self.combination}))
+        self.pelvis = self._pelvis(self.combination)           # (F, P, 3) lab mm, NaN where missing
+
+    def _pair_cost(self, v: int, offset: float) -> np.ndarray:
+        """(F,) per cam01 frame, the smallest pair error over the pairs of people (cam01, view v)."""
+        pair = [self.cams[0], self.cams[v]]
+        costs = [pair_error(pair, at(a, 0, self.n), at(b, offset, self.n))
+                 for a in self.views[0].values() for b in self.views[v].values()]
+        with np.errstate(all="ignore"):
+            return np.nanmin(np.stack(costs), axis=0)
+
+    def _pairwise(self, v: int) -> float:
+        def cost(o):
+            c = self._pair_cost(v, o)
+            return np.nanmedian(c) if np.isfinite(c).sum() > 30 else np.inf
+
+        coarse = min(range(-PAIR_RANGE, PAIR_RANGE + 1), key=cost)
+        return float(min(np.round(np.arange(coarse - 1, coarse + 1.01, 0.1), 2), key=cost))
+
+    def _match(self, v: int, offset: float) -> tuple[np.ndarray, np.ndarray]:
+        """Per cam01 person, view v's best-matching person at `offset`: (P, F, J, 2), (P, F, J)."""
+        key = (v, round(offset, 3))
+        if key not in self._matches:
+            uv, conf = [], []
+            for a in self.views[0].values():
+                ref = at(a, 0, self.n)
+                if v == 0:
+                    uv.append(ref[0]), conf.append(ref[1])
+                    continue
+                cands = [at(b, offset, self.n) for b in self.views[v].values()]
+                errs = np.stack([pair_error([self.cams[0], self.cams[v]], ref, c) for c in cands])   # (Q, F)
+                errs = np.where(np.isfinite(errs), errs, np.inf)
+                best = np.argmin(errs, axis=0)
+                ok = errs[best, np.arange(self.n)] < MAX_PAIR_PX
+                uv.append(np.stack([cands[q][0][i] for i, q in enumerate(best)]))
+                conf.append(np.stack([cands[q][1][i] for i, q in enumerate(best)]) * ok[:, None])
+            self._matches[key] = (np.stack(uv), np.stack(conf))
+        return self._matches[key]
+
+    def _matched(self, offsets) -> tuple[np.ndarray, np.ndarray]:
+        """(V, P, F, J, 2), (V, P, F, J): every cam01 person with its match in each view."""
+        parts = [self._match(v, o) for v, o in enumerate(offsets)]
+        return np.stack([p[0] for p in parts]), np.stack([p[1] for p in parts])
+
+    def _all_views_error(self, offsets) -> float:
+        uv, conf = self._matched(offsets)
+        _, e = dlt(self.cams, uv.reshape(4, -1, 2), (conf.reshape(4, -1) >= 0.5).astype(float))
+        e = e[np.isfinite(e)]
+        return float(np.median(e)) if e.size > 200 else np.inf
+
+    def _combination(self) -> list[float]:
+        grid = range(-COMBO_RANGE, COMBO_RANGE + 1)
+        best = min(itertools.product(grid, grid, grid), key=lambda c: self._all_views_error((0.0, *c)))
+        fine = [np.arange(o - 0.75, o + 0.76, 0.25) for o in best]           # then quarter frames around it
+        best = min(itertools.product(*fine), key=lambda c: self._all_views_error((0.0, *c)))
+        return [0.0, *map(float, best)]
+
+    def _pelvis(self, offsets) -> np.ndarray:
+        out = []
+        uv, conf = self._matched(offsets)
+        for p in range(uv.shape[1]):
+            pts, _ = dlt(self.cams, uv[:, p, :, 0], (conf[:, p, :, 0] >= 0.5).astype(float))   # joint 0: pelvis
+            out.append(pts)
+        return np.stack(out, axis=1)
+
+    def score(self, run: dict) -> dict:
+        """Figures of one fuse run (see `worker`) against the truth."""
+        names = run["cameras_names"]
+        views = [NAMES.index(n) for n in names]
+        R = [np.array(r) for r in run["R"]]
+        lab = [self.cams[v] for v in views]
+        rot = {}
+        for a, b in itertools.combinations(range(len(views)), 2):
+            d = (R[b] @ R[a].T) @ (lab[b]["R"] @ lab[a]["R"].T).T
+            rot[f"{names[a]}-{names[b]}"] = float(np.degrees(np.linalg.norm(cv2.Rodrigues(d)[0])))
+        focal = {n: 100 * (f / c["K"][0, 0] - 1) for n, f, c in zip(names, run["fx"], lab)}
+        c0 = self.cams[0]
+        world = run["frame"] == "world"                                   # a given calibration's frame
+        R0, t0 = R[0], np.array(run["t"][0])
+        centre = {}
+        for n, r, t, c in zip(names, R, run["t"], lab):
+            est = R0 @ (-r.T @ np.array(t)) + t0                          # in cam01's frame
+            true = c0["R"] @ (-c["R"].T @ c["t"]) + c0["t"]
+            centre[n] = float(np.linalg.norm(est - true))
+        errs = []
+        for i, people in enumerate(run["pelvis"]):
+            truth = self.pelvis[i][np.isfinite(self.pelvis[i]).all(axis=1)]
+            for x in people:
+                x = np.array(x, float)
+                if truth.size and np.isfinite(x).all():
+                    lab_x = x if world else c0["R"].T @ (x - c0["t"])
+                    errs.append(np.min(np.linalg.norm(truth - lab_x, axis=1)))
+        off = {n: float(o) - self.combination[v] for n, o, v in zip(names, run["offsets_kept"], views)}
+        return {"rot": rot, "rot_median": float(np.median(list(rot.values()))) if rot else np.nan,
+                "focal": focal, "focal_max": max(abs(e) for e in focal.values()), "centre": centre,
+                "centre_median": float(np.median(list(centre.values())[1:])) if len(centre) > 1 else np.nan,
+                "pelvis_median": float(np.median(errs)) if errs else np.nan, "pelvises": len(errs),
+                "offset_error": off, "offset_max": max(abs(e) for e in off.values())}
+
+
+# ---- the code under test, run in a worker process (this checkout's posecam or --before's) ------
+
+CONFIGS = {
+    "no calibration, lab offsets": {"offsets": "truth"},
+    "no calibration, --sync auto": {"sync": True},
+    "no calibration, --sync auto, --height": {"sync": True, "heights": True},
+    "lab calibration, --sync auto": {"sync": True, "calibration": True},
+    "lab calibration, lab offsets": {"offsets": "truth", "calibration": True},
+}
+
+
+def worker(take: str, cache: Path, offsets: list[float], out: Path) -> None:
+    """Run every config on the cached pose JSON and write what `Truth.score` needs."""
+    from posecam import read_poses
+    from posecam.io.calibration import read_calibration
+    from posecam.multiview.fuse import FuseOptions, fuse_recordings
+
+    recs = [read_poses(cache / take / f"{n}.json")[0] for n in NAMES]
+    lab = read_calibration(ROOT / TAKES[take][0] / "Calib.qca.txt")
+    has = {f.name for f in fields(FuseOptions)}
+    results = {}
+    for label, cfg in CONFIGS.items():
+        kw = {}
+        if cfg.get("heights"):
+            if "heights" not in has:
+                continue
+            from posecam.heights import Heights
+
+            kw["heights"] = Heights.parse(TAKES[take][1])
+        if cfg.get("calibration"):
+            kw["calibration"] = lab
+        if cfg.get("sync"):
+            kw["sync"] = True
+        if cfg.get("offsets") == "truth":
+            kw["offsets"] = [round(o) for o in offsets]
+        t0 = time.perf_counter()
+        try:
+            res = fuse_recordings(recs, FuseOptions(**kw))
+        except Exception as exc:  # a failed fuse is a figure too
+            results[label] = {"error": f"{type(exc).__name__}: {exc}"}
+            continue
+        dt = time.perf_counter() - t0
+        cams = res.rig.cameras
+        pelvis = [[p.keypoints_3d[0].tolist() for p in f.people] for f in res.recording.frames]
+        results[label] = {"time_s": dt, "frame": "world" if cfg.get("calibration") else "camera",
+                          "cameras_names": [c.name for c in cams],
+                          "R": [c.rotation.tolist() for c in cams], "t": [c.translation.tolist() for c in cams],
+                          "fx": [c.intrinsics.fx for c in cams], "offsets_kept": [res.offsets[v] for v in res.views],
+                          "warnings": res.warnings, "pelvis": pelvis,
+                          "reports": [{k: (v if not isinstance(v, np.ndarray) else v.tolist())
+                                       for k, v in vars(r).items() if isinstance(v, (int, float, str, list, tuple))}
+                                      for r in res.cameras]}
+    out.write_text(json.dumps(results))
+
+
+def run_worker(take: str, cache: Path, offsets: list[float], code: Path) -> dict:
+    """The worker's figures for `code`; those of a --before checkout are kept in the cache."""
+    out = cache / take / f"runs_{'after' if code == ROOT else code.name}.json"
+    if code != ROOT and out.exists():
+        return json.loads(out.read_text())
+    env = dict(os.environ, PYTHONPATH=str(code))
+    subprocess.run([sys.executable, __file__, "--worker", str(out), "--take", take, "--cache", str(cache),
+                    "--offsets", ",".join(map(str, offsets))], env=env, check=True, cwd=code)
+    return json.loads(out.read_text())
+
+
+def predict(cache: Path, take: str) -> float:
+    """Predict the take's four videos with the default `posecam predict` once; seconds taken
+    (measured now, or the figure stored with the cache)."""
+    folder = cache / take
+    stamp = folder / "predict_seconds.txt"
+    if not all((folder / f"{n}.json").exists() for n in NAMES) or not stamp.exists():
+        folder.mkdir(parents=True, exist_ok=True)
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "posecam", "predict", "--out-dir", str(folder),
+                        *[str(ROOT / TAKES[take][0] / f"{n}.mp4") for n in NAMES]], check=True,
+                       env=dict(os.environ, PYTHONPATH=str(ROOT)))
+        stamp.write_text(f"{time.perf_counter() - t0:.2f}")
+    return float(stamp.read_text())
+
+
+def show(label: str, runs: dict[str, dict], truth: Truth) -> None:
+    print(f"-- {label}")
+    for code, res in runs.items():
+        r = res.get(label)
+        if r is None:
+            print(f"   {code:6s}: (not available)")
+            continue
+        if "error" in r:
+            print(f"   {code:6s}: FAILED {r['error']}")
+            continue
+        s = truth.score(r)
+        print(f"   {code:6s}: {r['time_s']:.1f} s; rotation median {s['rot_median']:.2f} deg "
+              f"({', '.join(f'{k} {v:.1f}' for k, v in s['rot'].items())}); focal max {s['focal_max']:.1f} % "
+              f"({', '.join(f'{k} {v:+.1f}' for k, v in s['focal'].items())}); centre median {s['centre_median']:.0f} mm; "
+              f"pelvis median {s['pelvis_median']:.0f} mm ({s['pelvises']}); offsets {r['offsets_kept']} "
+              f"(max error {s['offset_max']:.2f} frame)")
+        for w in r["warnings"]:
+            print(f"           warning: {w}")
+
+
+def bench(cache: Path, take: str, before: Path | None) -> None:
+    seconds = predict(cache, take)
+    truth = Truth(take, cache)
+    print(f"== {take}: truth offsets (lab rig, plain DLT): combination {truth.combination}, "
+          f"pairwise {truth.pairwise}")
+    codes = {"before": before} if before else {}
+    codes["after"] = ROOT
+    runs = {code: run_worker(take, cache, truth.combination, path) for code, path in codes.items()}
+    for label in CONFIGS:
+        show(label, runs, truth)
+    for code, res in runs.items():
+        r = res.get("no calibration, --sync auto", {})
+        if "time_s" in r:
+            print(f"   {code:6s}: fuse from pose JSON (no calibration, --sync auto) {r['time_s']:.1f} s vs "
+                  f"predicting the 4 videos {seconds:.1f} s: ratio {r['time_s'] / seconds:.2f}")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--cache", type=Path, default=Path("/tmp/fuse_cache"))
     ap.add_argument("--take", choices=[*TAKES, "both"], default="both")
+    ap.add_argument("--before", type=Path, help="a checkout of the posecam to compare with")
+    ap.add_argument("--worker", type=Path, help=argparse.SUPPRESS)
+    ap.add_argument("--offsets", help=argparse.SUPPRESS)
     args = ap.parse_args()
-    for key, take in TAKES.items():
+    if args.worker:
+        return worker(args.take, args.cache, [float(o) for o in args.offsets.split(",")], args.worker)
+    for key in TAKES:
         if args.take in (key, "both"):
-            bench(args.cache, take)
+            bench(args.cache, key, args.before)
 
 
 if __name__ == "__main__":

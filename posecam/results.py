@@ -73,6 +73,7 @@ class Recording:
     fps: float | None = None
     frame_of_reference: str = "camera"   # "camera", "reference camera NAME" or "world"
     floor: Floor | None = None           # the ground plane under the people (posecam.metric), camera frame
+    cameras: list[dict] = field(default_factory=list)   # fused: what fusion says of each input camera
 
     @property
     def root_joint(self) -> str:

@@ -111,3 +111,44 @@ def test_degenerate_views_trigger_the_quality_gate():
     recs = monocular_views([cams[0], twin], world, seed=5)
     with pytest.raises(FusionError):
         fuse_recordings(recs, FuseOptions(bundle_options=BundleOptions(max_frames=40)))
+
+
+def _fractional(cams, offsets, n_frames=120, joint_noise=10.0, still=False):
+    """Each camera's view with its own sub-frame offset (camera c's frame i + o shows the
+    reference's instant i)."""
+    motion = (lambda o: np.repeat(skeleton_motion(1), n_frames, axis=0)) if still else \
+        (lambda o: skeleton_motion(n_frames, start=-o))
+    return [monocular_views([c], motion(o), seed=3 + i, joint_noise=joint_noise)[0]
+            for i, (c, o) in enumerate(zip(cams, offsets))]
+
+
+def test_sync_without_calibration_recovers_fractional_offsets():
+    cams, true = make_rig(), [0.0, 2.4, -1.7, 0.6]
+    result = fuse_recordings(_fractional(cams, true), FuseOptions(sync=True))
+    assert np.allclose(result.offsets, true, atol=0.2), result.offsets
+    for rep in result.cameras[1:]:
+        assert rep.offset_confidence > 0.5 and 0 < rep.offset_spread < 0.5, rep
+    assert not result.warnings, result.warnings
+
+
+def test_sync_of_a_still_person_keeps_zero_with_a_warning():
+    cams = make_rig()
+    result = fuse_recordings(_fractional(cams, [0.0, 2.0, -1.0, 0.0], still=True), FuseOptions(sync=True))
+    assert result.offsets == [0, 0, 0, 0]
+    assert len(result.warnings) == 3 and all("move too little" in w for w in result.warnings), result.warnings
+
+
+def test_camera_spread_grows_when_frames_are_removed(estimated):
+    cams, full = estimated
+    recs = monocular_views(cams, skeleton_motion(150))
+    for r in recs:
+        r.frames = r.frames[:30]
+    few = fuse_recordings(recs, FuseOptions(bundle_options=BundleOptions(max_frames=150)))
+    for a, b in zip(full.cameras[1:], few.cameras[1:]):
+        assert b.spread.rotation_deg > 1.3 * a.spread.rotation_deg, (a.name, a.spread, b.spread)
+        assert b.spread.focal_pct > 1.3 * a.spread.focal_pct, (a.name, a.spread, b.spread)
+        assert b.spread.position_mm > 1.3 * a.spread.position_mm, (a.name, a.spread, b.spread)
+    # and the spreads mean something: the true errors are of their size, not ten times it
+    for true, est, rep in zip(cams[1:], full.rig.cameras[1:], full.cameras[1:]):
+        err = relative_rotation_error_deg(cams[0].rotation, true.rotation, np.eye(3), est.rotation)
+        assert err < 10 * rep.spread.rotation_deg + 0.2, (true.name, err, rep.spread)

@@ -2,6 +2,8 @@
 
 import json
 
+import numpy as np
+
 from conftest import DATA, run_posecam
 from posecam.io.calibration import write_toml
 from posecam.io.poses import write_poses
@@ -27,7 +29,9 @@ def test_fuse_with_known_calibration(tmp_path):
     assert r.returncode == 0, r.stderr
     doc = json.loads(out.read_text())
     assert doc["inputs"][0]["source"] == "fused" and doc["inputs"][0]["frame"] == "world"
-    assert "| 2" in r.stdout.replace("│", "|") or " 2 " in r.stdout
+    rows = [line.split("|") for line in r.stdout.replace("│", "|").splitlines() if line.count("|") > 5]
+    offsets = {cells[1].strip(): float(cells[2].split()[0]) for cells in rows if cells[1].strip() in [c.name for c in cams]}
+    assert np.allclose([offsets[c.name] for c in cams], [0, 2, -1, 0], atol=0.25), r.stdout   # sub-frame
 
 
 def test_fewer_than_two_views(tmp_path):

@@ -19,12 +19,12 @@ def test_sync_finds_offsets_and_fusion_beats_single_views():
     world = skeleton_motion(80)
     recs = monocular_views(cams, world, offsets=[0, 3, -2, 1])
     result = fuse_recordings(recs, FuseOptions(calibration=Rig(cams), sync=True))
-    assert result.offsets == [0, 3, -2, 1]
+    assert np.allclose(result.offsets, [0, 3, -2, 1], atol=0.2), result.offsets       # sub-frame search
     avg = _mpjpe(result, cams, world)
     tri = _mpjpe(fuse_recordings(recs, FuseOptions(calibration=Rig(cams), offsets=result.offsets,
                                                    method="triangulate")), cams, world)
     single = [np.median(np.linalg.norm(cams[i].to_world(np.stack(
-        [recs[i].frames[k + o].people[0].keypoints_3d for k in range(20, 60)])) - world[20:60], axis=-1))
+        [recs[i].frames[k + round(o)].people[0].keypoints_3d for k in range(20, 60)])) - world[20:60], axis=-1))
         for i, o in enumerate(result.offsets)]
     assert tri < avg < min(single), (tri, avg, single)
 
@@ -58,7 +58,7 @@ def test_two_people_with_calibration_are_never_mixed():
     visible[1, 3] = False                                  # one view sees only the first person
     recs = monocular_views(cams, world, offsets=[0, 2, -3, 1], visible=visible, id_switch={(0, 1): 40})
     result = fuse_recordings(recs, FuseOptions(calibration=Rig(cams), sync=True))
-    assert result.offsets == [0, 2, -3, 1]
+    assert np.allclose(result.offsets, [0, 2, -3, 1], atol=0.2), result.offsets
     assert all(c.offset_confidence > 0.3 for c in result.cameras), [c.offset_confidence for c in result.cameras]
     ids = {p.id for f in result.recording.frames for p in f.people}
     assert len(ids) == 2, ids

@@ -18,22 +18,50 @@ if TYPE_CHECKING:
     from posecam.multiview.fuse import FusionResult
 
 
+def _spread(rep) -> tuple[str, str, str]:
+    s = rep.spread
+    return ("", "", "") if s is None else (f"{s.rotation_deg:.2f}", f"{s.focal_pct:.1f}", f"{s.position_mm:.0f}")
+
+
+def _offset(rep) -> str:
+    if rep.offset_confidence >= 1 and not rep.offset_spread:
+        return f"{rep.offset:g}"
+    spread = f" ±{rep.offset_spread:.1f}" if 0 < rep.offset_spread < float("inf") else ""
+    return f"{rep.offset:g}{spread} ({rep.offset_confidence:.2f})"
+
+
+def camera_comments(result: FusionResult) -> dict[str, str]:
+    """One line per camera for the TOML: its offset and, when estimated, its spreads."""
+    out = {}
+    for rep in result.cameras:
+        line = f"offset {_offset(rep)} frames; reprojection {rep.reprojection_px:.1f} px"
+        if rep.spread is not None:
+            rot, focal, pos = _spread(rep)
+            line += f"; one standard deviation: rotation {rot} deg, focal {focal} %, position {pos} mm"
+        out[rep.name] = line
+    return out
+
+
 def print_report(result: FusionResult, console) -> None:
     from rich.table import Table
 
+    estimated = any(rep.spread is not None for rep in result.cameras)
     table = Table(title=f"posecam fuse: cameras ({result.recording.frame_of_reference})")
-    for col in ("camera", "offset", "error px", "joints", "L/R", "f px", "cx, cy", "centre m"):
+    for col in ("camera", "offset", "error px", "joints", "L/R", "f px", "cx, cy", "centre m",
+                *(("±rot deg", "±f %", "±pos mm") if estimated else ())):
         table.add_column(col, justify="left" if col == "camera" else "right", no_wrap=True)
     for rep, cam in zip(result.cameras, result.rig.cameras):
         fx, fy, cx, cy = rep.intrinsics
         focal = f"{fx:.0f}" if abs(fx - fy) < 0.5 else f"{fx:.0f}/{fy:.0f}"
-        offset = str(rep.offset) if rep.offset_confidence >= 1 else f"{rep.offset} ({rep.offset_confidence:.2f})"
-        table.add_row(shown(rep.name), offset, f"{rep.reprojection_px:.1f}", str(rep.joints_used),
-                      str(rep.swaps_fixed), focal, f"{cx:.0f}, {cy:.0f}", " ".join(f"{v / 1000:.1f}" for v in cam.centre))
+        table.add_row(shown(rep.name), _offset(rep), f"{rep.reprojection_px:.1f}", str(rep.joints_used),
+                      str(rep.swaps_fixed), focal, f"{cx:.0f}, {cy:.0f}", " ".join(f"{v / 1000:.1f}" for v in cam.centre),
+                      *(_spread(rep) if estimated else ()))
     console.print(table)
-    console.print("offset: frames against the first view (found by --sync auto: its confidence, 0..1); error px: median reprojection error of the fused "
-                  "joints; joints: joints used; L/R: frames with left and right swapped back; f px, cx, cy: "
-                  "intrinsics; centre m: camera centre", style="dim")
+    console.print("offset: frames against the first view (found by --sync auto: ± one standard deviation where "
+                  "known, confidence 0..1); error px: median reprojection error of the fused joints; joints: joints "
+                  "used; L/R: frames with left and right swapped back; f px, cx, cy: intrinsics; centre m: "
+                  "camera centre" + ("; ±rot, ±f, ±pos: one standard deviation of each estimated camera's rotation, "
+                                     "focal length and position (at the rig's scale)" if estimated else ""), style="dim")
 
 
 @click.command()
@@ -53,7 +81,7 @@ def print_report(result: FusionResult, console) -> None:
               help="Average the monocular poses, or triangulate the 2D keypoints.")
 @click.option("--sync", type=click.Choice(["none", "auto"]), default="none", show_default=True,
               help="auto: estimate each video's frame offset against the first.")
-@click.option("--offsets", help="Frame offsets, one per view, e.g. 0,-1,4,0: view c's frame i+o "
+@click.option("--offsets", help="Frame offsets, one per view, e.g. 0,-1,4.5,0 (sub-frame allowed): view c's frame i+o "
                                 "shows the same instant as the first view's frame i.")
 @click.option("--max-offset", type=click.IntRange(0), default=10, show_default=True,
               help="Largest frame offset --sync auto tries, in frames either way.")
@@ -104,9 +132,9 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     refuse_alone("max_offset", "--sync auto", sync == "auto")
     refuse_alone("trc_y_up", "-o FILE.trc or FILE.c3d", bool(markers))
     try:
-        offset_list = [int(v) for v in offsets.split(",")] if offsets else None
+        offset_list = [float(v) for v in offsets.split(",")] if offsets else None
     except ValueError:
-        raise InputError(f"--offsets must be integers separated by commas, got {offsets!r}") from None
+        raise InputError(f"--offsets must be numbers of frames separated by commas, got {offsets!r}") from None
     if calibration:
         check_input(calibration, "calibration")   # a pipe or a device would block the read
     refuse_alone("out_format", "--out-dir", bool(out_dir))
@@ -155,7 +183,9 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
             write_view3d(staged.path(viz3d), fused, result.rig)
         if save_calibration:
             write_toml(staged.path(save_calibration), result.rig.cameras,
-                       {"frame": result.recording.frame_of_reference, "offsets": ",".join(str(result.offsets[v]) for v in result.views)})
+                       {"frame": result.recording.frame_of_reference,
+                        "offsets": ",".join(f"{result.offsets[v]:g}" for v in result.views)},
+                       camera_comments(result))
         if viz:
             from posecam.viz.fusion_grid import write_grid
 

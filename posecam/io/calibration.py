@@ -98,12 +98,16 @@ def _toml_list(values) -> str:
     return "[ " + ", ".join(repr(float(v)) for v in values) + "]"
 
 
-def write_toml(path: str | os.PathLike, cameras: list[CameraCalibration], metadata: dict | None = None) -> None:
-    """Write cameras as an anipose/Pose2Sim calibration TOML (translation in metres), atomically."""
+def write_toml(path: str | os.PathLike, cameras: list[CameraCalibration], metadata: dict | None = None,
+               comments: dict[str, str] | None = None) -> None:
+    """Write cameras as an anipose/Pose2Sim calibration TOML (translation in metres), atomically;
+    `comments` (camera name -> text) go as a comment line above each camera's table."""
     lines = []
     for c in cameras:
         rvec = cv2.Rodrigues(np.asarray(c.rotation, dtype=np.float64))[0].ravel()
         k = c.intrinsics.matrix
+        if comments and c.name in comments:
+            lines.append(f"# {comments[c.name]}")
         lines += [
             f"[{_toml_key(c.name)}]",
             f"name = {json.dumps(c.name)}",

@@ -84,6 +84,7 @@ def _header(r: Recording) -> dict:
         "frame": r.frame_of_reference,
         "intrinsics": r.intrinsics.to_dict() if r.intrinsics else None,
         "fps": _number(r.fps, 6),
+        **({"cameras": r.cameras} if r.cameras else {}),
     }
 
 

@@ -15,14 +15,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.sparse import lil_matrix
+from scipy.sparse import csr_matrix, vstack
 
 from posecam.errors import FusionError
 from posecam.geometry.camera import Rig
 from posecam.skeleton import skeleton_of
 from posecam.geometry.triangulate import observation_weights, triangulate
+
+
+F_SCALE = 2.0                         # soft-L1 loss: residuals (in pixel_sigma) beyond this count less
 
 
 @dataclass
@@ -33,7 +37,7 @@ class BundleOptions:
     # and doubles the rotation error, so by default it stays at the image centre.
     fix_principal_point: bool = True
     centre_sigma: float = 0.1         # principal point prior, in image widths / heights
-    max_frames: int = 150             # frames used (evenly spaced), to bound the problem's size
+    max_frames: int = 150             # frames used (chosen for coverage), to bound the problem's size
     max_nfev: int = 200
     max_error_px: float = 60.0        # median reprojection error above this: did not converge
 
@@ -47,37 +51,186 @@ class BundleResult:
     joints_used: np.ndarray           # (V,) observations per camera
     scale: float                      # factor applied to make bones metric
     converged: bool
+    spreads: list["CameraSpread"]     # (V,) one standard deviation of each camera
 
 
 def rodrigues(r: np.ndarray) -> np.ndarray:
     """(N, 3) rotation vectors -> (N, 3, 3) matrices."""
     theta = np.linalg.norm(r, axis=1)[:, None, None]
-    k = r / np.maximum(theta[:, :, 0], 1e-12)
-    kx = np.zeros((len(r), 3, 3))
-    kx[:, 0, 1], kx[:, 0, 2], kx[:, 1, 2] = -k[:, 2], k[:, 1], -k[:, 0]
-    kx = kx - kx.transpose(0, 2, 1)
+    kx = _skew(r / np.maximum(theta[:, :, 0], 1e-12))
     return np.eye(3) + np.sin(theta) * kx + (1 - np.cos(theta)) * kx @ kx
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    """(N, 3) -> (N, 3, 3) cross-product matrices [v]x."""
+    out = np.zeros(v.shape[:-1] + (3, 3))
+    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
+    return out - np.swapaxes(out, -1, -2)
+
+
+def rotation_jacobian(r: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) J of d(R(r) X)/dr = -R [X]x J, J = (r r^T + (R^T - I)[r]x) / |r|^2
+    (Gallego & Yezzi 2015, eq. 9); the identity near r = 0."""
+    theta2 = np.sum(r * r, axis=1)[:, None, None]
+    small = theta2[:, 0, 0] < 1e-16
+    j = (r[:, :, None] * r[:, None, :] + (np.swapaxes(rot, 1, 2) - np.eye(3)) @ _skew(r)) / np.maximum(theta2, 1e-300)
+    j[small] = np.eye(3)
+    return j
+
+
+def coverage_frames(points: np.ndarray, weight: np.ndarray, n: int) -> np.ndarray:
+    """At most n frame indices chosen for coverage: greedy farthest-point sampling of the
+    frames' mean joint positions (F, 3), NaN where a frame has none, starting from the frame
+    with the most observations (`weight` (F,)); sorted."""
+    ok = np.nonzero(np.isfinite(points).all(axis=1) & (weight > 0))[0]
+    if len(ok) <= n:
+        return ok
+    x = points[ok]
+    chosen = [int(np.argmax(weight[ok]))]
+    dist = np.linalg.norm(x - x[chosen[0]], axis=1)
+    for _ in range(n - 1):
+        k = int(np.argmax(dist * (0.5 + weight[ok] / weight[ok].max())))
+        chosen.append(k)
+        dist = np.minimum(dist, np.linalg.norm(x - x[k], axis=1))
+    return np.sort(ok[chosen])
+
+
+@dataclass
+class _Problem:
+    """The adjustment's unknowns and observations (see the module docstring)."""
+
+    p0: np.ndarray          # (V, 9) camera vectors, log f in slot 6
+    free: np.ndarray        # (V, 9) which slots are unknowns
+    obs_v: np.ndarray       # (N,) camera of each observation
+    obs_m: np.ndarray       # (N,) point of each observation
+    obs_uv: np.ndarray      # (N, 2) pixels
+    obs_w: np.ndarray       # (N,) sqrt(confidence) / pixel_sigma
+    n_points: int
+
+    @property
+    def n_cam(self) -> int:
+        return int(self.free.sum())
+
+    def unpack(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        p = self.p0.copy()
+        p[self.free] = x[:self.n_cam]
+        p[:, 6] = np.exp(p[:, 6])
+        return p, x[self.n_cam:].reshape(self.n_points, 3)
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        p, pts = self.unpack(x)
+        rot = rodrigues(p[:, :3])
+        pc = np.einsum("nij,nj->ni", rot[self.obs_v], pts[self.obs_m]) + p[self.obs_v, 3:6]
+        z = np.maximum(pc[:, 2], 1.0)
+        proj = p[self.obs_v, 6:7] * pc[:, :2] / z[:, None] + p[self.obs_v, 7:9]
+        return ((proj - self.obs_uv) * self.obs_w[:, None]).ravel()
+
+    def blocks(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The residuals' exact derivatives, per observation: (N, 2, 9) against its camera's
+        vector (log f in slot 6) and (N, 2, 3) against its point."""
+        p, pts = self.unpack(x)
+        v, X = self.obs_v, pts[self.obs_m]
+        rot = rodrigues(p[:, :3])
+        rj = rot @ rotation_jacobian(p[:, :3], rot)                       # (V, 3, 3)
+        rx = np.einsum("nij,nj->ni", rot[v], X)
+        pc = rx + p[v, 3:6]
+        z = np.maximum(pc[:, 2], 1.0)
+        f = p[v, 6]
+        dproj = np.zeros((len(v), 2, 3))                                 # d(f xy / z) / d pc, weighted
+        dproj[:, 0, 0] = dproj[:, 1, 1] = f / z
+        dproj[:, :, 2] = -f[:, None] * pc[:, :2] / z[:, None] ** 2
+        dproj *= self.obs_w[:, None, None]
+        cam = np.zeros((len(v), 2, 9))
+        # d(R X)/dr = -R [X]x J = -[R X]x R J: column k is (R J)_k x (R X)
+        d_rot = np.cross(np.swapaxes(rj, 1, 2)[v], rx[:, None, :])        # (N, k, 3)
+        cam[:, :, 0:3] = np.einsum("nai,nki->nak", dproj, d_rot)           # rotation vector
+        cam[:, :, 3:6] = dproj                                            # translation
+        cam[:, :, 6] = f[:, None] * pc[:, :2] / z[:, None] * self.obs_w[:, None]   # log f
+        cam[:, 0, 7] = cam[:, 1, 8] = self.obs_w                          # cx, cy
+        return cam, dproj @ rot[v]
+
+    def slots(self) -> np.ndarray:
+        """(V, 9) column of each camera slot among the unknowns, -1 where fixed."""
+        slot = -np.ones(self.free.shape, int)
+        slot[self.free] = np.arange(self.n_cam)
+        return slot
+
+    def jacobian(self, x: np.ndarray) -> csr_matrix:
+        """The residuals' sparse Jacobian: per observation 2 rows, against its camera's free
+        slots and its point's 3 coordinates."""
+        cam, point = self.blocks(x)
+        rows = np.broadcast_to(np.arange(2 * len(self.obs_v)).reshape(-1, 2, 1), cam.shape)
+        cols = np.broadcast_to(self.slots()[self.obs_v][:, None, :], cam.shape)
+        keep = cols >= 0
+        pcols = np.broadcast_to((self.n_cam + 3 * self.obs_m[:, None] + np.arange(3))[:, None, :], point.shape)
+        data = np.concatenate([cam[keep], point.ravel()])
+        r = np.concatenate([rows[keep], rows[..., :3].ravel()])
+        c = np.concatenate([cols[keep], pcols.ravel()])
+        return csr_matrix((data, (r, c)), shape=(2 * len(self.obs_v), len(x)))
+
+
+def camera_covariance(problem: _Problem, x: np.ndarray, loss_weights: np.ndarray) -> np.ndarray:
+    """(V, 9, 9) covariance of each camera's vector (slot 6: log f) at the solution, from the
+    Gauss-Newton normal equations with the points marginalised (Schur complement), weighted
+    as the robust loss weighs each residual (`loss_weights` (2N,)), scaled by the residuals'
+    scatter. Reprojection cannot tell the rig's scale: that direction is projected out, so the
+    spreads are at the rig's scale (its own uncertainty, from bones or heights, apart)."""
+    cam, point = problem.blocks(x)
+    sw = np.sqrt(loss_weights).reshape(-1, 2, 1)
+    cam, point = cam * sw, point * sw
+    slot = problem.slots()
+    n_cam, n_m, n = problem.n_cam, problem.n_points, len(problem.obs_v)
+    jc = np.zeros((n, 2, n_cam + 1))                                      # last column: fixed slots
+    np.add.at(jc, (np.arange(n)[:, None, None], np.arange(2)[None, :, None],
+                   np.where(slot[problem.obs_v] >= 0, slot[problem.obs_v], n_cam)[:, None, :]), cam)
+    jc = jc[..., :n_cam]
+    a = np.einsum("nki,nkj->ij", jc, jc)
+    c_blocks = np.zeros((n_m, 3, 3))
+    np.add.at(c_blocks, problem.obs_m, np.einsum("nki,nkj->nij", point, point))
+    b_blocks = np.zeros((n_m, n_cam, 3))
+    np.add.at(b_blocks, problem.obs_m, np.einsum("nkc,nkj->ncj", jc, point))
+    s = a - np.einsum("mci,mij,mdj->cd", b_blocks, np.linalg.pinv(c_blocks), b_blocks)   # Schur complement
+    res = problem.residuals(x) * np.sqrt(loss_weights)
+    sigma2 = float(res @ res / max(len(res) - n_cam - 3 * n_m, 1))
+    p, _ = problem.unpack(x)
+    gauge = np.zeros(n_cam)                                               # every t scaled together
+    t_slots = slot[:, 3:6]
+    gauge[t_slots[t_slots >= 0]] = p[:, 3:6][t_slots >= 0]
+    proj = np.eye(n_cam)
+    if np.any(gauge):
+        g = gauge / np.linalg.norm(gauge)
+        proj -= np.outer(g, g)
+    cov = sigma2 * proj @ np.linalg.pinv(proj @ s @ proj, rcond=1e-10) @ proj
+    out = np.zeros(problem.free.shape + (9,))
+    for v in range(len(p)):
+        ok = slot[v] >= 0
+        out[v][np.ix_(ok, ok)] = cov[np.ix_(slot[v][ok], slot[v][ok])]
+    return out
 
 
 def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarray | None,
                   joints: tuple[str, ...], options: BundleOptions | None = None) -> BundleResult:
     """Refine `rig` (reference camera first-class, any order) from keypoints uv (V, F, J, 2)
     and confidences (V, F, J); `bones_mm` (B,) is the metric length of each bone of the
-    skeleton of `joints` (None keeps the input rig's scale)."""
+    skeleton of `joints` (None keeps the input rig's scale). At most `max_frames` frames take
+    part, chosen for coverage (`coverage_frames`)."""
     opts = options or BundleOptions()
     cams = rig.cameras
     n_v, n_f, n_j = conf.shape
     ref = rig.names.index(rig.reference) if rig.reference else 0
-    frames = np.unique(np.linspace(0, n_f - 1, min(n_f, opts.max_frames)).round().astype(int))
-    uv, conf = uv[:, frames], conf[:, frames]
+    start = triangulate(cams, uv, conf)                                   # (F, J, 3)
+    with np.errstate(all="ignore"):
+        centroid = np.nanmean(start, axis=1) if np.isfinite(start).any() else np.full((n_f, 3), np.nan)
+    seen = ((observation_weights(uv, conf) > 0).sum(axis=0) >= 2).sum(axis=1)   # (F,) joints seen twice
+    frames = coverage_frames(np.where(np.isfinite(centroid).all(axis=1, keepdims=True), centroid, np.nan),
+                             seen.astype(float), opts.max_frames)
+    uv, conf, points = uv[:, frames], conf[:, frames], start[frames]
     w = observation_weights(uv, conf)
-    points = triangulate(cams, uv, conf)                                  # (F, J, 3) start
     used = ((w > 0).sum(axis=0) >= 2) & np.isfinite(points).all(axis=-1)
     point_index = -np.ones(used.shape, dtype=int)
     point_index[used] = np.arange(used.sum())
     obs_v, obs_f, obs_j = np.nonzero((w > 0) & used[None])
     obs_m = point_index[obs_f, obs_j]
-    obs_uv, obs_w = uv[obs_v, obs_f, obs_j], np.sqrt(w[obs_v, obs_f, obs_j])
     n_m = int(used.sum())
     if n_m < 20:
         raise FusionError(f"bundle adjustment: only {n_m} joints are seen by two cameras or more")
@@ -90,50 +243,28 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     free[:, 6] = True
     free[:, 7:9] = not opts.fix_principal_point
     free[[i for i in range(n_v) if i != ref], :6] = True
-    slot = -np.ones(p0.shape, int)
-    slot[free] = np.arange(free.sum())
-    n_cam = int(free.sum())
-    size = np.array([c.size for c in cams], dtype=float)
+    problem = _Problem(p0, free, obs_v, obs_m, uv[obs_v, obs_f, obs_j],
+                       np.sqrt(w[obs_v, obs_f, obs_j]) / opts.pixel_sigma, n_m)
     x0 = np.concatenate([p0[free], points[used].ravel()])
+    fun, jac = problem.residuals, problem.jacobian
+    if not opts.fix_principal_point:                                      # weak prior: near the centre
+        size = np.array([c.size for c in cams], dtype=float)
+        prior_cols = problem.slots()[:, 7:9].ravel()
+        prior_w = 1.0 / (opts.centre_sigma * size).ravel()
 
-    def unpack(x):
-        p = p0.copy()
-        p[free] = x[:n_cam]
-        p[:, 6] = np.exp(p[:, 6])
-        return p, x[n_cam:].reshape(n_m, 3)
+        def fun(x):
+            p, _ = problem.unpack(x)
+            return np.concatenate([problem.residuals(x), (p[:, 7:9] - size / 2).ravel() * prior_w])
 
-    def residuals(x):
-        p, pts = unpack(x)
-        rot = rodrigues(p[:, :3])
-        pc = np.einsum("nij,nj->ni", rot[obs_v], pts[obs_m]) + p[obs_v, 3:6]
-        z = np.maximum(pc[:, 2], 1.0)
-        proj = p[obs_v, 6:7] * pc[:, :2] / z[:, None] + p[obs_v, 7:9]
-        reproj = ((proj - obs_uv) * obs_w[:, None] / opts.pixel_sigma).ravel()
-        if opts.fix_principal_point:
-            return reproj
-        centre = ((p[:, 7:9] - size / 2) / (opts.centre_sigma * size)).ravel()
-        return np.concatenate([reproj, centre])
+        def jac(x):
+            prior = csr_matrix((prior_w, (np.arange(2 * n_v), prior_cols)), shape=(2 * n_v, len(x)))
+            return vstack([problem.jacobian(x), prior]).tocsr()
 
-    n_prior = 0 if opts.fix_principal_point else 2 * n_v
-    sparsity = lil_matrix((2 * len(obs_v) + n_prior, len(x0)), dtype=int)
-    rows = np.arange(len(obs_v))
-    for axis in (0, 1):
-        r = 2 * rows + axis
-        for k in range(9):
-            cols = slot[obs_v, k]
-            has = cols >= 0
-            sparsity[r[has], cols[has]] = 1
-        for k in range(3):
-            sparsity[r, n_cam + 3 * obs_m + k] = 1
-    if n_prior:
-        base = 2 * len(obs_v)
-        for v in range(n_v):
-            sparsity[base + 2 * v, slot[v, 7]] = 1
-            sparsity[base + 2 * v + 1, slot[v, 8]] = 1
-
-    fit = least_squares(residuals, x0, jac_sparsity=sparsity, loss="soft_l1", f_scale=2.0,
-                        x_scale="jac", method="trf", tr_solver="lsmr", max_nfev=opts.max_nfev)
-    p, pts = unpack(fit.x)
+    fit = least_squares(fun, x0, jac=jac, loss="soft_l1", f_scale=F_SCALE, x_scale="jac", method="trf",
+                        tr_solver="lsmr", max_nfev=opts.max_nfev)
+    p, pts = problem.unpack(fit.x)
+    loss_w = 1.0 / np.sqrt(1.0 + (problem.residuals(fit.x) / F_SCALE) ** 2)     # soft_l1's weights
+    cov = camera_covariance(problem, fit.x, loss_w)
     scale = 1.0
     if bones_mm is not None:
         skel = skeleton_of(joints)
@@ -144,11 +275,13 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
         ratio = bones_mm[None] / lengths
         scale = float(np.nanmedian(ratio)) if np.isfinite(ratio).any() else 1.0
     pts, p[:, 3:6] = pts * scale, p[:, 3:6] * scale
+    cov[:, 3:6, :] *= scale
+    cov[:, :, 3:6] *= scale
     out = rig.with_params(p, source="bundle").cameras
     err = np.full((n_v, n_m), np.nan)
     for i, cam in enumerate(out):
         sel = obs_v == i
-        err[i, obs_m[sel]] = np.linalg.norm(cam.project(pts[obs_m[sel]]) - obs_uv[sel], axis=-1)
+        err[i, obs_m[sel]] = np.linalg.norm(cam.project(pts[obs_m[sel]]) - problem.obs_uv[sel], axis=-1)
     median = np.array([np.nanmedian(e) if np.isfinite(e).any() else np.nan for e in err])
     if not np.all(np.isfinite(median)) or np.nanmedian(median) > opts.max_error_px:
         raise FusionError(f"bundle adjustment did not converge: median reprojection error "
@@ -156,4 +289,30 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     all_points = np.full((len(frames), n_j, 3), np.nan)
     all_points[used] = pts
     return BundleResult(Rig(out, rig.reference), all_points, frames, median,
-                        np.bincount(obs_v, minlength=n_v), scale, bool(fit.status > 0))
+                        np.bincount(obs_v, minlength=n_v), scale, bool(fit.status > 0),
+                        [CameraSpread.of(c, k) for c, k in zip(out, cov)])
+
+
+@dataclass
+class CameraSpread:
+    """One standard deviation of an estimated camera, from the adjustment's Jacobian."""
+
+    rotation_deg: float         # of its rotation (the largest axis)
+    focal_pct: float            # of its focal length
+    position_mm: float          # of its centre (the largest axis), at the rig's scale
+
+    @classmethod
+    def of(cls, cam, cov: np.ndarray) -> "CameraSpread":
+        """From the (9, 9) covariance of the camera's vector: the centre -R^T t is propagated
+        to first order (the rotation's part by finite differences)."""
+        r0, t = cv2.Rodrigues(cam.rotation)[0].ravel(), cam.translation
+
+        def centre(x):
+            return -cv2.Rodrigues(x[:3])[0].T @ x[3:6]
+
+        x0 = np.r_[r0, t]
+        jac = np.stack([(centre(x0 + h) - centre(x0 - h)) / 2e-6 for h in np.eye(6) * 1e-6], axis=1)
+        pos = jac @ cov[:6, :6] @ jac.T
+        return cls(float(np.degrees(np.sqrt(max(np.linalg.eigvalsh(cov[:3, :3]).max(), 0.0)))),
+                   float(100 * np.sqrt(max(cov[6, 6], 0.0))),
+                   float(np.sqrt(max(np.linalg.eigvalsh(pos).max(), 0.0))))

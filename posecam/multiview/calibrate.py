@@ -21,7 +21,7 @@ import numpy as np
 from posecam.errors import FusionError
 from posecam.geometry.camera import Rig
 from posecam.multiview.associate import Observations, ViewInfo
-from posecam.multiview.bundle import BundleOptions, bundle_adjust
+from posecam.multiview.bundle import BundleOptions, CameraSpread, bundle_adjust
 from posecam.multiview.consensus import ConsensusOptions, View, estimate_rig, stretch_residuals
 from posecam.skeleton import skeleton_of
 
@@ -42,6 +42,7 @@ class RigEstimate:
     views: list[int]            # indices (into the inputs) of the kept cameras
     reprojection_px: np.ndarray  # (len(views),) bundle-adjustment median error
     warnings: list[str]
+    spreads: list[CameraSpread] | None = None   # (len(views),) from the bundle adjustment
 
 
 def stack(people: list[Observations], views: list[int]) -> Observations:
@@ -140,8 +141,9 @@ def estimate_cameras(info: list[ViewInfo], people: list[Observations], joints: t
             if bundle:
                 fit = bundle_adjust(rig, obs.uv, obs.conf, _bone_lengths(obs, joints, min_conf), joints,
                                     bundle_options)
-                rig, med, points = fit.rig, fit.median_error_px, fit.points
+                rig, med, points, spreads = fit.rig, fit.median_error_px, fit.points, fit.spreads
             else:
+                spreads = None
                 points = rig.triangulate(obs.uv, obs.conf, min_conf)
                 errors = rig.reprojection_errors(points, obs.uv, obs.conf, min_conf)
                 med = np.array([np.nanmedian(e) if np.isfinite(e).any() else np.nan for e in errors])
@@ -158,7 +160,7 @@ def estimate_cameras(info: list[ViewInfo], people: list[Observations], joints: t
             raise FusionError(f"reference camera {info[reference].name} cannot be estimated: "
                               f"{reasons[views.index(reference)]}")
         if not bad:
-            return RigEstimate(rig, views, med, warnings)
+            return RigEstimate(rig, views, med, warnings, spreads)
         worst = max(bad, key=lambda i: np.nan_to_num(med[i], nan=np.inf))
         warnings.append(f"camera {info[views[worst]].name} dropped: {reasons[worst]}")
         views.pop(worst)

@@ -10,8 +10,8 @@ The stages, in order (one module each): tracks and association across views
 (posecam.multiview.associate), sync (.sync), the rig (a given calibration matched to the views
 by Rig.match, or .calibrate: consensus, bundle adjustment and a quality gate), left/right
 (.left_right), fusion of each person (.fuse_people) and the camera report (.report).
-Without a calibration the rig is fitted to unsynchronised views and partly absorbs their lag,
-so sync and rig alternate until the offsets settle.
+Without a calibration a rig fitted to unsynchronised views partly absorbs their lag, so the offsets come first, from each view's own motion (posecam.multiview.sync), and the rig is
+estimated at them (sub-frame: views interpolated between frames).
 Frames: the reference camera's; see posecam.multiview.sync for the offset convention.
 """
 
@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from posecam.errors import FusionError, InputError
 from posecam.geometry.camera import Rig
@@ -33,18 +34,18 @@ from posecam.multiview.calibrate import RigEstimate, estimate_cameras
 from posecam.multiview.fuse_people import FusedPerson, fuse_person
 from posecam.multiview.left_right import fix_swaps
 from posecam.multiview.report import CameraReport, camera_reports
-from posecam.multiview.sync import SyncResult, estimate_offsets
+from posecam.multiview.sync import (MAX_SPREAD, MIN_CORRELATION, MIN_MOTION, SyncResult, estimate_offsets, motion_offset,
+                                    motion_signals)
 from posecam.results import Frame, Person, Recording
 from posecam.skeleton import skeleton_of
 
-SYNC_ROUNDS = 4         # offsets <-> cameras alternations when both are estimated
 
 
 @dataclass
 class FuseOptions:
     calibration: Rig | None = None         # known cameras; None: estimate them
     method: str = "average"                # "average" (monocular poses) or "triangulate" (2D)
-    offsets: list[int] | None = None       # per view, see posecam.multiview.sync; None: zeros or auto
+    offsets: list[float] | None = None     # per view, see posecam.multiview.sync; None: zeros or auto
     sync: bool = False                     # estimate the offsets
     max_offset: int = 10
     reference: int = 0
@@ -57,7 +58,7 @@ class FuseOptions:
 class FusionResult:
     recording: Recording
     rig: Rig                               # the cameras kept, in the order of `views`
-    offsets: list[int]                     # per input view
+    offsets: list[float]                   # per input view (sub-frame)
     cameras: list[CameraReport]            # per kept camera
     views: list[int] = field(default_factory=list)      # input index of each kept camera
     warnings: list[str] = field(default_factory=list)
@@ -122,6 +123,48 @@ def _sync(rig: Rig, views: list[int], association: Association, recordings: list
     return SyncResult(full, confidence, result.warnings)
 
 
+def _motion_sync(association: Association, recordings: list[Recording], opts: FuseOptions) -> SyncResult:
+    """Offsets without a rig (posecam.multiview.sync.motion_offset): per view, the motion of
+    the people it shares with the reference; 0 with a warning where it cannot be pinned."""
+    ref = opts.reference
+    offsets, confidence, spread, warnings = [0.0] * len(recordings), [1.0] * len(recordings), \
+        [0.0] * len(recordings), []
+    fps = recordings[ref].fps or 30.0
+    names = view_names(recordings)
+    for v in range(len(recordings)):
+        if v == ref:
+            continue
+        shared = [p for p in association.people if ref in p.views and v in p.views]
+        if not shared:
+            confidence[v], spread[v] = 0.0, np.inf
+            continue
+        signals, excursion = [], []
+        for u in (ref, v):
+            parts = [motion_signals(*p.view_arrays(u, len(recordings[u].frames))[1:3], fps, opts.min_conf)
+                     for p in shared]
+            signals.append(np.concatenate([s for s, _ in parts], axis=1))
+            excursion.append(max(e for _, e in parts))
+        m = motion_offset(signals[0], signals[1], opts.max_offset)
+        confidence[v], spread[v] = max(float(np.nan_to_num(m.correlation)), 0.0), m.spread
+        if min(excursion) < MIN_MOTION:
+            warnings.append(f"{names[v]}: the people move too little to synchronise it (their joints move "
+                            f"{min(excursion):.0f} mm about the root); offset 0 kept. Give --offsets")
+        elif not m.correlation >= MIN_CORRELATION:
+            warnings.append(f"{names[v]}: its motion matches the reference's poorly (correlation "
+                            f"{np.nan_to_num(m.correlation):.2f}); offset 0 kept. Give --offsets")
+        elif not m.spread <= MAX_SPREAD:
+            warnings.append(f"{names[v]}: its motion pins the offset poorly (best {m.offset:+.1f} frames, "
+                            f"spread {m.spread:.1f}); offset 0 kept. Give --offsets")
+        elif abs(m.offset) >= opts.max_offset - 0.5:
+            warnings.append(f"{names[v]}: the best offset is at the search limit ({m.offset:+.1f}); offset 0 "
+                            "kept. Give --offsets or a larger --max-offset")
+        else:
+            offsets[v] = m.offset
+            continue
+        confidence[v] = 0.0
+    return SyncResult(offsets, confidence, warnings, spread)
+
+
 def _observations(association: Association, recordings: list[Recording], offsets: list[int],
                   views: list[int], reference: int) -> list[Observations]:
     lengths = [len(r.frames) for r in recordings]
@@ -168,6 +211,8 @@ class _RigStage:
     offsets: list[int]
     confidence: list[float]     # per input view
     warnings: list[str]
+    spread: list[float] | None = None        # per input view, frames, where the sync gives one
+    camera_spreads: list | None = None       # per camera of `views` (estimated rigs)
 
 
 def _given_rig(recordings: list[Recording], tracks, names: list[str], offsets: list[int], opts: FuseOptions,
@@ -189,8 +234,8 @@ def _given_rig(recordings: list[Recording], tracks, names: list[str], offsets: l
 
 def _estimated_rig(recordings: list[Recording], tracks, info: list[ViewInfo], offsets: list[int],
                    opts: FuseOptions, say: Callable[[str], None]) -> _RigStage:
-    """Association by consensus hypotheses, then the cameras (posecam.multiview.calibrate),
-    alternated with sync until the offsets settle."""
+    """Association by consensus hypotheses, the offsets from the motion (with --sync auto), then
+    the cameras (posecam.multiview.calibrate) at those offsets."""
     ref = opts.reference
     association = associate_by_consensus(tracks, info, [len(r.frames) for r in recordings], offsets, ref,
                                          opts.min_conf)
@@ -201,22 +246,25 @@ def _estimated_rig(recordings: list[Recording], tracks, info: list[ViewInfo], of
         return estimate_cameras(info, people, recordings[ref].joints, ref, opts.min_conf, opts.bundle,
                                 opts.bundle_options)
 
-    est, confidence, sync_warnings = estimate(offsets), [1.0] * len(recordings), []
-    for _ in range(SYNC_ROUNDS if opts.sync else 0):
+    confidence, spread, sync_warnings = [1.0] * len(recordings), None, []
+    if opts.sync:
         say("synchronising")
-        sync = _sync(est.rig, est.views, association, recordings, offsets, opts)
-        confidence, sync_warnings = sync.confidence, sync.warnings
-        if sync.offsets == offsets:
-            break
-        offsets = sync.offsets
-        est = estimate(offsets)
-    return _RigStage(association, est.rig, est.views, offsets, confidence, est.warnings + sync_warnings)
+        sync = _motion_sync(association, recordings, opts)
+        offsets, confidence, spread, sync_warnings = sync.offsets, sync.confidence, sync.spread, sync.warnings
+    est = estimate(offsets)
+    return _RigStage(association, est.rig, est.views, offsets, confidence, est.warnings + sync_warnings, spread,
+                     est.spreads)
 
 
 def fuse_recordings(recordings: list[Recording], options: FuseOptions | None = None,
                     progress: Callable[[str], None] | None = None) -> FusionResult:
     """Fuse time-overlapping recordings of static cameras into one recording of 3D poses."""
-    opts = options or FuseOptions()
+    # small matrices, many calls: BLAS threads only cost (they spin against each other)
+    with threadpool_limits(1, user_api="blas"):
+        return _fuse(recordings, options or FuseOptions(), progress)
+
+
+def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[str], None] | None) -> FusionResult:
     _check(recordings, opts)
     say = progress or (lambda _msg: None)
     names = view_names(recordings)
@@ -231,6 +279,7 @@ def fuse_recordings(recordings: list[Recording], options: FuseOptions | None = N
     else:
         stage = _estimated_rig(recordings, tracks, info, offsets, opts, say)
     rig, views, offsets, warnings = stage.rig, stage.views, stage.offsets, stage.warnings
+    camera_spreads = stage.camera_spreads
 
     say("checking left and right")
     people = _observations(stage.association, recordings, offsets, views, ref)
@@ -239,14 +288,16 @@ def fuse_recordings(recordings: list[Recording], options: FuseOptions | None = N
         say("estimating the cameras without the swaps")
         again = estimate_cameras([info[v] for v in views], people, recordings[ref].joints, views.index(ref),
                                  opts.min_conf, opts.bundle, opts.bundle_options)
-        rig, warnings = again.rig, warnings + again.warnings
+        rig, warnings, camera_spreads = again.rig, warnings + again.warnings, again.spreads
         people, swaps, views = [p.take(again.views) for p in people], swaps[again.views], \
             [views[i] for i in again.views]
 
     say("fusing")
     fused = [fuse_person(rig, [recordings[v].intrinsics for v in views], obs, opts.method, opts.min_conf)
              for obs in people]
-    reports = camera_reports(rig, [offsets[v] for v in views], [stage.confidence[v] for v in views], swaps,
-                             people, fused, opts.min_conf)
-    return FusionResult(_to_recording(fused, rig, views.index(ref), recordings[ref]), rig, offsets, reports,
-                        views, warnings)
+    spread = stage.spread or [0.0] * len(recordings)
+    reports = camera_reports(rig, [offsets[v] for v in views], [stage.confidence[v] for v in views],
+                             [spread[v] for v in views], swaps, people, fused, opts.min_conf, camera_spreads)
+    recording = _to_recording(fused, rig, views.index(ref), recordings[ref])
+    recording.cameras = [r.to_dict() for r in reports]
+    return FusionResult(recording, rig, offsets, reports, views, warnings)

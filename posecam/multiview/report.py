@@ -1,5 +1,6 @@
-"""What fusion says about each camera: offset and its confidence, reprojection error, joints
-used, intrinsics, left/right swaps undone."""
+"""What fusion says about each camera: offset, its confidence and spread, reprojection error,
+joints used, intrinsics, left/right swaps undone, and, for an estimated camera, the spread of
+its rotation, focal length and position (posecam.multiview.bundle.CameraSpread)."""
 
 from __future__ import annotations
 
@@ -9,23 +10,45 @@ import numpy as np
 
 from posecam.geometry.camera import Rig
 from posecam.multiview.associate import Observations
+from posecam.multiview.bundle import CameraSpread
 from posecam.multiview.fuse_people import FusedPerson
 
 
 @dataclass
 class CameraReport:
     name: str
-    offset: int
+    offset: float
     reprojection_px: float                 # median, fused joints projected into this view
     joints_used: int                       # joint observations fused, confidence >= min_conf
     intrinsics: tuple[float, float, float, float]
     swaps_fixed: int = 0                   # frames whose left and right labels were exchanged back
-    offset_confidence: float = 1.0         # 1 - best sync cost / median over the range; 1: given or reference
+    offset_confidence: float = 1.0         # of --sync auto, 0..1 (posecam.multiview.sync); 1: given or reference
+    offset_spread: float = 0.0             # frames, one standard deviation (0: given or reference)
+    spread: CameraSpread | None = None     # of an estimated camera; None: given
+
+    def to_dict(self) -> dict:
+        """The report as JSON-ready values (a fused JSON's `cameras` list)."""
+        out = {"name": self.name, "offset": round(float(self.offset), 2),
+               "offset_confidence": round(float(self.offset_confidence), 3),
+               "offset_spread_frames": _finite(self.offset_spread, 2),
+               "reprojection_px": _finite(self.reprojection_px, 2), "joints_used": self.joints_used,
+               "intrinsics": [round(float(v), 2) for v in self.intrinsics], "swaps_fixed": self.swaps_fixed}
+        if self.spread is not None:
+            out.update(rotation_spread_deg=_finite(self.spread.rotation_deg, 3),
+                       focal_spread_pct=_finite(self.spread.focal_pct, 3),
+                       position_spread_mm=_finite(self.spread.position_mm, 1))
+        return out
 
 
-def camera_reports(rig: Rig, offsets: list[int], confidence: list[float], swaps: np.ndarray,
-                   people: list[Observations], fused: list[FusedPerson], min_conf: float) -> list[CameraReport]:
-    """One report per camera of `rig`; offsets, confidence and swaps (V,) in the same order."""
+def _finite(x: float, digits: int) -> float | None:
+    return round(float(x), digits) if np.isfinite(x) else None
+
+
+def camera_reports(rig: Rig, offsets: list[float], confidence: list[float], offset_spread: list[float],
+                   swaps: np.ndarray, people: list[Observations], fused: list[FusedPerson], min_conf: float,
+                   spreads: list[CameraSpread] | None = None) -> list[CameraReport]:
+    """One report per camera of `rig`; offsets, their confidence and spread, swaps and the
+    cameras' spreads (V,) in the same order."""
     reports = []
     for v, cam in enumerate(rig.cameras):
         errors, used = [], 0
@@ -37,5 +60,6 @@ def camera_reports(rig: Rig, offsets: list[int], confidence: list[float], swaps:
         err = np.concatenate(errors) if errors else np.empty(0)
         k = cam.intrinsics
         reports.append(CameraReport(cam.name, offsets[v], float(np.median(err)) if err.size else float("nan"),
-                                    used, (k.fx, k.fy, k.cx, k.cy), int(swaps[v]), confidence[v]))
+                                    used, (k.fx, k.fy, k.cx, k.cy), int(swaps[v]), confidence[v],
+                                    offset_spread[v], spreads[v] if spreads else None))
     return reports

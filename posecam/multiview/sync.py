@@ -1,18 +1,25 @@
 """Frame offsets between unsynchronised videos of the same scene.
 
 Convention: offset o for camera c means that camera c's frame i + o shows the same instant as
-the reference camera's frame i (o > 0: camera c started recording o frames earlier).
+the reference camera's frame i (o > 0: camera c started recording o frames earlier). Offsets
+are sub-frame: a view at a fractional offset is interpolated linearly between its frames.
 
-Method: with a rig (given, or estimated from the unsynchronised views first), the offsets are
-those under which the 2D keypoints of all views, triangulated together, reproject with the
-smallest median error (coordinate descent over the views); several people are several sets of
-points, each the same person in every view (associated first). The motion of the keypoints is what makes a wrong offset cost
-pixels. (Cross-correlating rotation-invariant 3D joint speeds was tried first: on the Pose2Sim
+Two ways, both sub-frame. Without a rig (`motion_offset`, what `fuse --sync auto` does with no
+calibration): each view's own joint speeds about the root from its monocular metric poses,
+cross-correlated against the reference's (Pose2Sim's synchronisation correlates 2D vertical
+speeds, in whole frames), on a tenth-of-a-frame grid refined by a parabola, with a spread from
+a block bootstrap over frames; people too still, a weak correlation or a wide spread keep 0
+with a warning. With a rig (`estimate_offsets`): the offsets under
+which the 2D keypoints of all views, triangulated together, reproject with the smallest median
+error (coordinate descent over whole frames, then a parabola through the errors around the best); several people are several
+sets of points, each the same person in every view (associated first). The motion of the
+keypoints is what makes a wrong offset cost pixels. (Cross-correlating rotation-invariant 3D joint speeds was tried first: on the Pose2Sim
 demo, a person balancing for 1.7 s, monocular pose noise swamps the motion and it fails.)
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,13 +29,22 @@ from posecam.geometry.camera import CameraCalibration
 from posecam.geometry.triangulate import reprojection_errors, triangulate
 
 
-def shift(a: np.ndarray, offset: int, length: int, fill=np.nan) -> np.ndarray:
-    """Frames offset .. offset + length - 1 of `a` (F, ...), padded with `fill` outside."""
+def shift(a: np.ndarray, offset: float, length: int, fill=np.nan) -> np.ndarray:
+    """Frames offset .. offset + length - 1 of `a` (F, ...), padded with `fill` outside; a
+    fractional offset interpolates linearly between the two frames around it (where both have
+    a value; `fill` 0 marks confidences, which take the smaller of the two)."""
     out = np.full((length,) + a.shape[1:], fill, dtype=float)
     i = np.arange(length)
-    j = i + offset
-    ok = (j >= 0) & (j < len(a))
-    out[i[ok]] = a[j[ok]]
+    lo = int(np.floor(offset))
+    frac = float(offset - lo)
+    j = i + lo
+    if frac < 1e-6:
+        ok = (j >= 0) & (j < len(a))
+        out[i[ok]] = a[j[ok]]
+        return out
+    ok = (j >= 0) & (j + 1 < len(a))
+    lo_v, hi_v = a[j[ok]].astype(float), a[j[ok] + 1].astype(float)
+    out[i[ok]] = np.minimum(lo_v, hi_v) if fill == 0.0 else (1 - frac) * lo_v + frac * hi_v
     return out
 
 
@@ -44,9 +60,10 @@ def rig_error(cams: list[CameraCalibration], uv: list[np.ndarray], conf: list[np
 
 @dataclass
 class SyncResult:
-    offsets: list[int]
-    confidence: list[float]     # per view: 1 - best cost / median cost over the range (reference: 1)
+    offsets: list[float]
+    confidence: list[float]     # per view, 0..1 (reference: 1); see the functions that make it
     warnings: list[str]
+    spread: list[float] | None = None   # per view, frames (one standard deviation), where known
 
 
 def _confidence(errors: dict[int, float], best: int) -> float:
@@ -56,6 +73,18 @@ def _confidence(errors: dict[int, float], best: int) -> float:
     if not finite or not np.isfinite(errors[best]):
         return 0.0
     return float(max(0.0, 1.0 - errors[best] / max(float(np.median(finite)), 1e-9)))
+
+
+def _subframe(cams, uv, conf, offsets: list[float], i: int) -> float:
+    """View i's whole-frame offset refined by a parabola through the errors at it and its two
+    neighbours (whole frames only: interpolated keypoints are less noisy, so errors at
+    fractional offsets would be biased low)."""
+    o = offsets[i]
+    e = [rig_error(cams, uv, conf, offsets[:i] + [o + d] + offsets[i + 1:]) for d in (-1, 0, 1)]
+    den = e[0] - 2 * e[1] + e[2]
+    if not np.all(np.isfinite(e)) or den <= 0:
+        return o
+    return round(float(o + np.clip(0.5 * (e[0] - e[2]) / den, -0.5, 0.5)), 2)
 
 
 def estimate_offsets(cams: list[CameraCalibration], uv: list[np.ndarray], conf: list[np.ndarray],
@@ -93,8 +122,115 @@ def estimate_offsets(cams: list[CameraCalibration], uv: list[np.ndarray], conf: 
         if not changed:
             break
     warnings = [f"{cams[i].name}: the best frame offset is at the search limit ({o:+d}); not used "
-                f"(offset {offsets[i]} kept). Give --offsets or a larger --max-offset"
+                f"(offset {offsets[i]:g} kept). Give --offsets or a larger --max-offset"
                 for i, o in at_edge.items()]
     for i in at_edge:
         confidence[i] = 0.0
+    for i in range(len(cams)):
+        if i != reference and i not in at_edge:
+            offsets[i] = _subframe(cams, uv, conf, offsets, i)
     return SyncResult(offsets, confidence, warnings)
+
+
+# ---- without a rig: the offsets from each view's own motion ----------------------------------
+
+LOWPASS_HZ = 3.0                # Butterworth cut-off of the motion signals
+LAG_STEP = 0.1                  # frames: the lag grid before the parabolic refinement
+MIN_MOTION = 45.0               # mm: below this excursion of the joints about the root (the
+                                # median over joints of their low-passed standard deviation over
+                                # time) the people are too still to pin an offset
+MIN_CORRELATION = 0.3           # peak correlation below which an offset is not trusted
+MAX_SPREAD = 1.0                # frames: a bootstrap spread above this is no offset either
+BOOTSTRAP = 30                  # resamples of blocks of frames for the offset's spread
+
+
+def _smoothed(xyz: np.ndarray, conf: np.ndarray, fps: float, min_conf: float) -> tuple[np.ndarray, np.ndarray]:
+    """(F, J, 3) joints about the root (joint 0), gaps bridged, low-passed; (F, J) where seen."""
+    from scipy.signal import butter, filtfilt
+
+    seen = (conf >= min_conf) & (conf[:, :1] >= min_conf) & np.isfinite(xyz).all(axis=-1)
+    rel = xyz - xyz[:, :1]
+    out = np.full(xyz.shape, np.nan)
+    b, a = butter(2, min(LOWPASS_HZ / (fps / 2), 0.99))
+    idx = np.arange(len(conf))
+    for k in range(1, conf.shape[1]):
+        ok = seen[:, k]
+        if ok.sum() < 15:
+            continue
+        filled = np.stack([np.interp(idx, idx[ok], rel[ok, k, d]) for d in range(3)], axis=1)
+        out[:, k] = filtfilt(b, a, filled, axis=0, padlen=min(9, len(idx) - 1))
+    return out, seen & np.isfinite(out).all(axis=-1)
+
+
+def motion_signals(xyz: np.ndarray, conf: np.ndarray, fps: float, min_conf: float = 0.5) -> tuple[np.ndarray, float]:
+    """(F, J) each joint's speed about the root (joint 0) in the view's monocular metric pose,
+    m/s, low-passed, NaN where the joint or the root is not seen (conf < min_conf); and the
+    joints' excursion (mm: median over joints of their standard deviation over time).
+    A speed about the root is the same from every camera (it depends neither on where the
+    camera stands nor on how its image is scaled), unlike the 2D vertical speed Pose2Sim uses."""
+    smooth, seen = _smoothed(xyz, conf, fps, min_conf)
+    speed = np.linalg.norm(np.gradient(smooth, axis=0), axis=-1) * fps / 1000.0
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        spread = np.nanstd(np.where(seen[..., None], smooth, np.nan), axis=0)          # (J, 3)
+        excursion = float(np.nanmedian(np.linalg.norm(spread, axis=-1)[1:]))
+    return np.where(seen, speed, np.nan), excursion if np.isfinite(excursion) else 0.0
+
+
+def _correlation(ref: np.ndarray, other: np.ndarray, lag: float, frames: np.ndarray | None = None) -> float:
+    """Pearson correlation of ref (F, K) with other at `lag` (module convention), over every
+    signal and frame where both have a value (optionally only `frames`). Each side moves by
+    half the lag, so both are interpolated alike (interpolating one side only smooths it, and
+    biases the peak towards whole frames)."""
+    n = len(ref)
+    a, b = shift(ref, -lag / 2, n), shift(other, lag / 2, n)
+    if frames is not None:
+        a, b = a[frames], b[frames]
+    ok = np.isfinite(a) & np.isfinite(b)
+    if ok.sum() < 30:
+        return np.nan
+    x, y = a[ok] - a[ok].mean(), b[ok] - b[ok].mean()
+    return float(x @ y / max(np.sqrt((x @ x) * (y @ y)), 1e-12))
+
+
+def _peak(lags: np.ndarray, corr: np.ndarray) -> float:
+    """The lag of the correlation's maximum, refined by a parabola through its neighbours."""
+    k = int(np.nanargmax(corr))
+    if 0 < k < len(lags) - 1 and np.isfinite(corr[k - 1:k + 2]).all():
+        c0, c1, c2 = corr[k - 1:k + 2]
+        den = c0 - 2 * c1 + c2
+        if den < 0:
+            return float(lags[k] + 0.5 * (c0 - c2) / den * (lags[1] - lags[0]))
+    return float(lags[k])
+
+
+@dataclass
+class MotionOffset:
+    offset: float               # frames, module convention (0 when not pinned)
+    correlation: float          # of the signals at that offset, -1..1
+    spread: float               # frames: standard deviation over block-bootstrap resamples
+
+
+def motion_offset(ref: np.ndarray, other: np.ndarray, max_offset: float, seed: int = 0) -> MotionOffset:
+    """Offset of `other` (F_o, K) against `ref` (F, K) motion signals (`motion_signals`, the
+    same K columns: the same people's joints), sub-frame: the correlation on a lag grid of
+    LAG_STEP frames, its peak refined by a parabola; the spread is that of the peak over
+    resamples of blocks of frames (a second's worth each)."""
+    lags = np.round(np.arange(-max_offset, max_offset + LAG_STEP / 2, LAG_STEP), 6)
+    corr = np.array([_correlation(ref, other, o) for o in lags])
+    if not np.isfinite(corr).any():
+        return MotionOffset(0.0, np.nan, np.inf)
+    best = _peak(lags, corr)
+    rng = np.random.default_rng(seed)
+    n = len(ref)
+    block = max(10, n // 10)
+    near = lags[np.abs(lags - best) <= 2.0]
+    peaks = []
+    for _ in range(BOOTSTRAP):
+        starts = rng.integers(0, max(n - block, 1), size=max(n // block, 1))
+        frames = np.concatenate([np.arange(s, min(s + block, n)) for s in starts])
+        c = np.array([_correlation(ref, other, o, frames) for o in near])
+        if np.isfinite(c).any():
+            peaks.append(_peak(near, c))
+    spread = float(np.std(peaks)) if len(peaks) > 2 else np.inf
+    return MotionOffset(round(best, 2), float(np.nanmax(corr)), spread)

@@ -90,7 +90,7 @@ def write_grid(path: str | os.PathLike, result: FusionResult, recordings: list[R
     if not frames:
         raise InputError("--viz: the fusion gave no frame to draw")
     kept = list(zip(result.rig.cameras, result.views))     # the cameras fusion kept
-    offsets = [result.offsets[v] for _, v in kept]
+    offsets = [round(result.offsets[v]) for _, v in kept]          # the nearest whole frame of a sub-frame offset
     if suffix in PICTURE_SUFFIXES:
         views = [{f.index for f in recordings[v].frames} for _, v in kept]
         frames = [frames[_still_frame(frames, views, offsets)]]
