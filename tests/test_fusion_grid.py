@@ -54,3 +54,32 @@ def test_fused_video_has_every_frame_and_names_it(tmp_path):
     same = np.abs(video_frames[k][5:45, 5:300] - label).mean()
     neighbour = np.abs(video_frames[k + 1][5:45, 5:300] - label).mean()     # "frame k+1": other digits
     assert same < 2.0 < neighbour, (same, neighbour)
+
+
+def test_viz3d_video_draws_every_frame_of_the_3d_view(tmp_path):
+    """--viz3d FILE.mp4 on a real clip: a frame per frame, the person in the page's colour, and
+    the skeleton's place on the picture follows the person walking to the right (synthetic)."""
+    from posecam.results import Frame, Person, Recording
+    from posecam.skeleton import H36M_JOINTS
+    from posecam.viz.render3d import render_frames
+    from posecam.viz.view3d import PALETTE
+
+    video = tmp_path / "view.mp4"
+    run = run_posecam("predict", DATA / "balance_cam01_30f.mp4", "--viz3d", video)
+    assert run.returncode == 0, run.stderr
+    cap = cv2.VideoCapture(str(video))
+    assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == 30 and int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)) == 960
+    ok, bgr = cap.read()
+    orange = np.abs(bgr.astype(int) - PALETTE[0][::-1]).sum(axis=2) < 60
+    assert ok and orange.sum() > 300
+
+    rng = np.random.default_rng(0)
+    pose = rng.normal(0, 150, (17, 3)) + [0, 0, 3000]
+    frames = [Frame(i, i / 30, [Person(0, 1.0, np.zeros(4), np.zeros((17, 2)), pose + [100.0 * i, 0, 0], np.ones(17))])
+              for i in range(10)]
+    rec = Recording("walk", 640, 480, None, H36M_JOINTS, frames, fps=30.0)
+    xs = []
+    for image in render_frames(rec):
+        mask = np.abs(image.astype(int) - PALETTE[0]).sum(axis=2) < 60
+        xs.append(np.nonzero(mask)[1].mean())
+    assert np.all(np.diff(xs) > 0), xs

@@ -69,7 +69,8 @@ def print_report(result: FusionResult, console) -> None:
 @click.option("-o", "--output", type=click.Path(),
               help="Write fused poses to FILE.json or FILE.csv, or markers to FILE.trc (OpenSim, metres) or "
                    "FILE.c3d (needs posecam[c3d]): one file per person (FILE_id<ID>.trc when several).")
-@click.option("--viz3d", type=click.Path(), help="FILE.html: a self-contained 3D view of the fused poses and the cameras.")
+@click.option("--viz3d", type=click.Path(), help="FILE.html: a self-contained 3D view of the fused poses and the cameras; "
+                                                 "FILE.mp4: that view drawn frame by frame.")
 @click.option("--smooth/--no-smooth", default=True, show_default=True,
               help="Smooth each fused person's joints over time (zero-phase 6 Hz Butterworth).")
 @click.option("--trc-y-up", is_flag=True, help="TRC/C3D: Y-up axes as OpenSim expects (a calibration's Z-up world "
@@ -114,13 +115,13 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     from posecam.media import VIDEO_SUFFIXES
     from posecam.viz.sinks import PICTURE_SUFFIXES
     from posecam.multiview.fuse import FuseOptions, fuse_recordings
-    from posecam.viz.view3d import write_view3d
+    from posecam.viz.render3d import VIEW3D_SUFFIXES, write_3d_view
     from posecam.angles import angle_names
     from posecam.views import load_views
 
     err = Console(stderr=True, highlight=False)
     check_output(output, (*POSE_SUFFIXES, *MARKER_SUFFIXES), "output")
-    check_output(viz3d, (".html",), "--viz3d")
+    check_output(viz3d, VIEW3D_SUFFIXES, "--viz3d")
     check_angles(angles, output, plot)
     markers = output if output and Path(output).suffix.lower() in MARKER_SUFFIXES else None
     if markers:
@@ -180,7 +181,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
         if output and not markers:
             write_poses(staged.path(output), [fused], angle_names(fused.joints) if angles else ())
         if viz3d:
-            write_view3d(staged.path(viz3d), fused, result.rig)
+            write_3d_view(staged.path(viz3d), fused, result.rig)
         if save_calibration:
             write_toml(staged.path(save_calibration), result.rig.cameras,
                        {"frame": result.recording.frame_of_reference,

@@ -124,7 +124,8 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
               help="Write poses to FILE.json or FILE.csv, or markers to FILE.trc (OpenSim, metres) or FILE.c3d "
                    "(needs posecam[c3d]): one input, one file per person (FILE_id<ID>.trc when several).")
 @click.option("--viz", type=click.Path(), help="Draw the result: FILE.png/.jpg for an image, FILE.mp4 for a video.")
-@click.option("--viz3d", type=click.Path(), help="FILE.html: a self-contained 3D view of one input's poses.")
+@click.option("--viz3d", type=click.Path(), help="FILE.html: a self-contained 3D view of one input's poses; FILE.mp4: that view "
+                                                 "drawn frame by frame, for a report.")
 @click.option("--show", is_flag=True, help="Show each frame's poses in a window as they come (needs a display and "
                                            "OpenCV with a GUI); q or Esc in the window stops a live source.")
 @angle_options
@@ -161,7 +162,7 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     from posecam.media import VIDEO_SUFFIXES, expand_inputs, is_stream, open_media
     from posecam.viz.draw import draw_people
     from posecam.viz.sinks import PICTURE_SUFFIXES, VideoSink, WindowSink, check_window, write_image
-    from posecam.viz.view3d import write_view3d
+    from posecam.viz.render3d import VIEW3D_SUFFIXES, write_3d_view
     from posecam.angles import add_angles, angle_names
     from posecam.viz.plot import AngleSeries, write_plot
 
@@ -174,7 +175,7 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     if viz and len(inputs) > 1:
         raise InputError("--viz draws one input; pass a single input with --viz")
     check_output(output, (*POSE_SUFFIXES, *MARKER_SUFFIXES), "output")
-    check_output(viz3d, (".html",), "--viz3d")
+    check_output(viz3d, VIEW3D_SUFFIXES, "--viz3d")
     check_angles(angles, output, plot)
     markers = output if output and Path(output).suffix.lower() in MARKER_SUFFIXES else None
     refuse_alone("trc_y_up", "-o FILE.trc or FILE.c3d", bool(markers))
@@ -242,7 +243,7 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
             writer.close()
         written = write_markers(markers, recordings[0], trc_y_up, staged) if markers else [output]
         if viz3d:
-            write_view3d(staged.path(viz3d), recordings[0])
+            write_3d_view(staged.path(viz3d), recordings[0])
         if plot:
             write_plot(staged.path(plot), series, Path(inputs[0]).name)
         with stdout_report() as console:   # stdout is an output too: written before the files are
