@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from posecam.errors import InputError, OutputError, PosecamError
-from posecam.estimate import EstimatorOptions, PoseEstimator
+from posecam.estimate import EstimatorOptions, shared_estimator
 from posecam.filters import smooth_recording
 from posecam.io.atomic import OutputSet
 from posecam.io.intrinsics import IntrinsicsOptions
@@ -82,23 +82,12 @@ def plan_fusions(takes: list[str], out_dir: str | os.PathLike, suffix: str) -> l
     return _plan([Path(t).resolve().name for t in takes], views, out_dir, suffix)
 
 
-_estimators: dict[str, PoseEstimator] = {}   # per process, by options: the models load once
-
-
-def estimator_for(options: EstimatorOptions) -> PoseEstimator:
-    """This process's estimator for `options`, built on first use."""
-    key = repr(options)
-    if key not in _estimators:
-        _estimators[key] = PoseEstimator(options)
-    return _estimators[key]
-
-
 def predict_task(task: Task, options: EstimatorOptions, intrinsics: IntrinsicsOptions | None = None,
                  smooth: bool = True, metric: MetricOptions | None = None) -> str:
     """Predict one input into its output (.json or .csv) as `posecam predict -o` does: frame by
     frame through `FileStream.poses` (people at their metric scale, videos smoothed as they
     stream), in flat memory."""
-    stream = estimator_for(options).stream_file(task.inputs[0], intrinsics)
+    stream = shared_estimator(options).stream_file(task.inputs[0], intrinsics)
     with OutputSet([task.output], task.inputs) as staged, \
             open(staged.path(task.output), "w", encoding="utf-8", newline="") as handle:
         writer = PoseWriter(handle, Path(task.output).suffix.lower()[1:])
@@ -116,7 +105,7 @@ def fuse_task(task: Task, options: FuseOptions, estimator: EstimatorOptions | No
     from posecam.views import load_views
     views = [p for p in task.inputs if Path(p).suffix.lower() != ".json"]
     recordings = load_views(list(task.inputs), intrinsics=intrinsics, calibration=calibration, rig=options.calibration,
-                            fuse=options, estimator=estimator_for(estimator or EstimatorOptions()) if views else None)
+                            fuse=options, estimator=shared_estimator(estimator or EstimatorOptions()) if views else None)
     fused = fuse_recordings(recordings, options).recording
     write_poses(task.output, [smooth_recording(fused) if smooth else fused])
     return task.output

@@ -249,6 +249,20 @@ class PoseEstimator:
         return stream.recording
 
 
+_shared: dict[str, PoseEstimator] = {}
+
+
+def shared_estimator(options: EstimatorOptions | None = None) -> PoseEstimator:
+    """This process's estimator for `options`, built on first use: the commands, fuse's views
+    and batch workers load each model once per process. An estimator keeps nothing between
+    inputs (a video's tracks live in its stream), so sharing one changes no result."""
+    options = options or EstimatorOptions()
+    key = repr(options)
+    if key not in _shared:
+        _shared[key] = PoseEstimator(options)
+    return _shared[key]
+
+
 def _overlap(a: np.ndarray, b: np.ndarray) -> bool:
     return bool((np.minimum(a[2:], b[2:]) > np.maximum(a[:2], b[:2])).all())
 

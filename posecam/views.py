@@ -14,7 +14,7 @@ import dataclasses
 from pathlib import Path
 
 from posecam.errors import InputError, warn
-from posecam.estimate import EstimatorOptions, OnFrame, PoseEstimator
+from posecam.estimate import EstimatorOptions, OnFrame, PoseEstimator, shared_estimator
 from posecam.geometry.camera import Rig
 from posecam.io.calibration import read_calibration
 from posecam.io.intrinsics import IntrinsicsOptions, is_calibration
@@ -73,7 +73,7 @@ def load_views(inputs: list[str], options: EstimatorOptions | None = None, intri
     if differ:
         warn(differ)
     if videos and estimator is None:
-        estimator = PoseEstimator(options or EstimatorOptions())
+        estimator = shared_estimator(options)
     recordings = []
     for path in inputs:
         recordings += [estimator.predict_file(path, ks[path], on_frame, frames=frames)] if path in media else poses[path]

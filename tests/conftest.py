@@ -1,5 +1,4 @@
-import subprocess
-import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -8,23 +7,49 @@ DATA = Path(__file__).parent / "data"
 EXAMPLES = Path(__file__).parent.parent / "examples"
 
 
-def run_posecam(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
-    """Run the real `posecam` CLI in a subprocess (so a traceback would show on stderr)."""
-    return subprocess.run([sys.executable, "-m", "posecam", *map(str, args)],
-                          capture_output=True, text=True, cwd=cwd, timeout=600)
+def run_posecam(*args: str, cwd: Path | None = None) -> "Run":
+    """Run the real `posecam` CLI, in this process (click's CliRunner): its exit code, stdout and
+    stderr, with the traceback on stderr if it raised past its own handlers (as a subprocess
+    would show it). The models load once per test session (posecam.estimate.shared_estimator),
+    so the CLI tests stop paying a Python start and a model load each. Tests of what only a
+    process has (signals, file descriptors, limits, the environment) start one themselves."""
+    import os
+    import traceback
+
+    saved = os.getcwd()
+    try:
+        if cwd is not None:
+            os.chdir(cwd)
+        result = invoke_posecam(*args)
+    finally:
+        os.chdir(saved)
+    stderr = result.stderr
+    if result.exception is not None and not isinstance(result.exception, SystemExit):
+        stderr += "".join(traceback.format_exception(*result.exc_info))
+    return Run(result.exit_code, result.stdout, stderr)
+
+
+@dataclass
+class Run:
+    """What `run_posecam` returns: a CompletedProcess's fields."""
+
+    returncode: int
+    stdout: str
+    stderr: str
 
 
 @pytest.fixture(scope="session")
 def estimator():
-    from posecam import PoseEstimator
+    """The default estimator, the one the CLI run in-process by `run_posecam` uses too."""
+    from posecam.estimate import shared_estimator
 
-    return PoseEstimator()
+    return shared_estimator()
 
 
 def invoke_posecam(*args: str):
-    """Run the `posecam` CLI in this process through click's CliRunner (for usage errors: no
-    model is loaded, so no subprocess is needed); the result has exit_code, stdout, stderr.
-    The handlers the CLI installs for its own process are put back afterwards."""
+    """Run the `posecam` CLI in this process through click's CliRunner; the result has
+    exit_code, stdout, stderr, exception. The handlers the CLI installs for its own process are
+    put back afterwards."""
     import signal
     import warnings
 

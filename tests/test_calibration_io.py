@@ -94,3 +94,37 @@ def test_predict_and_fuse_take_the_same_intrinsics(tmp_path):
     fuse = read_calibration(qca).match([name], [(1080, 1920)])[0][0].intrinsics
     assert (predict.fx, predict.fy, predict.cx, predict.cy) == (fuse.fx, fuse.fy, fuse.cx, fuse.cy)
     assert fuse.cx == pytest.approx(cams[1].intrinsics.cx - 4)
+
+
+def test_the_lab_qualisys_file_reads_as_worked_out_by_hand():
+    """Pose2Sim's shipped Calib.qca.txt, cam01, against numbers worked out by hand from its XML
+    (not written by posecam): QTM stores focal length and principal point in 1/64 pixel, the
+    field of view as inclusive pixel bounds, the camera's position in mm and its rotation with
+    the camera's axes in the rows (r11 r12 r13 is the camera's x axis in the world), y up and z
+    backwards; OpenCV's camera has y down and z forwards. Then, from the geometry alone: the
+    four cameras look at the person standing near the world origin, and none is upside down."""
+    assets = pytest.importorskip("export.assets", reason="the Pose2Sim wheel comes with the export extra")
+    from posecam.io.calibration import read_qualisys
+
+    cams = {c.name: c for c in read_qualisys(assets.pose2sim_demo_path("calibration/Calib.qca.txt"))}
+    cam = cams["cam01"]
+    assert cam.size == (1087 - 0 + 1, 1919 - 0 + 1)
+    k = cam.intrinsics
+    assert (k.fx, k.fy) == pytest.approx((107599.671875 / 64, 107588.828125 / 64))       # 1681.245, 1681.075
+    assert (k.cx, k.cy) == pytest.approx((34110.316406 / 64, 60680.792969 / 64))         # 532.974, 948.137
+    np.testing.assert_allclose(cam.distortion, [-0.046183, 0.139983, 0.000608, 0.00069])
+    rows = np.array([[0.5536380477336265, 0.8046719867383512, 0.2144479094331626],      # r11 r12 r13
+                     [-0.4345300743838753, 0.05946489349975602, 0.8986921279821063],    # r21 r22 r23
+                     [0.7104002579937896, -0.5907342212870501, 0.3825762057979294]])    # r31 r32 r33
+    np.testing.assert_allclose(cam.rotation, rows * [[1], [-1], [-1]], atol=1e-12)       # y, z flipped
+    np.testing.assert_allclose(cam.centre, [1460.2323709212087, -1909.1590482454608, 1896.5058524092062], atol=1e-6)
+    target = np.array([0.0, 0.0, 900.0])              # about the person's pelvis, 0.9 m above the lab floor
+    for c in cams.values():
+        to_target = (target - c.centre) / np.linalg.norm(target - c.centre)
+        assert np.degrees(np.arccos(c.rotation[2] @ to_target)) < 20, c.name   # optical axis on the person
+        assert -c.rotation[1][2] > 0.8, c.name                                  # image up is world up (z)
+        uv = c.project(target[None])[0]
+        assert 0 < uv[0] < c.size[0] and 0 < uv[1] < c.size[1], (c.name, uv)   # and in the picture
+    cropped = {c.name: c for c in read_qualisys(assets.pose2sim_demo_path("calibration/Calib.qca.txt"),
+                                                image_widths={"cam01": 1080})}["cam01"]
+    assert cropped.size == (1080, 1920) and cropped.intrinsics.cx == pytest.approx(k.cx - 4)   # a centred crop

@@ -12,8 +12,9 @@ from posecam.tracking import Tracker, TrackerOptions, box_iou, foreign_joints
 
 
 @pytest.fixture(scope="module")
-def people():
-    return PoseEstimator(EstimatorOptions(max_people=6))
+def people(estimator):
+    assert estimator.options.max_people == 6
+    return estimator
 
 
 def _confident_box(p, min_conf=0.5):

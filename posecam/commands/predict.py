@@ -153,7 +153,7 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     0). Each person's joints come out in camera coordinates in millimetres: x right, y down,
     z forward, the camera at the origin.
     """
-    from posecam.estimate import PoseEstimator
+    from posecam.estimate import shared_estimator
     from posecam.heights import Heights
     from posecam.io.atomic import OutputSet
     from posecam.metric import MetricOptions
@@ -209,7 +209,7 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
         check_markers_output(markers, [*inputs, intrinsics.file, opts.model])
     staged = OutputSet([None if markers else output, viz, viz3d, plot], [*inputs, intrinsics.file, opts.model],
                        per_person=markers)  # every output checked before the work
-    estimator = PoseEstimator(opts)
+    estimator = shared_estimator(opts)
     keep = bool(markers or viz3d)   # these outputs need whole recordings; JSON and CSV are streamed
     with staged, ExitStack() as stack, progress_bar() as progress:  # all outputs or none
         sink = writer = None
