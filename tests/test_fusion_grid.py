@@ -83,3 +83,21 @@ def test_viz3d_video_draws_every_frame_of_the_3d_view(tmp_path):
         mask = np.abs(image.astype(int) - PALETTE[0]).sum(axis=2) < 60
         xs.append(np.nonzero(mask)[1].mean())
     assert np.all(np.diff(xs) > 0), xs
+
+
+def test_predict_viz_draws_every_photo_of_a_folder(tmp_path):
+    photos, drawn = tmp_path / "photos", tmp_path / "drawn"
+    photos.mkdir(), drawn.mkdir()
+    for name in ("messi5.jpg", "basketball2.png", "fruits.jpg"):
+        (photos / name).write_bytes((DATA / name).read_bytes())
+    run = run_posecam("predict", photos, "--viz", f"{drawn}/", "-o", tmp_path / "poses.json")
+    assert run.returncode == 0, run.stderr
+    assert sorted(p.name for p in drawn.iterdir()) == ["basketball2_pose.png", "fruits_pose.jpg", "messi5_pose.jpg"]
+    for name, picture in (("messi5.jpg", "messi5_pose.jpg"), ("basketball2.png", "basketball2_pose.png")):
+        source, out = cv2.imread(str(photos / name)), cv2.imread(str(drawn / picture))
+        assert out.shape == source.shape
+        assert (np.abs(out.astype(int) - source).max(axis=2) > 60).sum() > 500, name   # skeletons drawn
+    run = run_posecam("predict", photos, DATA / "balance_cam01_30f.mp4", "--viz", drawn)
+    assert run.returncode == 2 and "--viz DIR draws photos" in run.stderr
+    run = run_posecam("predict", photos, "--viz", tmp_path / "missing")
+    assert run.returncode == 4 and "does not exist" in run.stderr

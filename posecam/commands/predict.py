@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from contextlib import ExitStack
 from pathlib import Path
 
@@ -11,7 +12,7 @@ from posecam.commands.common import (angle_options, check_angles, check_output, 
                                      height_option, intrinsics_options, make_estimator_options, make_frame_selection,
                                      make_intrinsics_options, many_options, progress_bar, refuse_alone,
                                      report_written, stdout_report, shown, stop_on_interrupt, warn)
-from posecam.errors import InputError
+from posecam.errors import InputError, OutputError
 
 
 class InputSummary:
@@ -76,7 +77,7 @@ def explain_empty(sm: InputSummary, min_detection_score: float, min_presence: fl
 def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=None, draw=None, smooth: bool = True,
                    keep: bool = False, emitted=None, metric=None, frames=None, stop=None) -> tuple[list, list[InputSummary]]:
     """Predict each input through `FileStream.poses` with a progress bar; every frame is drawn
-    (`draw(frame, rgb)`) as it is predicted, put at its track's metric scale (`metric`,
+    (`draw(frame, rgb, media)`) as it is predicted, put at its track's metric scale (`metric`,
     MetricOptions), then smoothed (videos), handed to `emitted(frame,
     recording)` (angles, plots), written (`writer`, a PoseWriter) and counted. The recordings
     hold their frames only with `keep` (markers and the 3D view need them); `frames`: the
@@ -89,7 +90,7 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
     def on_frame(frame, rgb, media) -> None:
         moved(frame, rgb, media)
         if draw:
-            draw(frame, rgb)
+            draw(frame, rgb, media)
 
     recordings, summaries = [], []
     for path in inputs:
@@ -118,12 +119,32 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
     return recordings, summaries
 
 
+def _picture_paths(inputs: list[str], folder: str) -> dict[str, str]:
+    """`--viz DIR/` for several photos: each photo's picture, DIR/<name>_pose<its suffix> (.jpg
+    for a suffix posecam does not write); refused for videos and when two names would clash."""
+    from posecam.media import IMAGE_SUFFIXES, is_stream
+    from posecam.viz.sinks import PICTURE_SUFFIXES
+
+    if not Path(folder).is_dir():
+        raise OutputError(f"--viz {folder}: several inputs are drawn into a folder, and this one does not exist")
+    pictures = {}
+    for path in inputs:
+        if is_stream(path) or Path(path).is_dir() or Path(path).suffix.lower() not in IMAGE_SUFFIXES:
+            raise InputError(f"--viz DIR draws photos; {path} is not one (give a video alone with --viz FILE.mp4)")
+        suffix = Path(path).suffix.lower() if Path(path).suffix.lower() in PICTURE_SUFFIXES else ".jpg"
+        pictures[path] = str(Path(folder) / f"{Path(path).stem}_pose{suffix}")
+    if len(set(pictures.values())) < len(pictures):
+        raise InputError("--viz DIR: two photos share a name, so their pictures would too; draw them apart")
+    return pictures
+
+
 @click.command()
 @click.argument("inputs", nargs=-1, required=True)
 @click.option("-o", "--output", type=click.Path(),
               help="Write poses to FILE.json or FILE.csv, or markers to FILE.trc (OpenSim, metres) or FILE.c3d "
                    "(needs posecam[c3d]): one input, one file per person (FILE_id<ID>.trc when several).")
-@click.option("--viz", type=click.Path(), help="Draw the result: FILE.png/.jpg for an image, FILE.mp4 for a video.")
+@click.option("--viz", type=click.Path(), help="Draw the result: FILE.png/.jpg for an image, FILE.mp4 for a video, "
+                                               "an existing DIR/ for several photos (DIR/<name>_pose.jpg each).")
 @click.option("--viz3d", type=click.Path(), help="FILE.html: a self-contained 3D view of one input's poses; FILE.mp4: that view "
                                                  "drawn frame by frame, for a report.")
 @click.option("--show", is_flag=True, help="Show each frame's poses in a window as they come (needs a display and "
@@ -172,8 +193,7 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     if not paths:
         raise InputError(f"no readable input: the {len(unreadable)} photos given cannot be read")
     inputs = [str(p) for p in paths]
-    if viz and len(inputs) > 1:
-        raise InputError("--viz draws one input; pass a single input with --viz")
+    viz_folder = bool(viz) and (len(inputs) > 1 or viz.endswith(("/", os.sep)) or Path(viz).is_dir())
     check_output(output, (*POSE_SUFFIXES, *MARKER_SUFFIXES), "output")
     check_output(viz3d, VIEW3D_SUFFIXES, "--viz3d")
     check_angles(angles, output, plot)
@@ -203,17 +223,19 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     first = open_media(inputs[0], selection)
     for path in inputs[1:]:  # fail on a bad input before spending time on the good ones
         open_media(path, selection)
-    if viz:
+    pictures = _picture_paths(inputs, viz) if viz_folder else {}
+    if viz and not viz_folder:
         check_output(viz, PICTURE_SUFFIXES if first.kind == "image" else VIDEO_SUFFIXES, f"--viz for {first.kind} input")
     if markers:
         check_markers_output(markers, [*inputs, intrinsics.file, opts.model])
-    staged = OutputSet([None if markers else output, viz, viz3d, plot], [*inputs, intrinsics.file, opts.model],
+    staged = OutputSet([None if markers else output, *(pictures.values() if viz_folder else [viz]), viz3d, plot],
+                       [*inputs, intrinsics.file, opts.model],
                        per_person=markers)  # every output checked before the work
     estimator = shared_estimator(opts)
     keep = bool(markers or viz3d)   # these outputs need whole recordings; JSON and CSV are streamed
     with staged, ExitStack() as stack, progress_bar() as progress:  # all outputs or none
         sink = writer = None
-        if viz and first.kind != "image":
+        if viz and not viz_folder and first.kind != "image":
             sink = stack.enter_context(VideoSink(staged.path(viz), first.sample_fps, first.width, first.height))
         window = stack.enter_context(WindowSink(f"posecam: {inputs[0]}")) if show else None
         stop = stack.enter_context(stop_on_interrupt()) if first.kind == "stream" else None
@@ -227,14 +249,15 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
             if series:
                 series.add(frame)
 
-        def draw(frame, rgb) -> None:
+        def draw(frame, rgb, media) -> None:
             picture = draw_people(rgb, frame.people, estimator.joints)
             if window:
                 window.write(picture)
                 if window.closed and stop is not None:
                     stop.set()
             if viz:
-                sink.write(picture) if sink else write_image(staged.path(viz), picture)
+                target = pictures[str(media.path)] if viz_folder else viz
+                sink.write(picture) if sink else write_image(staged.path(target), picture)
 
         recordings, summaries = predict_inputs(estimator, inputs, intrinsics, progress, writer,
                                                draw if viz or show else None, smooth, keep,
@@ -248,4 +271,4 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
             write_plot(staged.path(plot), series, Path(inputs[0]).name)
         with stdout_report() as console:   # stdout is an output too: written before the files are
             print_summary(summaries, console, len(unreadable))
-            report_written([*written, viz, viz3d, plot], console)
+            report_written([*written, f"{len(pictures)} pictures in {viz}" if viz_folder else viz, viz3d, plot], console)
