@@ -10,8 +10,14 @@ The names below are imported when first used, so `import posecam` stays light.
 from __future__ import annotations
 
 import importlib
+import os
 
 from posecam._version import __version__
+
+# OpenCV refuses to decode an image over this many pixels, whatever its format (posecam.media
+# reads the headers it knows first, for a clearer message). Read once, when cv2 is loaded, so
+# set here, before any posecam module imports cv2; equal to posecam.media.MAX_PIXELS (268 Mpx).
+os.environ.setdefault("OPENCV_IO_MAX_IMAGE_PIXELS", str(1 << 28))
 
 _API = {
     "CameraCalibration": "posecam.geometry.camera",

@@ -141,6 +141,7 @@ class Media:
         # without --end, read to the video's real end (a declared count may be off)
         stop = wanted.stop if self.selection and self.selection.end is not None else None
         index, ok = wanted.start, True
+        clock = VideoClock(self.path, self.fps) if self.kind != "stream" else None
         with _stream_capture(str(self.path)) if self.kind == "stream" else _video_capture(self.path) as cap:
             if index:
                 _seek(cap, index)
@@ -148,7 +149,8 @@ class Media:
                 ok, bgr = cap.read()
                 if not ok:
                     break
-                yield index, index / self.fps, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
+                time = clock.time(cap, index) if clock else index / self.fps
+                yield index, time, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
                 index += wanted.step
                 for _ in range(wanted.step - 1):   # skipped frames: grabbed, not decoded into images
                     cap.grab()
@@ -165,6 +167,29 @@ def _seek(cap: cv2.VideoCapture, index: int) -> None:
     for _ in range(index):
         if not cap.grab():
             return
+
+
+class VideoClock:
+    """Each frame's time from the container (its presentation time, OpenCV's CAP_PROP_POS_MSEC),
+    so that a variable-frame-rate video gets its real times, not index / fps. A container that
+    gives none (or times that do not increase) falls back to index / fps, with a warning."""
+
+    def __init__(self, path: Path, fps: float):
+        self.path, self.fps = path, fps
+        self.last: float | None = None
+        self.failed = False
+
+    def time(self, cap: cv2.VideoCapture, index: int) -> float:
+        """The time in s of the frame `cap` just read (frame `index`)."""
+        if not self.failed:
+            seconds = cap.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
+            if np.isfinite(seconds) and seconds >= 0 and (self.last is None or seconds > self.last):
+                self.last = seconds
+                return seconds
+            self.failed = True
+            warn(f"{self.path} gives no frame times from frame {index} on; times are frame / "
+                 f"{self.fps:g} fps (wrong if its frame rate varies)")
+        return index / self.fps
 
 
 @contextmanager
@@ -211,20 +236,20 @@ def _read_bytes(path: Path) -> bytes:
 
 
 def read_image(path: str | os.PathLike) -> np.ndarray:
-    """RGB uint8 image (EXIF orientation applied) or InputError."""
+    """RGB uint8 image (EXIF orientation applied) or InputError; refused before decoding when
+    its header claims more than MAX_PIXELS (any format: OpenCV's own limit is set to it too)."""
     path = Path(path)
+    check_image_size(path)
     data = _read_bytes(path)
-    size = header_size(data)
-    if size and size[0] * size[1] > MAX_PIXELS:
-        raise InputError(f"{path} claims {size[0]}x{size[1]} pixels, more than posecam decodes "
-                         f"({MAX_PIXELS // 10**6} Mpx)")
     try:
         with _native_stderr_silenced():
             bgr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
             damaged = bgr is None and _opencv_name(path)
             if damaged:  # imread, unlike imdecode, keeps what libjpeg decoded of a damaged file
                 bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    except cv2.error:
+    except cv2.error as exc:
+        if "CV_IO_MAX_IMAGE_PIXELS" in str(exc):
+            raise InputError(f"{path} claims more pixels than posecam decodes ({MAX_PIXELS // 10**6} Mpx)") from None
         bgr = None
     if bgr is None:
         raise InputError(f"{path} is not a readable image")
@@ -233,8 +258,23 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     return cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
 
 
+def check_image_size(path: Path) -> tuple[int, int] | None:
+    """The (width, height) an image's header claims (None if its format is not one read
+    here), refused with InputError over MAX_PIXELS: known before a byte is decoded."""
+    check_input(path)
+    try:
+        with open(path, "rb") as f:
+            size = header_size(f.read(1 << 20))   # a JPEG's size may follow a long EXIF block
+    except OSError as exc:
+        raise InputError(f"{path} cannot be read ({exc.strerror})") from None
+    if size and size[0] * size[1] > MAX_PIXELS:
+        raise InputError(f"{path} claims {size[0]}x{size[1]} pixels, more than posecam decodes "
+                         f"({MAX_PIXELS // 10**6} Mpx)")
+    return size
+
+
 def header_size(data: bytes) -> tuple[int, int] | None:
-    """(width, height) from a PNG, JPEG or BMP header without decoding; None if unknown."""
+    """(width, height) from a PNG, JPEG, BMP, TIFF or WebP header without decoding; None if unknown."""
     try:
         if data[:8] == b"\x89PNG\r\n\x1a\n":
             return struct.unpack(">II", data[16:24])
@@ -242,26 +282,62 @@ def header_size(data: bytes) -> tuple[int, int] | None:
             w, h = struct.unpack("<ii", data[18:26])
             return w, abs(h)
         if data[:2] == b"\xff\xd8":
-            pos = 2
-            while pos + 9 <= len(data) and data[pos] == 0xFF:
-                marker = data[pos + 1]
-                if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
-                    h, w = struct.unpack(">HH", data[pos + 5: pos + 9])
-                    return w, h
-                pos += 2 + struct.unpack(">H", data[pos + 2: pos + 4])[0]
+            return _jpeg_size(data)
+        if data[:4] in (b"II*\x00", b"MM\x00*"):
+            return _tiff_size(data)
+        if data[:4] == b"RIFF" and data[8:12] == b"WEBP":
+            return _webp_size(data)
     except struct.error:
         return None
     return None
 
 
+def _jpeg_size(data: bytes) -> tuple[int, int] | None:
+    pos = 2
+    while pos + 9 <= len(data):
+        if data[pos] != 0xFF:
+            return None
+        marker = data[pos + 1]
+        if marker == 0xFF:       # fill byte
+            pos += 1
+            continue
+        if 0xC0 <= marker <= 0xCF and marker not in (0xC4, 0xC8, 0xCC):
+            h, w = struct.unpack(">HH", data[pos + 5: pos + 9])
+            return w, h
+        pos += 2 + struct.unpack(">H", data[pos + 2: pos + 4])[0]
+    return None
+
+
+def _tiff_size(data: bytes) -> tuple[int, int] | None:
+    """ImageWidth (tag 256) and ImageLength (257) of the first IFD."""
+    order = "<" if data[:2] == b"II" else ">"
+    offset = struct.unpack(order + "I", data[4:8])[0]
+    count = struct.unpack(order + "H", data[offset:offset + 2])[0]
+    sides = {}
+    for i in range(count):
+        entry = data[offset + 2 + 12 * i: offset + 14 + 12 * i]
+        tag, kind = struct.unpack(order + "HH", entry[:4])
+        if tag in (256, 257):
+            sides[tag] = struct.unpack(order + ("H" if kind == 3 else "I"), entry[8:10] if kind == 3 else entry[8:12])[0]
+    return (sides[256], sides[257]) if len(sides) == 2 else None
+
+
+def _webp_size(data: bytes) -> tuple[int, int] | None:
+    chunk = data[12:16]
+    if chunk == b"VP8 ":
+        w, h = struct.unpack("<HH", data[26:30])
+        return w & 0x3FFF, h & 0x3FFF
+    if chunk == b"VP8L":
+        bits = struct.unpack("<I", data[21:25])[0]
+        return (bits & 0x3FFF) + 1, ((bits >> 14) & 0x3FFF) + 1
+    if chunk == b"VP8X":
+        return int.from_bytes(data[24:27], "little") + 1, int.from_bytes(data[27:30], "little") + 1
+    return None
+
+
 def image_size(path: Path) -> tuple[int, int]:
     """(width, height) of an image file, from its header when possible."""
-    check_input(path)
-    with open(path, "rb") as f:
-        data = f.read(4096)
-        size = header_size(data)
-        if size is None and data[:2] == b"\xff\xd8":   # a JPEG's size may follow a long EXIF block
-            size = header_size(data + f.read(1 << 20))
+    size = check_image_size(path)
     if size is None:
         h, w = read_image(path).shape[:2]
         size = (w, h)
@@ -358,6 +434,14 @@ def expand_inputs(paths: list[str | os.PathLike], strict: bool = True) -> tuple[
     return expanded, skipped
 
 
+def _check_video_size(cap: cv2.VideoCapture, path: Path) -> None:
+    """Refuse, before its first frame is decoded, a video whose frames claim over MAX_PIXELS."""
+    w, h = cap.get(cv2.CAP_PROP_FRAME_WIDTH), cap.get(cv2.CAP_PROP_FRAME_HEIGHT)
+    if w * h > MAX_PIXELS:
+        raise InputError(f"{path} claims {w:.0f}x{h:.0f} pixels per frame, more than posecam decodes "
+                         f"({MAX_PIXELS // 10**6} Mpx)")
+
+
 def open_media(path: str | os.PathLike, selection: FrameSelection | None = None) -> Media:
     """Open an image, a video or a folder of frames (only the `selection` of a video or
     folder); raise InputError if it cannot be read, or a still image comes with a selection."""
@@ -385,6 +469,7 @@ def _open(path: str | os.PathLike) -> Media:
         h, w = image.shape[:2]
         return Media(path, "image", w, h, None, 1, image)
     with _video_capture(path) as cap:
+        _check_video_size(cap, path)
         ok, frame = cap.read() if cap.isOpened() else (False, None)
         fps = cap.get(cv2.CAP_PROP_FPS)
         count = int(cap.get(cv2.CAP_PROP_FRAME_COUNT))

@@ -301,3 +301,205 @@ def test_opencv_filestorage_intrinsics_are_read(tmp_path):
         storage.release()
         k = resolve_intrinsics(IntrinsicsOptions(file=str(tmp_path / name)), 640, 480)
         assert (k.fx, k.fy, k.cx, k.cy, k.source) == (512.5, 511.0, 321.0, 239.5, f"file:{name}")
+
+
+# ---- sizes known before anything is allocated: bombs, with their peak memory ----------------
+
+def _peak_mb(*args) -> tuple[subprocess.CompletedProcess, float]:
+    """Run posecam in a fresh Python whose only child it is; its peak resident memory in MB."""
+    code = ("import resource, subprocess, sys; r = subprocess.run(sys.argv[1:], capture_output=True, text=True); "
+            "sys.stderr.write(r.stderr); sys.stdout.write(r.stdout); "
+            "print('PEAK', resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss); sys.exit(r.returncode)")
+    r = subprocess.run([sys.executable, "-c", code, sys.executable, "-m", "posecam", *map(str, args)],
+                       capture_output=True, text=True, timeout=600)
+    peak = float(r.stdout.rsplit("PEAK", 1)[1]) / 1024
+    return r, peak
+
+
+def _patched_tiff(path: Path, width: int, height: int) -> None:
+    """A small real TIFF whose first IFD claims width x height."""
+    import struct
+
+    import cv2
+    import numpy as np
+
+    data = bytearray(cv2.imencode(".tiff", np.zeros((8, 8, 3), np.uint8))[1].tobytes())
+    offset = struct.unpack("<I", data[4:8])[0]
+    for i in range(struct.unpack("<H", data[offset:offset + 2])[0]):
+        entry = offset + 2 + 12 * i
+        tag, kind = struct.unpack("<HH", data[entry:entry + 4])
+        if tag in (256, 257):
+            value = width if tag == 256 else height
+            data[entry + 2:entry + 12] = struct.pack("<HII", 4, 1, value)     # as a LONG
+    path.write_bytes(bytes(data))
+
+
+def _patched_jpeg(path: Path, width: int, height: int) -> None:
+    import struct
+
+    import cv2
+    import numpy as np
+
+    data = bytearray(cv2.imencode(".jpg", np.zeros((8, 8, 3), np.uint8))[1].tobytes())
+    sof = data.find(b"\xff\xc0")
+    data[sof + 5:sof + 9] = struct.pack(">HH", height, width)
+    path.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize("make, name, word", [
+    (_patched_tiff, "huge.tiff", "30000x30000"),
+    (_patched_jpeg, "huge.jpg", "20000x20000"),
+])
+def test_an_image_bomb_is_refused_from_its_header(tmp_path, make, name, word):
+    make(tmp_path / name, *(int(v) for v in word.split("x")))
+    r, peak = _peak_mb("predict", tmp_path / name, "--model", "lite", "-o", tmp_path / "p.json")
+    check_promise(r, 2, word)
+    assert peak < 1024, f"{peak:.0f} MB"
+    assert sorted(p.name for p in tmp_path.iterdir()) == [name]
+
+
+def test_opencv_refuses_what_posecam_does_not_parse(tmp_path):
+    """The same limit for every format OpenCV opens: its own (OPENCV_IO_MAX_IMAGE_PIXELS)."""
+    import cv2
+    import numpy as np
+
+    from posecam.media import MAX_PIXELS
+
+    assert os.environ["OPENCV_IO_MAX_IMAGE_PIXELS"] == str(MAX_PIXELS)
+    header = b"P5\n20000 20000\n255\n"       # a PGM (netpbm): not parsed by posecam
+    with pytest.raises(cv2.error, match="CV_IO_MAX_IMAGE_PIXELS"):
+        cv2.imdecode(np.frombuffer(header + b"\0" * 64, np.uint8), cv2.IMREAD_COLOR)
+
+
+def test_a_million_people_in_one_frame_is_refused_in_flat_memory(tmp_path):
+    _pose_file(tmp_path / "a.json")
+    doc = json.loads((tmp_path / "a.json").read_text())
+    person = json.dumps(doc["inputs"][0]["frames"][0]["people"][0])
+    text = json.dumps(doc).replace('"people": [' + person, '"people": [' + ", ".join([person] * 1000 + ["{}"] * 999_000), 1)
+    (tmp_path / "crowd.json").write_text(text)
+    r, peak = _peak_mb("fuse", tmp_path / "a.json", tmp_path / "crowd.json", "--offsets", "0,0", "-o", tmp_path / "f.json")
+    check_promise(r, 2, "people: must hold at most 1000 entries")
+    assert peak < 1024, f"{peak:.0f} MB"
+
+
+def test_a_model_declaring_a_40000_px_input_is_refused(tmp_path):
+    onnx = pytest.importorskip("onnx")
+    from posecam.inference.session import MODELS_DIR
+
+    model = onnx.load(str(MODELS_DIR / "blazepose_lite.onnx"))
+    for prop in model.metadata_props:
+        if prop.key == "posecam.input":
+            spec = json.loads(prop.value)
+            prop.value = json.dumps({**spec, "size": [40000, 40000]})
+    onnx.save(model, str(tmp_path / "wide.onnx"))
+    r, peak = _peak_mb("predict", DATA / "messi5.jpg", "--model", tmp_path / "wide.onnx", "-o", tmp_path / "p.json")
+    check_promise(r, 3, "posecam.input.size: must hold numbers in 1..2048, got 40000")
+    assert peak < 1024, f"{peak:.0f} MB"
+
+
+@pytest.mark.slow
+def test_a_zip_bomb_checkpoint_is_refused_before_torch_opens_it(tmp_path):
+    import zipfile
+
+    pytest.importorskip("torch")
+    with zipfile.ZipFile(tmp_path / "bomb.pt", "w", zipfile.ZIP_DEFLATED) as z:
+        with z.open("archive/data.pkl", "w", force_zip64=True) as f:
+            for _ in range(128):
+                f.write(b"\0" * (1 << 24))               # 2 GiB of zeros in 2 MB
+    r, peak = _peak_mb("export", tmp_path / "bomb.pt", "-o", tmp_path / "m.onnx")
+    check_promise(r, 3, "would unpack to 2147 MB")
+    assert peak < 1024, f"{peak:.0f} MB"
+    assert [p.name for p in tmp_path.iterdir()] == ["bomb.pt"]
+
+
+# ---- numbers on the command line: bounded before any work -----------------------------------
+
+NUMBER_ROWS = [
+    ("max-offset-1e9", "fuse {a} {b} --sync auto --max-offset 1000000000", "--max-offset"),
+    ("max-offset-1e23", "fuse {a} {b} --sync auto --max-offset 1e23", "--max-offset"),
+    ("offsets-beyond-int64", "fuse {a} {b} --offsets 0,99999999999999999999999", "--offsets must be numbers"),
+    ("offsets-1e23", "fuse {a} {b} --offsets 0,1e23", "--offsets must be numbers"),
+    ("offsets-nan", "fuse {a} {b} --offsets 0,nan", "--offsets must be numbers"),
+    ("fx-nan", "predict {img} --fx nan", "--fx"),
+    ("fx-inf", "predict {img} --fx 1e400", "--fx"),
+    ("cx-huge", "predict {img} --fx 500 --cx 1e300 --cy 10", "--cx"),
+    ("min-presence-nan", "predict {img} --min-presence nan", "--min-presence"),
+    ("min-detection-score-2", "predict {img} --min-detection-score 2", "--min-detection-score"),
+    ("max-people-1e6", "predict {img} --max-people 1000000", "--max-people"),
+    ("max-crops-1e9", "export {a} -o {out} --max-crops 1000000000", "--max-crops"),
+]
+
+
+@pytest.mark.parametrize("row", NUMBER_ROWS, ids=[r[0] for r in NUMBER_ROWS])
+def test_numbers_are_bounded_before_any_work(tmp_path, row):
+    _, command, word = row
+    _pose_file(tmp_path / "a.json")
+    _pose_file(tmp_path / "b.json")
+    names = {"a": tmp_path / "a.json", "b": tmp_path / "b.json", "img": DATA / "messi5.jpg", "out": tmp_path / "m.onnx"}
+    start = time.perf_counter()
+    args = [a.format(**names) for a in shlex.split(command)]
+    r = run_posecam(*args, *([] if "-o" in args else ["-o", tmp_path / "o.json"]))
+    check_promise(r, 2, word)
+    assert time.perf_counter() - start < 60
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "b.json"]
+
+
+# ---- variable frame rate: each frame's time from the container ------------------------------
+
+def _boxes(data: bytes, start: int, end: int):
+    import struct
+
+    pos = start
+    while pos + 8 <= end:
+        size, kind = struct.unpack(">I4s", data[pos:pos + 8])
+        yield kind, pos, pos + size
+        pos += size
+
+
+def _replace_box(data: bytes, start: int, end: int, path: list[bytes], payload: bytes) -> bytes:
+    import struct
+
+    out = b""
+    for kind, s, e in _boxes(data, start, end):
+        if kind == path[0]:
+            body = payload if len(path) == 1 else _replace_box(data, s + 8, e, path[1:], payload)
+            out += struct.pack(">I4s", 8 + len(body), kind) + body
+        else:
+            out += data[s:e]
+    return out
+
+
+def variable_rate_mp4(path: Path, durations: list[int]) -> None:
+    """An mp4 written by OpenCV (30 fps, one frame per duration) whose frames then get the
+    given durations (in its track's time units): its time-to-sample table (stts) rewritten."""
+    import struct
+
+    import cv2
+    import numpy as np
+
+    writer = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 30, (64, 48))
+    for i in range(len(durations)):
+        writer.write(np.full((48, 64, 3), 20 * i, np.uint8))
+    writer.release()
+    data = path.read_bytes()
+    runs: list[list[int]] = []
+    for d in durations:
+        if runs and runs[-1][1] == d:
+            runs[-1][0] += 1
+        else:
+            runs.append([1, d])
+    stts = struct.pack(">II", 0, len(runs)) + b"".join(struct.pack(">II", n, d) for n, d in runs)
+    path.write_bytes(_replace_box(data, 0, len(data), [b"moov", b"trak", b"mdia", b"minf", b"stbl", b"stts"], stts))
+
+
+def test_a_variable_frame_rate_video_gets_its_real_times(tmp_path):
+    from posecam.media import open_media
+
+    unit = 15360 // 60                   # OpenCV's mp4 track: 15360 units a second; 1/60 s
+    variable_rate_mp4(tmp_path / "vfr.mp4", [unit] * 5 + [3 * unit] * 5)   # 60 fps, then 20 fps
+    media = open_media(tmp_path / "vfr.mp4")
+    times = [t for _, t, _ in media.frames()]
+    expected = [i / 60 for i in range(6)] + [5 / 60 + 3 * i / 60 for i in range(1, 5)]
+    assert media.fps == 30.0                                   # the container's average rate ...
+    assert times == pytest.approx(expected, abs=1e-6)          # ... but each frame's own time
+    assert max(abs(t - i / 30) for i, t in enumerate(times)) > 0.05   # what index / fps would be off

@@ -42,7 +42,18 @@ def _with(base: ModelContract, **changes) -> dict:
     (_with(LANDMARKS, joints="[]"), pytest.raises(ModelError, match="joints")),
     (_with(ROOT_DEPTH, train_focal=None), pytest.raises(ModelError, match="train_focal")),
     (_with(ROOT_DEPTH, box_input=None), pytest.raises(ModelError, match="box_input")),
-    (_with(ROOT_DEPTH, train_focal="wide"), pytest.raises(ModelError, match="malformed")),
+    (_with(ROOT_DEPTH, train_focal="wide"), pytest.raises(ModelError, match="train_focal: must be a number")),
+    # sizes bounded before anything is allocated from them (issue 21)
+    (_with(LANDMARKS, input=json.dumps({"name": "x", "layout": "NHWC", "size": [40000, 40000]})),
+     pytest.raises(ModelError, match=r"posecam.input.size: must hold numbers in 1..2048, got 40000")),
+    (_with(LANDMARKS, input=json.dumps({"name": "x", "layout": "NHWC", "size": []})),
+     pytest.raises(ModelError, match="posecam.input.size: must be 2 numbers")),
+    (_with(LANDMARKS, input=json.dumps({"name": "x", "layout": "NHWC", "size": [0, 256]})),
+     pytest.raises(ModelError, match="posecam.input.size: must hold numbers in 1..2048, got 0")),
+    (_with(LANDMARKS, input=json.dumps({"name": "x", "layout": "NHWC", "size": [256, 256], "std": [0, 1, 1]})),
+     pytest.raises(ModelError, match="posecam.input.std: must not be 0")),
+    (_with(LANDMARKS, joints=json.dumps([1, 2])), pytest.raises(ModelError, match="posecam.joints: must be a string")),
+    (_with(ROOT_DEPTH, train_focal="nan"), pytest.raises(ModelError, match="train_focal: must be finite")),
 ])
 def test_contract_metadata(meta, outcome):
     with outcome:

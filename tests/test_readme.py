@@ -202,7 +202,7 @@ def test_version_and_top_level_help_whole_sentences() -> None:
 
 @pytest.mark.parametrize("args, words", [
     (["predict", "examples/balance.jpg", "--camera", "cam01"], "--intrinsics"),
-    (["predict", "examples/balance.jpg", "--min-presence", "2"], "min_presence must lie in [0, 1]"),
+    (["predict", "examples/balance.jpg", "--min-presence", "2"], "--min-presence': '2' is not a finite number >= 0 and <= 1"),
     (["fuse", "a.mp4", "b.mp4", "--viz", "out/grid.gif"], "--viz must end in"),
     (["fuse", "a.mp4", "b.mp4", "--max-offset", "5"], "--max-offset needs --sync auto"),
     (["predict", "examples/balance.jpg", "--trc-y-up"], "--trc-y-up needs -o FILE.trc"),

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import signal
 import threading
 from collections.abc import Callable, Iterator
@@ -13,6 +14,7 @@ import click
 
 from posecam.errors import InputError, OutputError, ReaderLeft, printable
 from posecam.inference.contract import DETECTORS, POSE_MODELS
+from posecam.validate import MAX_PEOPLE, MAX_PIXEL
 
 if TYPE_CHECKING:
     from rich.progress import Progress
@@ -21,6 +23,29 @@ if TYPE_CHECKING:
     from posecam.io.intrinsics import IntrinsicsOptions
     from posecam.media import FrameSelection, Media
     from posecam.results import Frame
+
+
+class Bounded(click.ParamType):
+    """A finite number in lo..hi (lo excluded with `open_lo`), checked before any work: click's
+    float takes nan, inf and 1e400 and FloatRange lets nan through."""
+
+    name = "number"
+
+    def __init__(self, lo: float, hi: float, open_lo: bool = False):
+        self.lo, self.hi, self.open_lo = lo, hi, open_lo
+
+    def convert(self, value, param, ctx) -> float:
+        if isinstance(value, float):
+            return value
+        try:
+            number = float(value)
+        except ValueError:
+            self.fail(f"{value!r} is not a number", param, ctx)
+        low_ok = number > self.lo if self.open_lo else number >= self.lo
+        if not (math.isfinite(number) and low_ok and number <= self.hi):
+            low = f"> {self.lo:g}" if self.open_lo else f">= {self.lo:g}"
+            self.fail(f"{value!r} is not a finite number {low} and <= {self.hi:g}", param, ctx)
+        return number
 
 
 def estimator_options(f: Callable) -> Callable:
@@ -36,12 +61,12 @@ def estimator_options(f: Callable) -> Callable:
         click.option("--detector", type=click.Choice(list(DETECTORS)), default="movenet", show_default=True,
                      help="Person detector: movenet (MoveNet MultiPose: whole bodies, up to 6 per run) or blazepose "
                           "(BlazePose's: heads of near, frontal people)."),
-        click.option("--max-people", type=click.IntRange(1), default=6, show_default=True,
+        click.option("--max-people", type=click.IntRange(1, MAX_PEOPLE), default=6, show_default=True,
                      help="Most people followed per image or video."),
-        click.option("--min-detection-score", type=float,
+        click.option("--min-detection-score", type=Bounded(0, 1),
                      show_default="the detector's own: movenet 0.25, blazepose 0.5",
                      help="Person detector score, 0 to 1, below which a person is not looked at."),
-        click.option("--min-presence", type=float, default=0.5, show_default=True,
+        click.option("--min-presence", type=Bounded(0, 1), default=0.5, show_default=True,
                      help="Pose model presence, 0 to 1, below which a person is dropped."),
         click.option("--threads", type=click.IntRange(1, 256), show_default="CPU cores, at most 8",
                      help="CPU threads for onnxruntime."),
@@ -66,11 +91,11 @@ def intrinsics_options(per_camera: bool = False) -> Callable:
 
     def decorate(f: Callable) -> Callable:
         for opt in reversed([
-            click.option("--fx", type=float, show_default="from --intrinsics, else EXIF, else a 28 mm-equivalent lens",
+            click.option("--fx", type=Bounded(0, MAX_PIXEL, open_lo=True), show_default="from --intrinsics, else EXIF, else a 28 mm-equivalent lens",
                          help="Focal length in pixels (x)."),
-            click.option("--fy", type=float, help="Focal length in pixels (y); defaults to fx."),
-            click.option("--cx", type=float, help="Principal point x in pixels; defaults to the image centre."),
-            click.option("--cy", type=float, help="Principal point y in pixels; defaults to the image centre."),
+            click.option("--fy", type=Bounded(0, MAX_PIXEL, open_lo=True), help="Focal length in pixels (y); defaults to fx."),
+            click.option("--cx", type=Bounded(-MAX_PIXEL, MAX_PIXEL), help="Principal point x in pixels; defaults to the image centre."),
+            click.option("--cy", type=Bounded(-MAX_PIXEL, MAX_PIXEL), help="Principal point y in pixels; defaults to the image centre."),
             click.option("--intrinsics", "intrinsics_file", type=click.Path(),
                          help="JSON with fx, fy, cx, cy (or a 3x3 matrix), OpenCV's FileStorage YAML/XML "
                               "(camera_matrix), or a calibration: anipose/Pose2Sim TOML or Qualisys .qca.txt "

@@ -24,7 +24,7 @@ INSTALL_HINT = ("posecam export needs torch and onnx; in a checkout of posecam r
 @click.option("--images", multiple=True, type=click.Path(),
               help="Photos/videos/folders of people for --verify and --quantize (repeatable); "
                    "default: three bundled photos.")
-@click.option("--max-crops", type=click.IntRange(1), default=16, show_default=True,
+@click.option("--max-crops", type=click.IntRange(1, 1000), default=16, show_default=True,
               help="Person crops taken from --images.")
 def export_command(checkpoint, output, name, verify, quantize, images, max_crops) -> None:
     """Export a ResNet-U checkpoint to ONNX.

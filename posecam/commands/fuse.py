@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 from typing import TYPE_CHECKING
@@ -64,6 +65,24 @@ def print_report(result: FusionResult, console) -> None:
                                      "focal length and position (at the rig's scale)" if estimated else ""), style="dim")
 
 
+MAX_OFFSET = 1000   # frames: --max-offset and each of --offsets
+
+
+def parse_offsets(text: str) -> list[float]:
+    """--offsets: numbers of frames (sub-frame allowed) in -MAX_OFFSET..MAX_OFFSET, separated by commas."""
+    values = []
+    for v in text.split(","):
+        try:
+            value = float(v)
+        except ValueError:
+            value = math.nan
+        if not abs(value) <= MAX_OFFSET:     # NaN and inf too
+            raise InputError(f"--offsets must be numbers of frames from -{MAX_OFFSET} to {MAX_OFFSET} separated by "
+                             f"commas, got {text!r}")
+        values.append(value)
+    return values
+
+
 @click.command()
 @click.argument("inputs", nargs=-1, required=True)
 @click.option("-o", "--output", type=click.Path(),
@@ -84,7 +103,7 @@ def print_report(result: FusionResult, console) -> None:
               help="auto: estimate each video's frame offset against the first.")
 @click.option("--offsets", help="Frame offsets, one per view, e.g. 0,-1,4.5,0 (sub-frame allowed): view c's frame i+o "
                                 "shows the same instant as the first view's frame i.")
-@click.option("--max-offset", type=click.IntRange(0), default=10, show_default=True,
+@click.option("--max-offset", type=click.IntRange(0, MAX_OFFSET), default=10, show_default=True,
               help="Largest frame offset --sync auto tries, in frames either way.")
 @click.option("--viz", type=click.Path(), help="FILE.png or FILE.jpg: the fused pose projected into every view, in "
                                                "one frame (named on it); FILE.mp4: every fused frame.")
@@ -132,10 +151,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
         raise InputError("give either --offsets or --sync auto")
     refuse_alone("max_offset", "--sync auto", sync == "auto")
     refuse_alone("trc_y_up", "-o FILE.trc or FILE.c3d", bool(markers))
-    try:
-        offset_list = [float(v) for v in offsets.split(",")] if offsets else None
-    except ValueError:
-        raise InputError(f"--offsets must be numbers of frames separated by commas, got {offsets!r}") from None
+    offset_list = parse_offsets(offsets) if offsets else None
     if calibration:
         check_input(calibration, "calibration")   # a pipe or a device would block the read
     refuse_alone("out_format", "--out-dir", bool(out_dir))

@@ -112,15 +112,11 @@ class ModelContract:
         try:
             inp = json.loads(meta["posecam.input"])
             outputs = json.loads(meta["posecam.outputs"])
-            joints = tuple(json.loads(meta.get("posecam.joints", "[]")))
-            spec = InputSpec(inp["name"], inp["layout"], tuple(inp["size"]),
-                             tuple(inp.get("mean", (0, 0, 0))), tuple(inp.get("std", (1, 1, 1))),
-                             int(inp.get("multiple", 0)))
+            joints = json.loads(meta.get("posecam.joints", "[]"))
             anchors = json.loads(meta.get("posecam.anchors", "{}"))
-            train_focal = float(meta["posecam.train_focal"]) if "posecam.train_focal" in meta else None
-            train_width = float(meta["posecam.train_image_width"]) if "posecam.train_image_width" in meta else None
-        except (KeyError, ValueError, TypeError) as exc:
-            raise ModelError(f"{source}: malformed posecam metadata ({exc})") from None
+        except (KeyError, ValueError, RecursionError) as exc:
+            raise ModelError(f"{source}: malformed posecam metadata ({exc!r})") from None
+        spec, outputs, joints, train_focal, train_width = _checked(source, inp, outputs, joints, meta)
         decoder = meta.get("posecam.decoder", "blazepose_ssd" if kind == "detector" else "")
         if kind == "detector" and decoder not in DECODERS:
             raise ModelError(f"{source}: unknown detector decoder {decoder!r}; expected one of {', '.join(DECODERS)}")
@@ -136,3 +132,44 @@ class ModelContract:
                              "posecam.train_image_width and posecam.box_input")
         return cls(kind, meta.get("posecam.name", source), spec, outputs, joints, anchors,
                    meta.get("posecam.box_input"), train_focal, train_width, decoder)
+
+
+MAX_INPUT_SIDE = 2048      # pixels: a model input's height or width (a 40000 px one is refused)
+
+
+def _checked(source: str, inp: object, outputs: object, joints: object, meta: dict[str, str]):
+    """The metadata's values, each checked (posecam.validate) before anything is allocated
+    from them: input size whole numbers in 1..MAX_INPUT_SIDE, mean and std 3 finite numbers
+    (std not 0), multiple 0..256, outputs and joints strings, training camera positive."""
+    from posecam.validate import MAX_JOINTS, MAX_PIXEL, Field
+
+    check = Field(source, ModelError)
+    check.table(inp, "posecam.input")
+    for key in ("name", "layout", "size"):
+        if key not in inp:
+            raise check.fail(f"posecam.input.{key}", "is missing")
+    size = check.numbers(inp["size"], "posecam.input.size", ((2,),), 1, MAX_INPUT_SIDE)
+    if not all(float(v).is_integer() for v in size):
+        raise check.fail("posecam.input.size", "must be 2 whole numbers", size.tolist())
+    mean = check.numbers(inp.get("mean", [0, 0, 0]), "posecam.input.mean", ((3,),), -1e3, 1e3)
+    std = check.numbers(inp.get("std", [1, 1, 1]), "posecam.input.std", ((3,),), -1e3, 1e3)
+    if not std.all():
+        raise check.fail("posecam.input.std", "must not be 0", std.tolist())
+    multiple = check.number(inp.get("multiple", 0), "posecam.input.multiple", 0, 256, whole=True)
+    spec = InputSpec(check.text(inp["name"], "posecam.input.name"), check.text(inp["layout"], "posecam.input.layout"),
+                     (int(size[0]), int(size[1])), tuple(map(float, mean)), tuple(map(float, std)), multiple)
+    check.table(outputs, "posecam.outputs")
+    outputs = {check.text(k, "posecam.outputs"): check.text(v, f"posecam.outputs.{k}") for k, v in outputs.items()}
+    names = check.items(joints, "posecam.joints", MAX_JOINTS)
+    joints = tuple(check.text(j, "posecam.joints", limit=64) for j in names)
+    train = []
+    for key in ("posecam.train_focal", "posecam.train_image_width"):
+        if key not in meta:
+            train.append(None)
+            continue
+        try:
+            value = float(meta[key])
+        except ValueError:
+            raise check.fail(key, "must be a number", meta[key]) from None
+        train.append(float(check.number(value, key, 0, MAX_PIXEL, open_lo=True)))
+    return spec, outputs, joints, train[0], train[1]

@@ -15,7 +15,7 @@ from pathlib import Path
 from posecam.geometry.camera import Intrinsics
 from posecam.errors import InputError
 from posecam.io.exif import focal_length_35mm
-from posecam.io.validate import MAX_PIXEL, Field
+from posecam.validate import MAX_PIXEL, Field
 from posecam.media import check_input
 
 
