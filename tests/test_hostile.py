@@ -128,7 +128,7 @@ ROWS = [
     ("unknown-command", "predcit {in}/messi.jpg", 2, "No such command", ()),
     ("viz-video-for-image", "predict {in}/messi.jpg --viz {out}/v.mp4", 2, "--viz", ()),
     # intrinsics
-    ("fx-1e300", "predict {in}/messi.jpg --fx 1e300 -o {out}/p.json", 2, "field of view", ()),
+    ("fx-1e300", "predict {in}/messi.jpg --fx 1e300 -o {out}/p.json", 2, "--fx", ()),
     ("fx-tiny", "predict {in}/messi.jpg --fx 1 -o {out}/p.json", 2, "field of view", ()),
     ("cx-alone", "predict {in}/messi.jpg --fx 500 --cx 10 -o {out}/p.json", 2, "--cx and --cy", ()),
     ("cx-without-fx", "predict {in}/messi.jpg --cx 10 --cy 10 -o {out}/p.json", 2, "focal length", ()),

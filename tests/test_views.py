@@ -91,7 +91,7 @@ def test_out_dir_writes_what_dash_o_writes(tmp_path):
     (["--calibration", "{calib}", "--intrinsics", "{calib}"], 2, "--calibration gives every camera's intrinsics"),
     (["--camera", "left"], 2, "give the file too"),
     (["--detector", "nope"], 2, "Invalid value for '--detector'"),
-    (["--min-presence", "2"], 2, "min_presence must lie in [0, 1]"),
+    (["--min-presence", "2"], 2, "--min-presence': '2' is not a finite number >= 0 and <= 1"),
     (["--max-people", "0"], 2, "--max-people"),
 ])
 def test_fuse_takes_predicts_options_and_checks_them_before_any_work(args, code, words, tmp_path):
