@@ -21,7 +21,7 @@ class InputSummary:
     def __init__(self, rec) -> None:
         self.rec = rec
         self.frames = 0
-        self.people: dict[int, list] = {}      # id -> [frames, sum of root (3,), sum of mean confidence]
+        self.people: dict[int, list] = {}      # id -> [frames, sum of root (3,), sum of mean confidence, height]
         self.dropped = 0                       # people the pose model dropped (presence too low) ...
         self.best_dropped = 0.0                # ... and the highest presence among them
 
@@ -30,10 +30,12 @@ class InputSummary:
         self.dropped += len(frame.dropped)
         self.best_dropped = max([self.best_dropped, *frame.dropped])
         for p in frame.people:
-            totals = self.people.setdefault(p.id, [0, 0.0, 0.0])
+            totals = self.people.setdefault(p.id, [0, 0.0, 0.0, ""])
             totals[0] += 1
             totals[1] = totals[1] + p.root
             totals[2] += float(p.confidence.mean())
+            if p.height_source:         # the latest: the track's scale as the video went on
+                totals[3] = f"{p.height:.2f} {p.height_source[0]}"
 
 
 def print_summary(summaries: list[InputSummary], console, unreadable: int = 0) -> None:
@@ -41,17 +43,19 @@ def print_summary(summaries: list[InputSummary], console, unreadable: int = 0) -
 
     root = summaries[0].rec.root_joint if summaries else "root"
     table = Table(title=f"posecam: {root} in camera coordinates (mm)")
-    for col in ("input", "frames", "person", "x", "y", "z", "mean conf."):
+    for col in ("input", "frames", "person", "x", "y", "z", "mean conf.", "height"):
         table.add_column(col, justify="right" if col not in ("input",) else "left")
     for sm in summaries:
         name = shown(Path(sm.rec.source).name)
-        for pid, (n, root_sum, conf_sum) in sorted(sm.people.items()):
-            table.add_row(name, str(n), str(pid), *(f"{v:.0f}" for v in root_sum / n), f"{conf_sum / n:.2f}")
+        for pid, (n, root_sum, conf_sum, height) in sorted(sm.people.items()):
+            table.add_row(name, str(n), str(pid), *(f"{v:.0f}" for v in root_sum / n), f"{conf_sum / n:.2f}",
+                          height or "-")
         if not sm.people:
-            table.add_row(name, str(sm.frames), "-", "-", "-", "-", "-")
+            table.add_row(name, str(sm.frames), "-", "-", "-", "-", "-", "-")
     console.print(table)
     console.print(f"frames: frames the person is in; x right, y down, z forward (depth): mean of the person's "
-                  f"{root} position; mean conf.: mean joint confidence, 0 to 1", style="dim")
+                  f"{root} position; mean conf.: mean joint confidence, 0 to 1; height: m, the person's scale "
+                  "fixed with it, g given, f from the floor, m the pose model's", style="dim")
     known = [sm.rec for sm in summaries if sm.rec.intrinsics]
     same = len({(r.intrinsics.fx, r.intrinsics.fy, r.intrinsics.cx, r.intrinsics.cy) for r in known}) == 1
     for rec in known[:1] if same else known:   # one line, or one per input when they differ
