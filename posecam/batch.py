@@ -12,6 +12,8 @@ an interrupted run leaves only complete files and running it again does only wha
 from __future__ import annotations
 
 import os
+import signal
+import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, replace
@@ -136,17 +138,84 @@ def run_tasks(tasks: list[Task], work: Callable[[Task], str], jobs: int = 1,
             yield work(task)
 
 
+_stopping = False   # in a worker process: a signal came, start no other task
+_busy = False       # in a worker process: a task is running
+
+
+def _stop_worker(signum, frame) -> None:
+    """A worker's Ctrl-C or SIGTERM: the task in hand stops with KeyboardInterrupt (its staged
+    files removed, nothing committed) and no other task starts; an idle worker just ends."""
+    global _stopping
+    _stopping = True
+    for other in (signal.SIGINT, signal.SIGTERM):   # a second signal must not break the clean-up
+        signal.signal(other, _ignore)   # (not SIG_IGN: Python reports a signal already pending then)
+    if not _busy:
+        os._exit(128 + signum)
+    raise KeyboardInterrupt
+
+
+def _ignore(signum, frame) -> None:
+    pass
+
+
+def _start_worker() -> None:
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, _stop_worker)
+
+
+def _guarded(work: Callable[[Task], str], task: Task) -> str:
+    global _busy
+    if _stopping:
+        raise KeyboardInterrupt
+    _busy = True
+    try:
+        return work(task)
+    except KeyboardInterrupt:
+        if _stopping:   # the task's `with` blocks have removed what it staged: nothing to report
+            os._exit(130)
+        raise
+    finally:
+        _busy = False
+
+
 def _run_in_processes(tasks: list[Task], work: Callable[[Task], str], jobs: int) -> Iterator[str]:
-    with ProcessPoolExecutor(max_workers=min(jobs, len(tasks))) as pool:
-        pending = {pool.submit(work, t) for t in tasks}
-        try:
-            while pending:
-                done, pending = wait(pending, return_when=FIRST_COMPLETED)
-                for future in done:
-                    yield future.result()
-        finally:
-            for future in pending:
-                future.cancel()
+    """Each task in one of `jobs` worker processes. On Ctrl-C, SIGTERM or a failed task the
+    workers are stopped at once: each gets SIGTERM (its task stops, writing nothing; queued
+    tasks never start), and any still alive after STOP_WAIT seconds is killed."""
+    pool = ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), initializer=_start_worker)
+    finished = False
+    try:
+        pending = {pool.submit(_guarded, work, t) for t in tasks}
+        while pending:
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for future in done:
+                yield future.result()
+        finished = True
+    finally:
+        if finished:
+            pool.shutdown(wait=True)
+        else:
+            _stop_workers(pool)
+
+
+STOP_WAIT = 1.5   # seconds a worker has to stop after SIGTERM before it is killed
+
+
+def _stop_workers(pool: ProcessPoolExecutor) -> None:
+    processes = list((pool._processes or {}).values())   # the executor has no public handle on them
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        if process.is_alive():
+            try:
+                os.kill(process.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+    deadline = time.monotonic() + STOP_WAIT
+    for process in processes:
+        process.join(max(0.0, deadline - time.monotonic()))
+        if process.is_alive():
+            process.kill()
+            process.join(1.0)
 
 
 def _call(work: Callable[[Task], str], task: Task) -> str:

@@ -503,3 +503,36 @@ def test_a_variable_frame_rate_video_gets_its_real_times(tmp_path):
     assert media.fps == 30.0                                   # the container's average rate ...
     assert times == pytest.approx(expected, abs=1e-6)          # ... but each frame's own time
     assert max(abs(t - i / 30) for i, t in enumerate(times)) > 0.05   # what index / fps would be off
+
+
+# ---- signals: a --jobs run ends at once, writing nothing after the signal ---------------------
+
+@pytest.mark.parametrize("sig, code, word, group", [
+    (signal.SIGINT, 130, "interrupted", True),     # Ctrl-C in a terminal: the whole process group
+    (signal.SIGTERM, 143, "terminated", False),    # kill PID: the parent alone
+])
+def test_a_signal_ends_a_jobs_run_within_2_s_writing_nothing_after_it(tmp_path, sig, code, word, group):
+    inputs = []
+    for i in range(5):
+        inputs.append(tmp_path / f"v{i}.mp4")
+        shutil.copy(VIDEO, inputs[-1])
+    out = tmp_path / "out"
+    out.mkdir()
+    proc = subprocess.Popen([sys.executable, "-m", "posecam", "predict", *inputs, "--model", "lite", "--out-dir", out,
+                             "--jobs", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    deadline = time.time() + 300
+    while time.time() < deadline and not any(p.suffix == ".json" for p in out.iterdir()):
+        time.sleep(0.02)
+    time.sleep(0.3)                         # the next tasks are under way
+    written = {p.name for p in out.iterdir() if p.suffix == ".json"}
+    assert written and len(written) < 5
+    start = time.perf_counter()
+    os.killpg(proc.pid, sig) if group else proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    took = time.perf_counter() - start
+    time.sleep(1.0)                         # a worker left behind would write now
+    assert proc.returncode == code and err.strip().splitlines()[-1] == f"posecam: {word}", (proc.returncode, err)
+    assert "Traceback" not in err and "Error" not in err, err
+    assert took < 2.0, f"{took:.1f} s"
+    assert {p.name for p in out.iterdir()} == written, "a file was written after the signal, or staging left"
