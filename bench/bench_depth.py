@@ -115,6 +115,16 @@ def root_errors(cams, recs, ref, who: str | None = None) -> list[float]:
     return errs
 
 
+def depth_sd_coverage(cams, recs, ref) -> tuple[float, float, int]:
+    """How often the root's depth error lies within depth_sd and 2 depth_sd (68 % and 95 % for
+    an honest standard uncertainty), over the person-frames with a reference."""
+    ratios = [abs(p.root[2] - cam.to_camera(ref[(c, f.index, p.id)][0])[2]) / p.depth_sd
+              for c, (cam, rec) in enumerate(zip(cams, recs)) for f in rec.frames for p in f.people
+              if (c, f.index, p.id) in ref and np.isfinite(p.depth_sd) and p.depth_sd > 0]
+    r = np.array(ratios)
+    return float(np.mean(r <= 1)), float(np.mean(r <= 2)), len(r)
+
+
 def heights(recs, ref) -> dict[str, list[float]]:
     """Estimated heights (m) of the tracks, by who they are (the reference's majority), per track."""
     out = {"adult": [], "child": []}
@@ -164,6 +174,8 @@ def take_bench(take: str, cache: Path) -> None:
         if opts:
             est = heights(scaled, ref)
             floors = ["%.2f m" % (r.floor.distance / 1000) if r.floor else "refused" for r in scaled]
+            one, two, n = depth_sd_coverage(cams, scaled, ref)
+            print(f"{'':40s}depth error within depth_sd: {100 * one:.0f} %, within 2 depth_sd: {100 * two:.0f} % ({n})")
             print(f"{'':40s}estimated heights (m): " + "; ".join(
                 f"{who} ({TRUTH_M[who]:.2f}) " + ", ".join(f"{h:.2f}" for h in hs) for who, hs in est.items() if hs)
                 + f"; floor (camera height): {', '.join(floors)}")

@@ -44,7 +44,9 @@ MIN_CONF = 0.5                  # joints that measure the skeleton must be this 
 SAMPLES = 512                   # per track: the most frames kept for its statistics
 ADULT_CLUSTER = 0.85            # tracks at least this fraction of the tallest are the adult-sized ones
 MODEL_SD = 0.06                 # relative uncertainty of the pose model's adult size for one person
-GIVEN_SD = 0.01                 # relative uncertainty of a given height (typed to the centimetre)
+GIVEN_SD = 0.035                # relative uncertainty of the scale a given height fixes: the spread of the
+                                # 1.72 m adult's depth over the 8 lab views of the Pose2Sim takes (the
+                                # pose model's per-view bias, 0.92-1.02), the typed height's own ~0.01 aside
 MIN_TRACK_CONTACTS = 5          # foot contacts a track needs for the floor to scale it
 REFIT_EVERY = 30                # frames between fits of the floor (and at the end)
 LENS_SAMPLES = 64               # per track: upright frames kept for the lens

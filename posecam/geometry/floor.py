@@ -111,8 +111,9 @@ def fit_floor(contacts: dict[int, np.ndarray], upright: np.ndarray) -> FloorFit:
     if spread > MAX_SPREAD:
         return FloorFit(None, {}, {}, f"the foot contacts do not lie on one plane (spread {100 * spread:.0f} % of "
                                       "the camera height; a moving camera, or nobody on the ground)")
-    scale_sd = {t: max(_mad(c @ normal * scales[t]), 0.01) / np.sqrt(len(c)) + spread / 3
-                for t, c in contacts.items()}
+    # a track's median contact: its frames' scatter over their number, and the plane's own spread
+    # (the feet's offsets from it, shared by the frames of a track: it does not average out)
+    scale_sd = {t: float(np.hypot(_mad(c @ normal * scales[t]) / np.sqrt(len(c)), spread)) for t, c in contacts.items()}
     return FloorFit(Floor(normal, 1.0, spread, n_contacts, len(contacts)), scales, scale_sd)
 
 
