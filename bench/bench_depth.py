@@ -105,6 +105,19 @@ def reference(cams, recs, take: str):
     return out
 
 
+def ear_heights(cams, recs, ref) -> dict[str, np.ndarray]:
+    """Per person (adult / child): the ears' midpoint triangulated by the DLT, height above the lab
+    floor (world z, mm), one value per synchronised group: what the lab says of their sizes."""
+    groups: dict[tuple, list] = {}
+    for (c, fi, pid), (world, who) in ref.items():
+        groups.setdefault((tuple(np.round(world, 3)), who), []).append((c, fi, pid))
+    out: dict[str, list] = {"adult": [], "child": []}
+    for (_, who), keys in groups.items():
+        members = [(c, next(p for p in recs[c].frames[fi].people if p.id == pid)) for c, fi, pid in keys]
+        out[who].append(dlt(cams, [(c, p.keypoints_2d[HEAD]) for c, p in members])[2])
+    return {who: np.array(z) for who, z in out.items() if z}
+
+
 def root_errors(cams, recs, ref, who: str | None = None) -> list[float]:
     """Mean root error (mm) per camera against the reference (of the adult or the child only)."""
     errs = []
@@ -160,6 +173,9 @@ def take_bench(take: str, cache: Path) -> None:
     ref = reference(cams, recs, take)
     print(f"\n== {take}-person take: root error (mm) vs the lab DLT pelvis, "
           f"{len(ref)} person-frames matched; unsmoothed | smoothed (predict's default)")
+    print("lab: the ears' height above the floor (m), median / 90th percentile: " + ", ".join(
+        f"{who} {np.median(z) / 1000:.2f} / {np.percentile(z, 90) / 1000:.2f}" for who, z in ear_heights(cams, recs, ref).items())
+        + " (a person's ears are at 0.936 of the stature when upright)")
     print(f"{'':40s}" + "".join(f"{c:>8s}" for c in (*CAMERAS, "all")) + " |" + "".join(f"{c:>8s}" for c in (*CAMERAS, "all")))
     for label, opts in variants(take).items():
         scaled = [scale_recording(r, opts) for r in recs] if opts else recs
