@@ -77,6 +77,25 @@ def test_bundled_model_matches_its_golden_output(name):
         pytest.fail(f"{name}: off its golden output by {worst:.2f} px (drawn: {_save_failure(name, ours, theirs)})")
 
 
+
+@pytest.mark.parametrize("variant", ["lite", "full"])
+def test_landmark_goldens_are_the_original_models_output(variant):
+    """The goldens are not only what posecam once printed: Google's original TFLite model, run
+    by LiteRT on the same crop, puts every one of the 33 landmarks within the margin of them."""
+    litert = pytest.importorskip("ai_edge_litert.interpreter", reason="install the test extra")
+    assets = pytest.importorskip("export.assets", reason="install the export extra")
+    golden = np.array(json.loads((GOLDEN / f"{variant}_balance.json").read_text())["uv"])
+    spec = load_model(variant).contract.input
+    x = to_input_tensor(PERSON.crop(read_image(PHOTO), spec.size[0])[None], spec)
+    interp = litert.Interpreter(model_path=str(assets.asset_path(f"pose_landmark_{variant}.tflite")))
+    interp.allocate_tensors()
+    interp.set_tensor(interp.get_input_details()[0]["index"], x)
+    interp.invoke()
+    out = {d["name"]: interp.get_tensor(d["index"]) for d in interp.get_output_details()}
+    theirs = PERSON.to_image(out["Identity"].reshape(-1, 5)[:33, :2].astype(float), spec.size[0])
+    assert np.abs(theirs - golden).max() <= PIXEL_MARGIN
+
+
 if __name__ == "__main__":
     GOLDEN.mkdir(parents=True, exist_ok=True)
     for case, run in CASES.items():
