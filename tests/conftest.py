@@ -3,6 +3,8 @@ from pathlib import Path
 
 import pytest
 
+import posecam  # noqa: F401  -- first: it sets OpenCV's image-size limit, which cv2 reads when a test module loads it
+
 DATA = Path(__file__).parent / "data"
 EXAMPLES = Path(__file__).parent.parent / "examples"
 
