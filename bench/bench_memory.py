@@ -1,4 +1,5 @@
-"""Peak memory of `posecam predict VIDEO -o poses.json` (and `.csv`) against the video's length.
+"""Peak memory of `posecam predict VIDEO -o poses.json` (and `.csv`, and `--out-dir DIR`, one
+file per input through the batch task) against the video's length.
 
 The videos are Pose2Sim's demo clip (cam01, one person, `python -m export.assets` fetches it),
 scaled to 480 px tall and played forward and backward until they hold ~300 and ~3000 frames,
@@ -6,7 +7,7 @@ so the person keeps moving smoothly. Each run is a child process; its peak resid
 comes from wait4(). A flat line means memory does not grow with the video: a day-long video
 needs no more than a short one.
 
-    python bench/bench_memory.py                      # 300 and 3000 frames, JSON and CSV, 3 runs each
+    python bench/bench_memory.py                      # 300 and 3000 frames, JSON, CSV and --out-dir, 3 runs each
     python bench/bench_memory.py --source /tmp/old    # the same against another checkout (before/after)
 """
 
@@ -68,7 +69,7 @@ def peak_rss_mb(args: list[str], source: Path) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--frames", type=int, nargs="+", default=[300, 3000])
-    ap.add_argument("--formats", nargs="+", default=["json", "csv"], choices=["json", "csv"])
+    ap.add_argument("--formats", nargs="+", default=["json", "csv", "out-dir"], choices=["json", "csv", "out-dir"])
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--model", default="lite")
     ap.add_argument("--source", type=Path, default=REPO, help="the posecam checkout to measure")
@@ -77,14 +78,16 @@ def main() -> None:
     cache.mkdir(parents=True, exist_ok=True)
     print(f"posecam from {opts.source}, model {opts.model}, {HEIGHT} px tall video, "
           f"peak RSS in MB, median of {opts.repeats} runs")
-    print(f"{'frames':>7} " + " ".join(f"{'-o ' + f:>12}" for f in opts.formats))
+    print(f"{'frames':>7} " + " ".join(f"{'--out-dir' if f == 'out-dir' else '-o ' + f:>12}" for f in opts.formats))
     for frames in opts.frames:
         video = make_video(cache / f"pingpong_{frames}.mp4", frames)
         row = []
         for fmt in opts.formats:
-            with tempfile.TemporaryDirectory() as tmp:
-                runs = [peak_rss_mb(["predict", str(video), "--model", opts.model, "-o", f"{tmp}/poses.{fmt}"],
-                                    opts.source) for _ in range(opts.repeats)]
+            runs = []
+            for _ in range(opts.repeats):
+                with tempfile.TemporaryDirectory() as tmp:
+                    out = ["--out-dir", tmp] if fmt == "out-dir" else ["-o", f"{tmp}/poses.{fmt}"]
+                    runs.append(peak_rss_mb(["predict", str(video), "--model", opts.model, *out], opts.source))
             row.append(statistics.median(runs))
         print(f"{frames:>7} " + " ".join(f"{mb:>12.0f}" for mb in row), flush=True)
 
