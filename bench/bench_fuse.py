@@ -20,7 +20,11 @@ pelvis's distance to the nearest true pelvis of its frame (median, mm).
 Before / after in one run: `--before DIR` runs the same fuses with another checkout's posecam
 (`git archive <commit> posecam | tar -x -C DIR`) in a subprocess and scores them the same way.
 
-Usage: python bench/bench_fuse.py [--cache DIR] [--take single|multi|both] [--before DIR]
+Speed: the time to fuse from the pose JSON against the time `posecam predict` took to make it
+(the same videos, measured once when the cache is made); and the single take looped to 3600
+frames, fused without a calibration and with the lab's (time, frames/s, peak memory).
+
+Usage: python bench/bench_fuse.py [--cache DIR] [--take single|multi|both] [--before DIR] [--loops N]
 Per-view predictions are made once with the default `posecam predict` (timed: the time to
 predict the videos is the peer of the time to fuse them) and cached under DIR/<take>/camNN.json.
 """
@@ -278,7 +282,7 @@ def worker(take: str, cache: Path, offsets: list[float], out: Path) -> None:
                 continue
             from posecam.heights import Heights
 
-            kw["heights"] = Heights.parse(TAKES[take][1])
+            kw["heights"] = Heights.parse([TAKES[take][1]])
         if cfg.get("calibration"):
             kw["calibration"] = lab
         if cfg.get("sync"):
@@ -299,10 +303,48 @@ def worker(take: str, cache: Path, offsets: list[float], out: Path) -> None:
                           "R": [c.rotation.tolist() for c in cams], "t": [c.translation.tolist() for c in cams],
                           "fx": [c.intrinsics.fx for c in cams], "offsets_kept": [res.offsets[v] for v in res.views],
                           "warnings": res.warnings, "pelvis": pelvis,
+                          **({"scale": res.scale_source} if hasattr(res, "scale_source") else {}),
                           "reports": [{k: (v if not isinstance(v, np.ndarray) else v.tolist())
                                        for k, v in vars(r).items() if isinstance(v, (int, float, str, list, tuple))}
                                       for r in res.cameras]}
     out.write_text(json.dumps(results))
+
+
+def long_worker(cache: Path, loops: int, out: Path) -> None:
+    """The single take looped `loops` times (4 views x 100 * loops frames): time and peak memory
+    of fusing it without a calibration (--sync auto) and with the lab calibration."""
+    import resource
+
+    from posecam import read_poses
+    from posecam.io.calibration import read_calibration
+    from posecam.multiview.fuse import FuseOptions, fuse_recordings
+    from posecam.results import Frame
+
+    recs = [read_poses(cache / "single" / f"{n}.json")[0] for n in NAMES]
+    for r in recs:
+        n, dt = len(r.frames), 1.0 / (r.fps or 60.0)
+        r.frames = [Frame(k * n + f.index, (k * n + f.index) * dt, f.people) for k in range(loops) for f in r.frames]
+    lab = read_calibration(ROOT / TAKES["single"][0] / "Calib.qca.txt")
+    results = {"frames": len(recs[0].frames)}
+    for label, opts in (("no calibration, --sync auto", FuseOptions(sync=True)),
+                        ("lab calibration, offsets given", FuseOptions(calibration=lab, offsets=[0, 0, 4, 0]))):
+        t0 = time.perf_counter()
+        fuse_recordings(recs, opts)
+        results[label] = time.perf_counter() - t0
+    results["peak_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    out.write_text(json.dumps(results))
+
+
+def long_take(cache: Path, loops: int) -> None:
+    out = cache / "long_after.json"
+    subprocess.run([sys.executable, __file__, "--long", str(out), "--loops", str(loops), "--cache", str(cache)],
+                   env=dict(os.environ, PYTHONPATH=str(ROOT)), check=True)
+    r = json.loads(out.read_text())
+    n = r["frames"]
+    print(f"== long take: the single take looped to {n} frames x 4 views (this checkout)")
+    for label in ("no calibration, --sync auto", "lab calibration, offsets given"):
+        print(f"   {label}: {r[label]:.1f} s ({n / r[label]:.0f} frames/s)")
+    print(f"   peak memory of the process: {r['peak_mb']:.0f} MB")
 
 
 def run_worker(take: str, cache: Path, offsets: list[float], code: Path) -> dict:
@@ -341,12 +383,13 @@ def show(label: str, runs: dict[str, dict], truth: Truth) -> None:
         if "error" in r:
             print(f"   {code:6s}: FAILED {r['error']}")
             continue
+        r.setdefault("frame", "world" if "lab calibration" in label else "camera")
         s = truth.score(r)
         print(f"   {code:6s}: {r['time_s']:.1f} s; rotation median {s['rot_median']:.2f} deg "
               f"({', '.join(f'{k} {v:.1f}' for k, v in s['rot'].items())}); focal max {s['focal_max']:.1f} % "
               f"({', '.join(f'{k} {v:+.1f}' for k, v in s['focal'].items())}); centre median {s['centre_median']:.0f} mm; "
               f"pelvis median {s['pelvis_median']:.0f} mm ({s['pelvises']}); offsets {r['offsets_kept']} "
-              f"(max error {s['offset_max']:.2f} frame)")
+              f"(max error {s['offset_max']:.2f} frame)" + (f"; scale: {r['scale']}" if "scale" in r else ""))
         for w in r["warnings"]:
             print(f"           warning: {w}")
 
@@ -373,14 +416,20 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, default=Path("/tmp/fuse_cache"))
     ap.add_argument("--take", choices=[*TAKES, "both"], default="both")
     ap.add_argument("--before", type=Path, help="a checkout of the posecam to compare with")
+    ap.add_argument("--loops", type=int, default=36, help="the long take: the single take this many times")
     ap.add_argument("--worker", type=Path, help=argparse.SUPPRESS)
+    ap.add_argument("--long", type=Path, help=argparse.SUPPRESS)
     ap.add_argument("--offsets", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
         return worker(args.take, args.cache, [float(o) for o in args.offsets.split(",")], args.worker)
+    if args.long:
+        return long_worker(args.cache, args.loops, args.long)
     for key in TAKES:
         if args.take in (key, "both"):
             bench(args.cache, key, args.before)
+    if args.loops:
+        long_take(args.cache, args.loops)
 
 
 if __name__ == "__main__":

@@ -85,3 +85,36 @@ def test_fuse_with_qualisys_calibration(tmp_path):
     assert json.loads(out.read_text())["inputs"][0]["frame"] == "world"
     rows = [line for line in r.stdout.replace("│", "|").splitlines() if line.count("|") > 5 and "front" in line]
     assert rows and float(rows[0].split("|")[3]) < 10, r.stdout        # error px: the right cameras
+
+
+def test_gate_refuses_two_unrelated_real_recordings(tmp_path):
+    """OpenCV's pedestrian clip and the same camera 40 s later: other people, other motion.
+    Some rig always fits; the quality gate must refuse it, in one line, writing nothing."""
+    out = tmp_path / "x.json"
+    r = run_posecam("fuse", DATA / "vtest_000-100.json", DATA / "vtest_400-500.json", "--sync", "auto", "-o", out)
+    assert r.returncode == 5, (r.returncode, r.stderr)
+    errors = [line for line in r.stderr.splitlines() if line.startswith("posecam: error:")]
+    assert len(errors) == 1 and "dropped" in errors[0], r.stderr
+    assert "Traceback" not in r.stderr and not out.exists()
+
+
+def test_twin_views_are_refused(tmp_path):
+    twin = tmp_path / "copy.json"
+    twin.write_bytes((DATA / "vtest_000-100.json").read_bytes())
+    r = run_posecam("fuse", DATA / "vtest_000-100.json", twin, "-o", tmp_path / "x.json")
+    assert r.returncode == 5 and "hold the same poses" in r.stderr, r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1
+
+
+def test_estimated_rig_reports_spreads_in_json_and_toml_and_takes_heights(tmp_path):
+    cams, paths = _inputs(tmp_path, 60)
+    out, toml = tmp_path / "fused.json", tmp_path / "rig.toml"
+    r = run_posecam("fuse", *paths, "--height", "1.9", "-o", out, "--save-calibration", toml)
+    assert r.returncode == 0, r.stderr
+    listed = json.loads(out.read_text())["inputs"][0]["cameras"]
+    assert [c["name"] for c in listed] == [c.name for c in cams]
+    for c in listed[1:]:
+        assert 0 < c["rotation_spread_deg"] < 2 and 0 < c["focal_spread_pct"] < 10 and c["position_spread_mm"] > 0, c
+    comments = [line for line in toml.read_text().splitlines() if line.startswith("# offset")]
+    assert len(comments) == len(cams) and "rotation" in comments[1], toml.read_text()
+    assert "metric scale: the heights given: person 0 1.90 m" in r.stdout, r.stdout

@@ -11,7 +11,7 @@ import click
 
 from posecam.commands.common import (angle_options, check_angles, check_output, estimator_options, frame_options,
                                      frame_progress, intrinsics_options, make_estimator_options, make_frame_selection,
-                                     make_intrinsics_options, many_options, progress_bar,
+                                     make_intrinsics_options, many_options, progress_bar, height_option,
                                      refuse_alone, report_written, stdout_report, shown, warn)
 from posecam.errors import InputError
 
@@ -58,6 +58,7 @@ def print_report(result: FusionResult, console) -> None:
                       str(rep.swaps_fixed), focal, f"{cx:.0f}, {cy:.0f}", " ".join(f"{v / 1000:.1f}" for v in cam.centre),
                       *(_spread(rep) if estimated else ()))
     console.print(table)
+    console.print(f"metric scale: {result.scale_source}")
     console.print("offset: frames against the first view (found by --sync auto: ± one standard deviation where "
                   "known, confidence 0..1); error px: median reprojection error of the fused joints; joints: joints "
                   "used; L/R: frames with left and right swapped back; f px, cx, cy: intrinsics; centre m: "
@@ -107,6 +108,7 @@ def parse_offsets(text: str) -> list[float]:
               help="Largest frame offset --sync auto tries, in frames either way.")
 @click.option("--viz", type=click.Path(), help="FILE.png or FILE.jpg: the fused pose projected into every view, in "
                                                "one frame (named on it); FILE.mp4: every fused frame.")
+@height_option
 @angle_options
 @frame_options
 @estimator_options
@@ -114,7 +116,7 @@ def parse_offsets(text: str) -> list[float]:
 @intrinsics_options(per_camera=True)
 def fuse_command(inputs, output, calibration, save_calibration, method, sync, offsets, max_offset, viz,
                  viz3d=None, smooth=True, trc_y_up=False, out_dir=None, out_format="json",
-                 jobs=1, ray_address=None, angles=False, plot=None, **flags) -> None:
+                 jobs=1, ray_address=None, heights=(), angles=False, plot=None, **flags) -> None:
     """Fuse several cameras' views of one scene.
 
     INPUTS are 2 or more videos, image folders or `posecam predict` JSON files, one per
@@ -133,6 +135,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     from posecam.io.trc import MARKER_SUFFIXES, check_markers_output, write_markers
     from posecam.media import VIDEO_SUFFIXES
     from posecam.viz.sinks import PICTURE_SUFFIXES
+    from posecam.heights import Heights
     from posecam.multiview.fuse import FuseOptions, fuse_recordings
     from posecam.viz.render3d import VIEW3D_SUFFIXES, write_3d_view
     from posecam.angles import angle_names
@@ -173,7 +176,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
                        per_person=markers)  # every output checked before the work
     rig = read_calibration(calibration) if calibration else None
     opts = FuseOptions(calibration=rig, method=method, offsets=offset_list, sync=sync == "auto",
-                       max_offset=max_offset)
+                       max_offset=max_offset, heights=Heights.parse(heights))
     if many:
         from posecam.commands.many import fuse_many
 

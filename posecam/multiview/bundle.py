@@ -13,6 +13,7 @@ points are scaled so that the fused bones are as long as the monocular skeletons
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import cv2
@@ -219,8 +220,9 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     n_v, n_f, n_j = conf.shape
     ref = rig.names.index(rig.reference) if rig.reference else 0
     start = triangulate(cams, uv, conf)                                   # (F, J, 3)
-    with np.errstate(all="ignore"):
-        centroid = np.nanmean(start, axis=1) if np.isfinite(start).any() else np.full((n_f, 3), np.nan)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)                  # frames with no joint: NaN
+        centroid = np.nanmean(start, axis=1)
     seen = ((observation_weights(uv, conf) > 0).sum(axis=0) >= 2).sum(axis=1)   # (F,) joints seen twice
     frames = coverage_frames(np.where(np.isfinite(centroid).all(axis=1, keepdims=True), centroid, np.nan),
                              seen.astype(float), opts.max_frames)

@@ -8,8 +8,9 @@ mistaken for another) is left out, and the consensus runs again.
 
 The quality gate drops, with one warning line each, a camera that the data cannot pin down:
 too few frames shared with the others, a reprojection error too high, geometry that tells
-nothing (its rays meet the others' at a tiny angle) or fused points behind it, or a focal
-length out of any lens's range. What is left is estimated again without it.
+nothing (its rays meet the others' at a tiny angle) or fused points behind it, a focal
+length out of any lens's range, or a spread of its rotation or focal length (from the bundle
+adjustment's Jacobian) too wide to trust. What is left is estimated again without it.
 """
 
 from __future__ import annotations
@@ -33,6 +34,10 @@ MAX_ERROR_PX = 40.0             # median bundle-adjustment reprojection error pe
 MIN_RAY_ANGLE_DEG = 8.0
 MAX_BEHIND = 0.05               # fraction of the fused points that may lie behind a camera
 FOCAL_WIDTHS = (0.2, 10.0)      # plausible focal lengths, in image widths
+# one standard deviation (posecam.multiview.bundle.CameraSpread) above which the data does not
+# pin a camera: people too still, too few frames, or geometry that tells little
+MAX_ROTATION_SPREAD_DEG = 3.0
+MAX_FOCAL_SPREAD_PCT = 15.0
 OUTLIER_FACTOR = 3.0            # a person's stretch this many times the median residual: outlier
 
 
@@ -79,7 +84,8 @@ def _consensus(info: list[ViewInfo], people: list[Observations], views: list[int
     return fit.rig
 
 
-def _gate(rig: Rig, points: np.ndarray, errors: np.ndarray, obs: Observations, min_conf: float) -> list[str | None]:
+def _gate(rig: Rig, points: np.ndarray, errors: np.ndarray, obs: Observations, min_conf: float,
+          spreads: list[CameraSpread] | None = None) -> list[str | None]:
     """Per camera, why it cannot be trusted (None: it can)."""
     pts = points.reshape(-1, 3)
     pts = pts[np.isfinite(pts).all(axis=1)]
@@ -104,6 +110,10 @@ def _gate(rig: Rig, points: np.ndarray, errors: np.ndarray, obs: Observations, m
         elif max(angles, default=0.0) < MIN_RAY_ANGLE_DEG:
             reasons.append(f"its view differs from the others by only {max(angles, default=0.0):.1f} deg "
                            "(degenerate geometry)")
+        elif spreads and not (spreads[i].rotation_deg <= MAX_ROTATION_SPREAD_DEG
+                              and spreads[i].focal_pct <= MAX_FOCAL_SPREAD_PCT):
+            reasons.append(f"the people pin it poorly (rotation ±{spreads[i].rotation_deg:.1f} deg, focal length "
+                           f"±{spreads[i].focal_pct:.0f} %: too little motion or too few frames)")
         else:
             reasons.append(None)
     return reasons
@@ -147,14 +157,14 @@ def estimate_cameras(info: list[ViewInfo], people: list[Observations], joints: t
                 points = rig.triangulate(obs.uv, obs.conf, min_conf)
                 errors = rig.reprojection_errors(points, obs.uv, obs.conf, min_conf)
                 med = np.array([np.nanmedian(e) if np.isfinite(e).any() else np.nan for e in errors])
-        except FusionError as exc:
+        except (FusionError, np.linalg.LinAlgError) as exc:         # singular: geometry that tells nothing
             if len(views) == 2:
                 raise
             weakest = min((v for v in views if v != reference), key=lambda v: usable[v])
             warnings.append(f"camera {info[weakest].name} dropped: the estimation failed with it ({exc})")
             views.remove(weakest)
             continue
-        reasons = _gate(rig, points, med, obs, min_conf)
+        reasons = _gate(rig, points, med, obs, min_conf, spreads)
         bad = [i for i, r in enumerate(reasons) if r is not None and views[i] != reference]
         if reasons[views.index(reference)] is not None and not bad:
             raise FusionError(f"reference camera {info[reference].name} cannot be estimated: "

@@ -18,13 +18,14 @@ Frames: the reference camera's; see posecam.multiview.sync for the offset conven
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
 from posecam.errors import FusionError, InputError
+from posecam.heights import Heights
 from posecam.geometry.camera import Rig
 from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.multiview.associate import (MAX_PAIR_ANGLE, Association, Observations, associate,
@@ -34,11 +35,18 @@ from posecam.multiview.calibrate import RigEstimate, estimate_cameras
 from posecam.multiview.fuse_people import FusedPerson, fuse_person
 from posecam.multiview.left_right import fix_swaps
 from posecam.multiview.report import CameraReport, camera_reports
-from posecam.multiview.sync import (MAX_SPREAD, MIN_CORRELATION, MIN_MOTION, SyncResult, estimate_offsets, motion_offset,
-                                    motion_signals)
+from posecam.multiview.sync import (MAX_SPREAD, MIN_CORRELATION, MIN_MOTION, SyncResult, estimate_offsets,
+                                    motion_correlation, motion_offset, motion_signals)
+from posecam.metric import stature
 from posecam.results import Frame, Person, Recording
 from posecam.skeleton import skeleton_of
 
+
+
+# views of one scene move alike: the joint speeds of the people two views share correlate by
+# 0.46-0.80 on Pose2Sim's takes; unrelated real clips (OpenCV's vtest.avi against itself 40 s
+# later, or against a Pose2Sim view) by 0.17-0.30: walkers' speeds are periodic and alike
+MIN_SAME_MOTION = 0.38
 
 
 @dataclass
@@ -52,6 +60,7 @@ class FuseOptions:
     bundle: bool = True                    # refine an estimated rig by bundle adjustment
     min_conf: float = MIN_CONFIDENCE
     bundle_options: BundleOptions = field(default_factory=BundleOptions)
+    heights: Heights = field(default_factory=Heights)   # known heights: the metric scale of an estimated rig
 
 
 @dataclass
@@ -62,6 +71,7 @@ class FusionResult:
     cameras: list[CameraReport]            # per kept camera
     views: list[int] = field(default_factory=list)      # input index of each kept camera
     warnings: list[str] = field(default_factory=list)
+    scale_source: str = "the calibration"   # what fixes the metric scale (see `metric_scale`)
 
 
 def view_names(recordings: list[Recording]) -> list[str]:
@@ -103,8 +113,29 @@ def _check(recordings: list[Recording], opts: FuseOptions) -> None:
     for name, r in zip(view_names(recordings), recordings):
         if not any(f.people for f in r.frames):
             raise FusionError(f"no person found in view {name}")
+    for a, b in _twins(recordings):
+        names = view_names(recordings)
+        raise FusionError(f"views {names[a]} and {names[b]} hold the same poses (one recording given twice?): "
+                          "fusion needs different cameras")
         if r.intrinsics is None:
             raise InputError(f"view {name} has no intrinsics")
+
+
+def _twins(recordings: list[Recording], max_px: float = 0.5) -> list[tuple[int, int]]:
+    """Pairs of views whose people sit at the same pixels in most frames they both have."""
+    def first(r: Recording) -> dict[int, np.ndarray]:
+        return {i: np.stack([p.keypoints_2d for p in f.people]) for i, f in enumerate(r.frames) if f.people}
+
+    people = [first(r) for r in recordings]
+    out = []
+    for a in range(len(recordings)):
+        for b in range(a + 1, len(recordings)):
+            common = sorted(set(people[a]) & set(people[b]))[:50]
+            same = [np.nanmin(np.nanmedian(np.linalg.norm(people[a][i][:, None] - people[b][i][None], axis=-1), axis=-1))
+                    < max_px for i in common]
+            if same and np.mean(same) > 0.8:
+                out.append((a, b))
+    return out
 
 
 def _sync(rig: Rig, views: list[int], association: Association, recordings: list[Recording],
@@ -123,32 +154,43 @@ def _sync(rig: Rig, views: list[int], association: Association, recordings: list
     return SyncResult(full, confidence, result.warnings)
 
 
+def _shared_motion(association: Association, recordings: list[Recording], v: int,
+                   opts: FuseOptions) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """Motion signals (posecam.multiview.sync.motion_signals) of the people view v shares with
+    the reference, the reference's and v's side by side, and the smaller of their excursions
+    (mm); None when they share nobody."""
+    ref = opts.reference
+    shared = [p for p in association.people if ref in p.views and v in p.views]
+    if not shared:
+        return None
+    fps = recordings[ref].fps or 30.0
+    signals, excursion = [], []
+    for u in (ref, v):
+        parts = [motion_signals(*p.view_arrays(u, len(recordings[u].frames))[1:3], fps, opts.min_conf) for p in shared]
+        signals.append(np.concatenate([s for s, _ in parts], axis=1))
+        excursion.append(max(e for _, e in parts))
+    return signals[0], signals[1], min(excursion)
+
+
 def _motion_sync(association: Association, recordings: list[Recording], opts: FuseOptions) -> SyncResult:
     """Offsets without a rig (posecam.multiview.sync.motion_offset): per view, the motion of
     the people it shares with the reference; 0 with a warning where it cannot be pinned."""
     ref = opts.reference
     offsets, confidence, spread, warnings = [0.0] * len(recordings), [1.0] * len(recordings), \
         [0.0] * len(recordings), []
-    fps = recordings[ref].fps or 30.0
     names = view_names(recordings)
     for v in range(len(recordings)):
         if v == ref:
             continue
-        shared = [p for p in association.people if ref in p.views and v in p.views]
-        if not shared:
+        shared = _shared_motion(association, recordings, v, opts)
+        if shared is None:
             confidence[v], spread[v] = 0.0, np.inf
             continue
-        signals, excursion = [], []
-        for u in (ref, v):
-            parts = [motion_signals(*p.view_arrays(u, len(recordings[u].frames))[1:3], fps, opts.min_conf)
-                     for p in shared]
-            signals.append(np.concatenate([s for s, _ in parts], axis=1))
-            excursion.append(max(e for _, e in parts))
-        m = motion_offset(signals[0], signals[1], opts.max_offset)
+        m = motion_offset(shared[0], shared[1], opts.max_offset)
         confidence[v], spread[v] = max(float(np.nan_to_num(m.correlation)), 0.0), m.spread
-        if min(excursion) < MIN_MOTION:
+        if shared[2] < MIN_MOTION:
             warnings.append(f"{names[v]}: the people move too little to synchronise it (their joints move "
-                            f"{min(excursion):.0f} mm about the root); offset 0 kept. Give --offsets")
+                            f"{shared[2]:.0f} mm about the root); offset 0 kept. Give --offsets")
         elif not m.correlation >= MIN_CORRELATION:
             warnings.append(f"{names[v]}: its motion matches the reference's poorly (correlation "
                             f"{np.nan_to_num(m.correlation):.2f}); offset 0 kept. Give --offsets")
@@ -163,6 +205,19 @@ def _motion_sync(association: Association, recordings: list[Recording], opts: Fu
             continue
         confidence[v] = 0.0
     return SyncResult(offsets, confidence, warnings, spread)
+
+
+def motion_agreement(association: Association, recordings: list[Recording], offsets: list[float],
+                     opts: FuseOptions) -> dict[int, tuple[float, float]]:
+    """Per view: the correlation of its people's motion with the reference's at its offset, and
+    their excursion (mm). Views of one scene move alike; unrelated clips, whose people any rig
+    can be bent to fit, do not."""
+    out = {}
+    for v in range(len(recordings)):
+        shared = _shared_motion(association, recordings, v, opts) if v != opts.reference else None
+        if shared is not None:
+            out[v] = (motion_correlation(shared[0], shared[1], offsets[v]), shared[2])
+    return out
 
 
 def _observations(association: Association, recordings: list[Recording], offsets: list[int],
@@ -182,6 +237,29 @@ def _fix_left_right(rig: Rig, people: list[Observations], joints: tuple[str, ...
             obs, swaps = Observations(uv, xyz, conf, obs.score), swaps + fixed
         out.append(obs)
     return out, swaps
+
+
+def metric_scale(rig: Rig, people: list[Observations], joints: tuple[str, ...], heights: Heights,
+                 min_conf: float) -> tuple[float, str]:
+    """The factor that brings an estimated rig to the people's given heights, and what the table
+    says of it. The rig gives the people's relative heights exactly (one scale for all): each
+    person's height is the median over frames of posecam.metric.stature of the triangulation of
+    its 2D keypoints (the rig's geometry alone, not the monocular skeletons' adult size); a list
+    is matched tallest first (posecam.heights) and the factor is the median of given / measured.
+    Without heights: 1 (the bundle adjustment's scale, from the monocular bone lengths)."""
+    estimated = {}
+    for pid, obs in enumerate(people):
+        tri = rig.triangulate(obs.uv, obs.conf, min_conf)
+        conf = np.where(np.isfinite(tri).all(axis=-1), obs.conf.max(axis=0), 0.0)
+        h = stature(tri, conf, joints)
+        if np.isfinite(h).sum() >= 5:
+            estimated[pid] = float(np.nanmedian(h)) / 1000.0
+    given = heights.assign(estimated) if heights else {}
+    if not given:
+        return 1.0, "the pose model's bone lengths (an adult's; --height gives it)"
+    ratios = [m / estimated[pid] for pid, (m, _) in given.items()]
+    people_text = ", ".join(f"person {pid} {m:.2f} m ({how})" for pid, (m, how) in sorted(given.items()))
+    return float(np.median(ratios)), f"the heights given: {people_text}"
 
 
 def _to_recording(fused: list[FusedPerson], rig: Rig, ref_index: int, ref: Recording) -> Recording:
@@ -252,6 +330,22 @@ def _estimated_rig(recordings: list[Recording], tracks, info: list[ViewInfo], of
         sync = _motion_sync(association, recordings, opts)
         offsets, confidence, spread, sync_warnings = sync.offsets, sync.confidence, sync.spread, sync.warnings
     est = estimate(offsets)
+    while True:                          # views whose people do not move as the reference's: not one scene
+        agreement = motion_agreement(association, recordings, offsets, opts)
+        unrelated = [(agreement[v][0], v) for v in est.views if v in agreement
+                     and agreement[v][1] >= MIN_MOTION and not agreement[v][0] >= MIN_SAME_MOTION]
+        if not unrelated:
+            break
+        corr, v = min(unrelated)
+        line = (f"camera {info[v].name} dropped: its people do not move as the reference's do (motion "
+                f"correlation {np.nan_to_num(corr):.2f}): not the same scene, or not the same time?")
+        kept = [u for u in est.views if u != v]
+        if len(kept) < 2:
+            raise FusionError(line.replace(" dropped:", " cannot be fused:"))
+        est = estimate_cameras([info[u] for u in kept], [p.take(kept) for p in
+                               _observations(association, recordings, offsets, list(range(len(recordings))), ref)],
+                               recordings[ref].joints, kept.index(ref), opts.min_conf, opts.bundle, opts.bundle_options)
+        est.views, est.warnings = [kept[i] for i in est.views], [line] + est.warnings
     return _RigStage(association, est.rig, est.views, offsets, confidence, est.warnings + sync_warnings, spread,
                      est.spreads)
 
@@ -292,6 +386,14 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
         people, swaps, views = [p.take(again.views) for p in people], swaps[again.views], \
             [views[i] for i in again.views]
 
+    scale_source = "the calibration"
+    if opts.calibration is None:
+        factor, scale_source = metric_scale(rig, people, recordings[ref].joints, opts.heights, opts.min_conf)
+        if factor != 1.0:                    # one similarity about the reference camera: reprojection unchanged
+            rig = Rig([replace(c, translation=c.translation * factor) for c in rig.cameras], rig.reference)
+            camera_spreads = camera_spreads and [replace(c, position_mm=c.position_mm * factor) for c in camera_spreads]
+    elif opts.heights:
+        warnings = warnings + ["the calibration fixes the metric scale; --height is not used"]
     say("fusing")
     fused = [fuse_person(rig, [recordings[v].intrinsics for v in views], obs, opts.method, opts.min_conf)
              for obs in people]
@@ -300,4 +402,4 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
                              [spread[v] for v in views], swaps, people, fused, opts.min_conf, camera_spreads)
     recording = _to_recording(fused, rig, views.index(ref), recordings[ref])
     recording.cameras = [r.to_dict() for r in reports]
-    return FusionResult(recording, rig, offsets, reports, views, warnings)
+    return FusionResult(recording, rig, offsets, reports, views, warnings, scale_source)

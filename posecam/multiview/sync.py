@@ -177,7 +177,7 @@ def motion_signals(xyz: np.ndarray, conf: np.ndarray, fps: float, min_conf: floa
     return np.where(seen, speed, np.nan), excursion if np.isfinite(excursion) else 0.0
 
 
-def _correlation(ref: np.ndarray, other: np.ndarray, lag: float, frames: np.ndarray | None = None) -> float:
+def motion_correlation(ref: np.ndarray, other: np.ndarray, lag: float, frames: np.ndarray | None = None) -> float:
     """Pearson correlation of ref (F, K) with other at `lag` (module convention), over every
     signal and frame where both have a value (optionally only `frames`). Each side moves by
     half the lag, so both are interpolated alike (interpolating one side only smooths it, and
@@ -217,7 +217,7 @@ def motion_offset(ref: np.ndarray, other: np.ndarray, max_offset: float, seed: i
     LAG_STEP frames, its peak refined by a parabola; the spread is that of the peak over
     resamples of blocks of frames (a second's worth each)."""
     lags = np.round(np.arange(-max_offset, max_offset + LAG_STEP / 2, LAG_STEP), 6)
-    corr = np.array([_correlation(ref, other, o) for o in lags])
+    corr = np.array([motion_correlation(ref, other, o) for o in lags])
     if not np.isfinite(corr).any():
         return MotionOffset(0.0, np.nan, np.inf)
     best = _peak(lags, corr)
@@ -229,7 +229,7 @@ def motion_offset(ref: np.ndarray, other: np.ndarray, max_offset: float, seed: i
     for _ in range(BOOTSTRAP):
         starts = rng.integers(0, max(n - block, 1), size=max(n // block, 1))
         frames = np.concatenate([np.arange(s, min(s + block, n)) for s in starts])
-        c = np.array([_correlation(ref, other, o, frames) for o in near])
+        c = np.array([motion_correlation(ref, other, o, frames) for o in near])
         if np.isfinite(c).any():
             peaks.append(_peak(near, c))
     spread = float(np.std(peaks)) if len(peaks) > 2 else np.inf
