@@ -17,9 +17,17 @@
    - extra: posecam people matched to nobody.
    The videos are not frame-synchronised: the offsets (frames vs cam01) are checked here, from
    the reprojection error of the cross-view association for each candidate offset.
-2. OpenCV's vtest.avi (768x576 pedestrians, `apt-get download opencv-doc`): people per frame,
-   and an overlay video with ids to look at.
-Frames per second are printed for each recording.
+2. OpenCV's vtest.avi (768x576 pedestrians, 795 frames, `apt-get download opencv-doc`), against
+   counts by hand (VTEST_PEOPLE below: on 14 frames spread over the clip, every person at least
+   40 px tall, its centre and height, read off the frames written out as pictures):
+   - found: hand-counted people matched by a posecam person (its box centre within half the
+     person's height of the hand-marked centre, Hungarian), over those in view;
+   - frames with nobody, over the whole clip; people per frame;
+   - ids: distinct ids over the clip, against VTEST_DISTINCT (the people told apart by their
+     clothes on the counted frames; they walk loops and come back);
+   and an overlay video with ids to look at (--overlay).
+Frames per second are printed for each recording. Everything runs with posecam's defaults
+unless an option is given (the table says which).
 """
 
 from __future__ import annotations
@@ -39,6 +47,31 @@ DEMO = "Pose2Sim/Demo_MultiPerson"
 REFERENCE_SIZE = 384
 GATE_PX = 40.0          # mean reprojection error (px) for detections of one person across views
 MATCH = 0.10            # posecam-to-reference 2D match gate, in image heights
+
+# vtest.avi, counted by hand: frame -> people at least 40 px tall, each (x, y) the centre of the
+# body and its height, in pixels.
+VTEST_PEOPLE = {
+    0: [(267, 265, 88), (515, 195, 75), (663, 280, 80)],
+    60: [(374, 205, 65), (388, 222, 75), (412, 225, 70), (485, 245, 85), (517, 240, 80), (632, 285, 105)],
+    100: [(362, 237, 75), (392, 218, 75), (437, 220, 75), (506, 185, 70), (528, 185, 65), (603, 195, 75)],
+    180: [(213, 195, 65), (378, 250, 80), (515, 265, 85), (605, 262, 90), (600, 165, 70), (688, 128, 55),
+          (711, 130, 50)],
+    240: [(50, 210, 65), (250, 193, 75), (465, 300, 100), (627, 238, 80), (683, 325, 105), (653, 148, 55),
+          (675, 150, 55)],
+    300: [(201, 197, 75), (255, 190, 60), (311, 193, 70), (330, 255, 85), (597, 197, 75), (630, 197, 70)],
+    360: [(386, 212, 65), (455, 215, 70), (550, 240, 85), (450, 288, 95), (717, 290, 95), (747, 285, 95)],
+    420: [(308, 250, 85), (563, 177, 65), (762, 345, 85)],
+    480: [(418, 255, 70), (482, 285, 95), (595, 295, 90), (627, 330, 115)],
+    540: [(172, 203, 70), (452, 225, 80), (625, 220, 80), (658, 340, 105), (262, 455, 140), (308, 450, 135)],
+    600: [(198, 180, 70), (582, 243, 90), (687, 257, 90), (475, 360, 115), (655, 358, 110), (305, 505, 140)],
+    660: [(192, 188, 70), (285, 190, 75), (476, 243, 80), (631, 218, 80), (705, 350, 110), (322, 420, 130)],
+    720: [(145, 222, 70), (75, 292, 90), (275, 222, 80), (315, 205, 75), (478, 245, 95), (508, 230, 75),
+          (574, 245, 90), (567, 155, 60)],
+    780: [(247, 205, 75), (330, 208, 60), (325, 243, 60), (370, 312, 100), (585, 295, 95), (627, 250, 95),
+          (676, 168, 65)],
+}
+VTEST_DISTINCT = 12     # people told apart by their clothes on the frames above
+VTEST_MATCH = 0.5       # a posecam person's box centre within this many heights of the hand mark
 
 
 def demo_path(relative: str) -> Path:
@@ -228,7 +261,7 @@ def two_person(args) -> None:
     counts = [len(e) for e in reference]
     print(f"\nTwo-person take, {n} synchronised frames; reference: {np.mean(counts):.2f} people/frame found "
           f"across views, median reprojection {reproj:.1f} px")
-    print(f"detector {args.detector}, redetect every {args.redetect_every}, model {args.model}, lab intrinsics")
+    print(f"{options_text(args)}, lab intrinsics")
     print(f"{'camera':8s}{'visible':>8s}{'recall':>8s}{'root mm':>9s}{'median':>8s}{'id sw.':>7s}{'extra':>6s}{'fps':>6s}")
     errors = []
     for cam in cams:
@@ -243,6 +276,22 @@ def two_person(args) -> None:
     print(f"{'all':8s}{'':8s}{'':8s}{np.nanmean(errors):9.0f}")
 
 
+def vtest_found(frames_people: list, counts: dict) -> tuple[int, int]:
+    """Hand-counted people matched by a posecam person (box centre within VTEST_MATCH heights of
+    the hand mark, Hungarian), and those counted, over the counted frames."""
+    found = total = 0
+    for f, marks in counts.items():
+        total += len(marks)
+        people = frames_people[f] if f < len(frames_people) else []
+        if not people:
+            continue
+        centres = np.array([(p.bbox[:2] + p.bbox[2:]) / 2 for p in people])
+        cost = np.array([[np.hypot(*(c - (x, y))) / h for c in centres] for x, y, h in marks])
+        rows, cols = linear_sum_assignment(cost)
+        found += int((cost[rows, cols] < VTEST_MATCH).sum())
+    return found, total
+
+
 def vtest(args) -> None:
     from posecam.viz.draw import draw_people
     from posecam.viz.sinks import VideoSink
@@ -250,18 +299,30 @@ def vtest(args) -> None:
     frames = read_frames(Path(args.vtest))[:args.vtest_frames]
     est = estimator(args)
     t0 = time.perf_counter()
-    counts = []
+    people, dropped = [], {}
     sink = VideoSink(args.overlay, 10.0, frames[0].shape[1], frames[0].shape[0]) if args.overlay else None
     with sink if sink else _nothing():
         for rgb, frame in zip(frames, est.track(frames)):
-            counts.append(len(frame.people))
+            people.append(frame.people)
+            for d in frame.dropped:
+                dropped[d.stage] = dropped.get(d.stage, 0) + 1
             if sink:
                 sink.write(draw_people(rgb, frame.people, est.joints))
-    fps = len(counts) / (time.perf_counter() - t0)
-    c = np.array(counts)
-    print(f"\nvtest.avi, {len(c)} frames, detector {args.detector}, redetect every {args.redetect_every}: people per "
-          f"frame median {np.median(c):.0f}, mean {c.mean():.2f}, max {c.max()}, frames with nobody {int((c == 0).sum())}, "
-          f"{fps:.1f} frames/s")
+    fps = len(people) / (time.perf_counter() - t0)
+    c = np.array([len(p) for p in people])
+    found, total = vtest_found(people, VTEST_PEOPLE)
+    ids = len({p.id for ps in people for p in ps})
+    print(f"\nvtest.avi, {len(c)} frames, {options_text(args)}: found {found}/{total} = {found / total:.3f} of the "
+          f"hand-counted people (target >= 0.90); frames with nobody {int((c == 0).sum())} (target 0); "
+          f"ids {ids} for {VTEST_DISTINCT} people = {ids / VTEST_DISTINCT:.2f}x (target <= 1.5x); "
+          f"people per frame median {np.median(c):.0f}, mean {c.mean():.2f}, max {c.max()}; "
+          f"dropped (person-frames) {dropped}; {fps:.1f} frames/s")
+
+
+def options_text(args) -> str:
+    given = {n: getattr(args, n) for n in ("detector", "detector_size", "max_people", "redetect_every",
+                                           "min_detection_score", "model") if getattr(args, n) is not None}
+    return "options " + ", ".join(f"{n}={v}" for n, v in given.items()) if given else "defaults"
 
 
 class _nothing:
@@ -274,14 +335,14 @@ class _nothing:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--detector", default="movenet")
+    ap.add_argument("--detector")
     ap.add_argument("--reference-detector", default="movenet", help="MoveNet model for the cross-view reference")
     ap.add_argument("--detector-size", type=int)
-    ap.add_argument("--redetect-every", type=int, default=15)
+    ap.add_argument("--redetect-every", type=int)
     ap.add_argument("--min-detection-score", type=float, default=None)
-    ap.add_argument("--max-people", type=int, default=6)
+    ap.add_argument("--max-people", type=int)
     ap.add_argument("--tag", default="", help="a label for the printed table (e.g. before/after)")
-    ap.add_argument("--model", default="full")
+    ap.add_argument("--model")
     ap.add_argument("--check-offsets", action="store_true")
     ap.add_argument("--skip-take", action="store_true")
     ap.add_argument("--vtest", help="path to vtest.avi (opencv-doc)")

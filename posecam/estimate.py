@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -24,20 +25,22 @@ import numpy as np
 from posecam.errors import InputError, ModelError
 from posecam.filters import StreamingSmoother
 from posecam.metric import MetricOptions, MetricStage
+from posecam.geometry.boxes import boxes_overlap
 from posecam.geometry.camera import Intrinsics
 from posecam.geometry.lift import solve_root_translation
 from posecam.geometry.triangulate import MIN_CONFIDENCE
-from posecam.inference.detector import Detection, load_detector
+from posecam.inference.detector import Detection, detect_any_turn, load_detector
 from posecam.inference.pose_model import PoseCandidate, make_pose_model
 from posecam.inference.roi import Roi
 from posecam.inference.session import load_model
 from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
 from posecam.media import FrameSelection, Media, open_media
-from posecam.results import Frame, Person, Recording
+from posecam.results import Dropped, Frame, Person, Recording
 from posecam.skeleton import BLAZEPOSE_LANDMARKS, H36M_JOINTS, blazepose_to_h36m, skeleton_of
 from posecam.tracking import Track, Tracker, TrackerOptions, foreign_joints, oks
 
 SKELETONS = ("17", "33")
+MIN_PERSON_PX = 40    # the detector searches for people at least this tall (image pixels)
 
 
 @dataclass
@@ -46,10 +49,10 @@ class EstimatorOptions:
     detector: str = "movenet"           # movenet | blazepose | path to a posecam detector .onnx
     detector_size: int | None = None    # detector input's long side (px); None: the model's default
     skeleton: str = "17"                # "17" (Human3.6M-style) or "33" (all BlazePose landmarks)
-    max_people: int = 6
+    max_people: int = 20               # most people kept per image or video (the search does not depend on it)
     min_detection_score: float | None = None  # detector score a person needs to be looked at (None: the detector's default)
     min_presence: float = 0.5           # drop a person whose pose model presence falls below
-    redetect_every: int = 15            # frames between detector runs while tracking
+    redetect_every: int = 15            # frames between detector runs while nobody may be missing
     threads: int | None = None
     device: str = "cpu"                 # "cpu" or "cuda" (onnxruntime-gpu's CUDA provider)
 
@@ -111,8 +114,7 @@ class PoseEstimator:
         self.options = opts = options or EstimatorOptions()
         self.detector = load_detector(opts.detector, opts.threads, opts.min_detection_score, opts.detector_size,
                                       opts.device)
-        self.min_detection_score = opts.min_detection_score if opts.min_detection_score is not None \
-            else self.detector.default_score
+        self.min_detection_score = self.detector.start_score
         pose = load_model(opts.model, opts.threads, device=opts.device)
         if pose.contract.kind == "detector":
             raise ModelError(f"{pose.path} is a detector, not a pose model")
@@ -144,44 +146,72 @@ class PoseEstimator:
         return Person(track_id, c.score, box, uv, xyz, conf, skeleton=self.skeleton)
 
     def _step(self, image_rgb: np.ndarray, k: Intrinsics, tracker: Tracker) -> Frame:
-        """One frame: detect if the tracker asks for it, run the pose model on every track."""
+        """One frame: detect if the tracker asks for it (searching for people as small as the
+        smallest it has seen), run the pose model on every track; the people left out are
+        listed with the stage that dropped them."""
         _check_image(image_rgb)
-        detections = self.detector(image_rgb, self.options.max_people) if tracker.needs_detection() else None
+        h, w = image_rgb.shape[:2]
+        detections = None
+        if tracker.needs_detection(w, h):   # while nobody is followed, people in any orientation are searched for
+            search = self.detector if tracker.active() else partial(detect_any_turn, self.detector)
+            detections = search(image_rgb, max(tracker.person_px() or MIN_PERSON_PX, MIN_PERSON_PX))
         tracks = tracker.begin_frame(detections)
         if not tracks:
-            return Frame(0, 0.0, [])
+            return Frame(0, 0.0, [], dropped=list(tracker.refused))
         candidates = self.pose_model(image_rgb, [t.roi for t in tracks], k)
-        found = [c.score >= self.options.min_presence for c in candidates]
-        if detections is not None and self._to_detector is not None:
-            checked = [self._own_pose(image_rgb, k, t, c, detections) for t, c in zip(tracks, candidates)]
-            candidates, found = [c for c, _ in checked], [ok for _, ok in checked]
+        stages: list[str | None] = [None if c.score >= self.options.min_presence else "presence" for c in candidates]
+        if detections is not None:
+            checked = [self._own_pose(image_rgb, k, t, c, detections) if t.detection is not None else (c, stage)
+                       for t, c, stage in zip(tracks, candidates, stages)]
+            candidates, stages = [c for c, _ in checked], [stage for _, stage in checked]
         idx = self._to_detector
         kept = tracker.end_frame(
-            tracks, found,
-            [c.keypoints_2d[idx] if c is not None and idx is not None else None for c in candidates],
-            [c.confidence[idx] if c is not None and idx is not None else None for c in candidates],
-            [c.next_roi if c is not None else t.roi for t, c in zip(tracks, candidates)])
+            tracks, [stage is None for stage in stages],
+            [c.keypoints_2d[idx] if idx is not None else None for c in candidates],
+            [c.confidence[idx] if idx is not None else None for c in candidates],
+            [c.next_roi for c in candidates])
+        dropped = [Dropped(stage or "duplicate", float(c.score), _box_of(c.keypoints_2d, c.confidence))
+                   for i, (c, stage) in enumerate(zip(candidates, stages)) if i not in kept]
         return Frame(0, 0.0, [self._to_person(tracks[i].id, candidates[i]) for i in kept],
-                     dropped=[float(c.score) for c, ok in zip(candidates, found) if c is not None and not ok])
+                     dropped=list(tracker.refused) + dropped)
 
     def _own_pose(self, image_rgb: np.ndarray, k: Intrinsics, track: Track, c: PoseCandidate,
-                  detections: list[Detection]) -> tuple[PoseCandidate | None, bool]:
-        """The pose of the track's own person, and whether to keep it. A pose the pose model
-        doubts (presence below min_presence) or with 3 or more joints on a neighbour is redone
-        from an upright crop of the person's box; joints that still fall on a neighbour lose
-        their confidence, and the pose is refused (None) when most of its joints do. A doubted
-        pose is kept when it agrees with the detector's keypoints of the person (OKS >= 0.5)."""
+                  detections: list[Detection]) -> tuple[PoseCandidate, str | None]:
+        """The pose of the track's own person, and why it is dropped (None: kept). A pose the
+        pose model doubts (presence below min_presence) or with 3 or more joints on a neighbour
+        is tried again: from an upright crop of the person's box, then from the detector's crop
+        turned by 90, -90 and 180 degrees (people lying, upside down), the first pose kept
+        winning. Joints that still fall on a neighbour lose their confidence, and the pose is
+        refused ("neighbour") when most of its joints do. A doubted pose is kept when it agrees
+        with the detector's keypoints of the person (OKS >= 0.5)."""
         own = track.detection
-        others = [d for d in detections if d is not own and _overlap(d.box, own.box)]
-        idx = self._to_detector
-        foreign = foreign_joints(c.keypoints_2d[idx], c.confidence[idx], own, others)
-        if foreign.sum() >= 3 or c.score < self.options.min_presence:
-            redo = self.pose_model(image_rgb, [Roi.around_points(own.box.reshape(2, 2))], k)[0]
-            again = foreign_joints(redo.keypoints_2d[idx], redo.confidence[idx], own, others)
-            if (redo.score >= self.options.min_presence, -again.sum()) > (c.score >= self.options.min_presence, -foreign.sum()):
-                c, foreign = redo, again
+        others = [d for d in detections if d is not own and boxes_overlap(d.box, own.box)]
+        idx, min_presence = self._to_detector, self.options.min_presence
+
+        def foreign_of(pose: PoseCandidate) -> np.ndarray:
+            if idx is None:
+                return np.zeros(0, bool)
+            return foreign_joints(pose.keypoints_2d[idx], pose.confidence[idx], own, others)
+
+        def rank(pose: PoseCandidate, foreign: np.ndarray) -> tuple:
+            return pose.score >= min_presence and foreign.sum() < 3, -int(foreign.sum()), pose.score
+
+        foreign = foreign_of(c)
+        if rank(c, foreign)[0] is False:
+            r = own.roi
+            retries = [Roi.around_points(own.box.reshape(2, 2))] + \
+                [replace(r, angle=r.angle + turn) for turn in (np.pi / 2, -np.pi / 2, np.pi)]
+            for roi in retries:
+                redo = self.pose_model(image_rgb, [roi], k)[0]
+                again = foreign_of(redo)
+                if rank(redo, again) > rank(c, foreign):
+                    c, foreign = redo, again
+                if rank(c, foreign)[0]:
+                    break
+        if idx is None:
+            return c, None if c.score >= min_presence else "presence"
         if foreign.sum() > (c.confidence[idx] >= MIN_CONFIDENCE).sum() / 2:
-            return None, False
+            return c, "neighbour"
         if foreign.any():   # the neighbour's joints leave the pose, and the root is placed without them
             conf = c.confidence.copy()
             conf[idx[foreign]] = 0.0
@@ -189,11 +219,11 @@ class PoseEstimator:
             c = replace(c, confidence=conf, keypoints_3d=c.keypoints_3d + shift)
         area = float(np.prod(own.box[2:] - own.box[:2]))
         agrees = oks(c.keypoints_2d[idx], c.confidence[idx], own.keypoints, own.keypoint_scores, area) >= 0.5
-        return c, c.score >= self.options.min_presence or agrees
+        return c, None if c.score >= min_presence or agrees else "presence"
 
     def _tracker(self) -> Tracker:
-        o, high = self.options, self.min_detection_score
-        return Tracker(TrackerOptions(o.max_people, o.redetect_every, high_score=high, low_score=high / 3))
+        o, d = self.options, self.detector
+        return Tracker(TrackerOptions(o.max_people, o.redetect_every, high_score=d.start_score, low_score=d.min_score))
 
     def _intrinsics(self, image_rgb: np.ndarray, k: Intrinsics | None) -> Intrinsics:
         h, w = image_rgb.shape[:2]   # given intrinsics are checked as the CLI checks them
@@ -263,8 +293,10 @@ def shared_estimator(options: EstimatorOptions | None = None) -> PoseEstimator:
     return _shared[key]
 
 
-def _overlap(a: np.ndarray, b: np.ndarray) -> bool:
-    return bool((np.minimum(a[2:], b[2:]) > np.maximum(a[:2], b[:2])).all())
+def _box_of(uv: np.ndarray, conf: np.ndarray, min_conf: float = MIN_CONFIDENCE) -> np.ndarray:
+    """(4,) bounds of the confident joints (of all joints when fewer than 2 are)."""
+    seen = uv[conf >= min_conf] if (conf >= min_conf).sum() >= 2 else uv
+    return np.concatenate([seen.min(axis=0), seen.max(axis=0)])
 
 
 def _check_image(image_rgb: np.ndarray) -> None:

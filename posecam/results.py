@@ -50,13 +50,23 @@ class Person:
 
 
 @dataclass
+class Dropped:
+    """A person seen but not reported, and the stage that left them out."""
+
+    stage: str                  # "max_people" (detector: over the cap), "presence" (pose model: below
+                                # min_presence), "neighbour" (the pose lies on another person), "duplicate"
+    score: float                # the detector's score (max_people) or the pose model's presence
+    bbox: np.ndarray            # (4,) x0, y0, x1, y1 in pixels
+
+
+@dataclass
 class Frame:
     index: int
     time: float                 # seconds from the start of the input
     people: list[Person] = field(default_factory=list)
-    # presence scores of the people the pose model saw but dropped (below min_presence);
-    # empty with no people means the detector found nobody
-    dropped: list[float] = field(default_factory=list)
+    # the people seen but dropped, each with its stage; empty with no people means the
+    # detector found nobody
+    dropped: list[Dropped] = field(default_factory=list)
 
 
 @dataclass

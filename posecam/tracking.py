@@ -8,6 +8,11 @@ overlap (IoU) and keypoint similarity (OKS). Hysteresis: only a confident detect
 track, a weak one keeps it alive, and an unmatched track survives `max_lost` frames before it is
 dropped, so ids outlast crossings and short occlusions. Between detector frames each track's ROI
 comes from its previous pose.
+
+The tracker also says when to run the detector: every frame while nobody is followed or
+someone was just lost, every few frames while people may be missing (young tracks, people at
+the image's edges, a crowd), otherwise every `redetect_every` frames; and how small the people
+it has seen are, which sets how finely the detector searches the image.
 """
 
 from __future__ import annotations
@@ -16,8 +21,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from posecam.geometry.boxes import box_iou
 from posecam.inference.detector import MIN_KEYPOINT_SCORE, Detection, oks
 from posecam.inference.roi import Roi
+from posecam.results import Dropped
 
 def min_cost_assignment(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rows and columns of the assignment with the least total cost of a (N, M) matrix, as
@@ -57,16 +64,6 @@ def min_cost_assignment(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         rows, cols = cols, rows
     order = np.argsort(rows)
     return rows[order], cols[order]
-
-
-def box_iou(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """(N, 4) x (M, 4) boxes (x0, y0, x1, y1) -> (N, M) intersection over union."""
-    lo = np.maximum(a[:, None, :2], b[None, :, :2])
-    hi = np.minimum(a[:, None, 2:], b[None, :, 2:])
-    inter = np.prod(np.clip(hi - lo, 0, None), axis=-1)
-    area_a = np.prod(np.clip(a[:, 2:] - a[:, :2], 0, None), axis=-1)
-    area_b = np.prod(np.clip(b[:, 2:] - b[:, :2], 0, None), axis=-1)
-    return inter / np.maximum(area_a[:, None] + area_b[None, :] - inter, 1e-9)
 
 
 def foreign_joints(points: np.ndarray, conf: np.ndarray, own: Detection, others: list[Detection]) -> np.ndarray:
@@ -127,8 +124,10 @@ class Track:
     kalman: BoxKalman
     keypoints: np.ndarray                      # (K, 2) last keypoints, detector joint order
     keypoint_scores: np.ndarray                # (K,)
-    hits: int = 1
+    hits: int = 1                              # detections matched
     lost: int = 0                              # frames since last seen
+    shown: int = 0                             # frames reported
+    unseen: int = 0                            # detector runs in a row that missed this person
     detection: Detection | None = field(default=None, repr=False)   # this frame's, if any
 
     @property
@@ -138,11 +137,16 @@ class Track:
 
 @dataclass
 class TrackerOptions:
-    max_people: int = 6
-    redetect_every: int = 1         # frames between detector runs (1: every frame)
+    max_people: int = 20
+    redetect_every: int = 15        # frames between detector runs while nobody may be missing
+    search_every: int = 3           # ... while people may be missing (see needs_detection)
+    crowd: int = 3                  # this many people followed make a crowd
+    edge: float = 0.05              # a box this close to the image's border (fraction of its side): entering or leaving
+    confirm_hits: int = 3           # a track younger than this may be a false start or half of a person
     high_score: float = 0.3         # a detection this confident may start a track ...
     low_score: float = 0.1          # ... one this confident only keeps a track alive
     max_lost: int = 30              # frames a track survives unseen
+    coast: int = 4                  # detector runs in a row that may miss someone the pose model still follows
     match_cost: float = 0.8         # 1 - similarity above which no match (first stage)
     low_match_cost: float = 0.5     # ... second stage (weak detections)
 
@@ -156,27 +160,43 @@ class Tracker:
         self._next_id = 0
         self._since_detection = 0
         self._dropped = False
+        self.refused: list[Dropped] = []     # this frame's confident detections over max_people
+        self._smallest: float | None = None  # height (px) of the smallest confirmed person so far
 
-    def needs_detection(self) -> bool:
-        """Detect on the first frame, every `redetect_every` frames, as soon as a track was lost
-        off a detector frame, and on every frame where two people's boxes overlap (there a crop
-        placed from the last pose may slide onto the neighbour)."""
-        active = self.active()
-        if not active or self._since_detection >= self.options.redetect_every or self._dropped:
+    def needs_detection(self, width: int, height: int) -> bool:
+        """Detect on the first frame, while nobody is followed, as soon as someone followed was
+        lost, and on every frame where two people's boxes overlap (there a crop placed from the
+        last pose may slide onto the neighbour); every `search_every` frames while people may be
+        missing (a track not yet confirmed, one at the image's edge: entering or leaving, a
+        crowd); else every `redetect_every` frames."""
+        o, active = self.options, self.active()
+        if not active or self._dropped:
             return True
         boxes = np.array([t.box for t in active])
         iou = box_iou(boxes, boxes)
-        return bool((iou[np.triu_indices(len(active), 1)] > 0).any())
+        if (iou[np.triu_indices(len(active), 1)] > 0).any():
+            return True
+        margin = o.edge * np.array([width, height])
+        missing = (((boxes[:, :2] < margin) | (boxes[:, 2:] > [width, height] - margin)).any()
+                   or any(t.hits < o.confirm_hits for t in active) or len(active) >= o.crowd)
+        return self._since_detection >= (min(o.search_every, o.redetect_every) if missing else o.redetect_every)
+
+    def person_px(self) -> float | None:
+        """The height (px) of the smallest person confirmed so far in this video (None: nobody yet)."""
+        return self._smallest
 
     def active(self) -> list[Track]:
         return [t for t in self.tracks if t.lost == 0]
 
     def begin_frame(self, detections: list[Detection] | None) -> list[Track]:
         """Move every track on and, on a detector frame, match the detections; returns the
-        tracks the pose model must run on now (each with its ROI, and its detection if any)."""
+        tracks the pose model must run on now (each with its ROI, and its detection if any):
+        those matched, those born, and those the detector missed while the pose model still
+        follows them (for up to `coast` detector runs in a row)."""
         for t in self.tracks:
             t.kalman.predict()
             t.detection = None
+        self.refused = []
         if detections is None:
             for t in self.tracks:
                 t.lost += t.lost > 0
@@ -192,15 +212,20 @@ class Tracker:
         pool = [t for t in pool if t.detection is None]
         self._match(pool, low, o.low_match_cost)
         for t in self.tracks:
-            if t.detection is None:
+            if t.detection is not None:
+                t.unseen = 0
+            elif t.lost == 0 and t.shown and t.unseen < o.coast:
+                t.unseen += 1    # the detector missed someone the pose model still follows
+            else:
                 t.lost += 1
         self.tracks = [t for t in self.tracks if t.lost <= o.max_lost]
         for d in left:   # births, most confident first, while there is room
             if len(self.active()) >= o.max_people:
-                break
+                self.refused.append(Dropped("max_people", d.score, d.box))
+                continue
             self.tracks.append(Track(self._next_id, d.roi, BoxKalman(d.box), d.keypoints, d.keypoint_scores, detection=d))
             self._next_id += 1
-        return [t for t in self.tracks if t.detection is not None]
+        return self.active()
 
     def _match(self, tracks: list[Track], detections: list[Detection], max_cost: float) -> list[Detection]:
         """Hungarian matching on 1 - max(IoU, OKS); matched tracks take their detection. Returns
@@ -239,7 +264,7 @@ class Tracker:
             kp, sc = keypoints[i], keypoint_scores[i]
             if not found[i] or (kp is not None and any(self._same_pose(kp, sc, tracks[j]) for j in kept)):
                 t.lost = max(t.lost, 1)
-                self._dropped = True
+                self._dropped |= t.shown > 0   # someone followed is lost (not a false start)
                 continue
             if t.detection is None and kp is not None:
                 seen = kp[sc >= MIN_KEYPOINT_SCORE]
@@ -248,7 +273,11 @@ class Tracker:
                     t.kalman.update(np.concatenate([lo, hi]))
                 t.keypoints, t.keypoint_scores = kp, sc
             t.roi = next_rois[i]
+            t.shown += 1
             kept.append(i)
+            if t.hits >= self.options.confirm_hits:
+                h = float(t.box[3] - t.box[1])
+                self._smallest = h if self._smallest is None else min(self._smallest, h)
         return sorted(kept)
 
     @staticmethod

@@ -8,7 +8,8 @@ from posecam import EstimatorOptions, PoseEstimator
 from posecam.inference.detector import Detection
 from posecam.inference.roi import Roi
 from posecam.media import open_media, read_image
-from posecam.tracking import Tracker, TrackerOptions, box_iou, foreign_joints
+from posecam.geometry.boxes import box_iou
+from posecam.tracking import Tracker, TrackerOptions, foreign_joints
 
 
 @pytest.fixture(scope="module")
@@ -80,13 +81,13 @@ def _det(box, score=0.8):
 
 def _run(tracker, frames):
     """Detections per frame -> {detection index: track id} per frame, the pose model's part
-    played by the detection itself."""
+    played by the detection itself (a track the detector missed: the pose model finds nobody)."""
     out = []
     for dets in frames:
         tracks = tracker.begin_frame(dets)
-        tracker.end_frame(tracks, [True] * len(tracks), [None] * len(tracks), [None] * len(tracks),
-                          [t.roi for t in tracks])
-        out.append({dets.index(t.detection): t.id for t in tracks})
+        tracker.end_frame(tracks, [t.detection is not None for t in tracks], [None] * len(tracks),
+                          [None] * len(tracks), [t.roi for t in tracks])
+        out.append({dets.index(t.detection): t.id for t in tracks if t.detection is not None})
     return out
 
 

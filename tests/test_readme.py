@@ -21,6 +21,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from conftest import run_posecam
@@ -228,12 +229,16 @@ def test_summary_with_output_names_every_file_and_leaves_no_blank_lines(tmp_path
 
 def test_warning_names_the_stage_that_dropped_people() -> None:
     from posecam.commands.predict import InputSummary, explain_empty
-    from posecam.results import Frame, Recording
+    from posecam.results import Dropped, Frame, Recording
     from posecam.skeleton import H36M_JOINTS
 
+    box = np.array([0, 0, 5, 9.0])
     dropped = InputSummary(Recording("x.png", 10, 10, None, H36M_JOINTS))
-    dropped.add(Frame(0, 0.0, [], dropped=[0.31]))
+    dropped.add(Frame(0, 0.0, [], dropped=[Dropped("presence", 0.31, box), Dropped("neighbour", 0.9, box)]))
     assert "presence was below --min-presence 0.5 (highest 0.31)" in explain_empty(dropped, 0.25, 0.5)
+    capped = InputSummary(Recording("x.png", 10, 10, None, H36M_JOINTS))
+    capped.add(Frame(0, 0.0, [], dropped=[Dropped("max_people", 0.7, box)] * 2))
+    assert "2 over --max-people" in explain_empty(capped, 0.25, 0.5)
     nobody = InputSummary(Recording("x.png", 10, 10, None, H36M_JOINTS))
     nobody.add(Frame(0, 0.0, []))
     assert "detector found nobody above --min-detection-score 0.25" in explain_empty(nobody, 0.25, 0.5)

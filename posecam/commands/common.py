@@ -61,8 +61,9 @@ def estimator_options(f: Callable) -> Callable:
         click.option("--detector", type=click.Choice(list(DETECTORS)), default="movenet", show_default=True,
                      help="Person detector: movenet (MoveNet MultiPose: whole bodies, up to 6 per run) or blazepose "
                           "(BlazePose's: heads of near, frontal people)."),
-        click.option("--max-people", type=click.IntRange(1, MAX_PEOPLE), default=6, show_default=True,
-                     help="Most people followed per image or video."),
+        click.option("--max-people", type=click.IntRange(1, MAX_PEOPLE), default=20, show_default=True,
+                     help="Most people kept per image or video; the search for people is the same whatever it "
+                          "is (the people over it are counted in the summary and listed in the JSON's \"dropped\")."),
         click.option("--min-detection-score", type=Bounded(0, 1),
                      show_default="the detector's own: movenet 0.25, blazepose 0.5",
                      help="Person detector score, 0 to 1, below which a person is not looked at."),

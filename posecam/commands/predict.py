@@ -22,13 +22,15 @@ class InputSummary:
         self.rec = rec
         self.frames = 0
         self.people: dict[int, list] = {}      # id -> [frames, sum of root (3,), sum of mean confidence, height]
-        self.dropped = 0                       # people the pose model dropped (presence too low) ...
-        self.best_dropped = 0.0                # ... and the highest presence among them
+        self.dropped: dict[str, int] = {}      # people seen but dropped, per stage ...
+        self.best_dropped = 0.0                # ... and the highest presence among those the pose model dropped
 
     def add(self, frame) -> None:
         self.frames += 1
-        self.dropped += len(frame.dropped)
-        self.best_dropped = max([self.best_dropped, *frame.dropped])
+        for d in frame.dropped:
+            self.dropped[d.stage] = self.dropped.get(d.stage, 0) + 1
+            if d.stage == "presence":
+                self.best_dropped = max(self.best_dropped, d.score)
         for p in frame.people:
             totals = self.people.setdefault(p.id, [0, 0.0, 0.0, ""])
             totals[0] += 1
@@ -65,15 +67,30 @@ def print_summary(summaries: list[InputSummary], console, unreadable: int = 0) -
     if unreadable:
         console.print(f"left out: {unreadable} unreadable photo{'s' if unreadable > 1 else ''} (see the warnings; "
                       "--strict stops at the first)")
+    for sm in summaries:
+        if sm.dropped:
+            console.print(f"dropped in {shown(Path(sm.rec.source).name)} (person-frames, listed in the JSON's \"dropped\"): "
+                          f"{dropped_text(sm.dropped)}")
+
+
+DROP_REASONS = {"max_people": "over --max-people", "presence": "pose model presence below --min-presence",
+                "neighbour": "pose on a neighbour", "duplicate": "pose of a person already followed"}
+
+
+def dropped_text(counts: dict[str, int]) -> str:
+    """"12 over --max-people, 3 pose on a neighbour": the dropped people per stage."""
+    return ", ".join(f"{n} {DROP_REASONS.get(stage, stage)}" for stage, n in sorted(counts.items()))
 
 
 def explain_empty(sm: InputSummary, min_detection_score: float, min_presence: float) -> str | None:
     """Which stage left an input without anyone, as a warning; None when someone was found."""
     if sm.people:
         return None
-    if sm.dropped:
-        return (f"no person kept in {sm.rec.source}: the detector found {sm.dropped} but the pose model's "
+    if sm.dropped.get("presence"):
+        return (f"no person kept in {sm.rec.source}: the detector found {sm.dropped['presence']} but the pose model's "
                 f"presence was below --min-presence {min_presence:g} (highest {sm.best_dropped:.2f})")
+    if sm.dropped:
+        return f"no person kept in {sm.rec.source}: {dropped_text(sm.dropped)}"
     return (f"no person found in {sm.rec.source}: the detector found nobody above --min-detection-score "
             f"{min_detection_score:g}")
 

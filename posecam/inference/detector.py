@@ -18,9 +18,9 @@ import cv2
 import numpy as np
 
 from posecam.errors import ModelError
+from posecam.geometry.boxes import box_area, box_iou
 from posecam.inference.roi import Roi, body_roi
 from posecam.inference.session import Model, load_model, to_input_tensor
-
 
 
 @dataclass(eq=False)
@@ -44,17 +44,6 @@ def ssd_anchors(size: int, strides: list[int], per_cell: list[int]) -> np.ndarra
     return np.concatenate(centres)
 
 
-def _area(boxes: np.ndarray) -> np.ndarray:
-    return np.prod(boxes[..., 2:] - boxes[..., :2], axis=-1)
-
-
-def _iou(box: np.ndarray, boxes: np.ndarray) -> np.ndarray:
-    lo = np.maximum(box[:2], boxes[:, :2])
-    hi = np.minimum(box[2:], boxes[:, 2:])
-    inter = np.prod(np.clip(hi - lo, 0, None), axis=1)
-    return inter / np.maximum(_area(box) + _area(boxes) - inter, 1e-9)
-
-
 def weighted_nms(scores: np.ndarray, boxes: np.ndarray, points: np.ndarray, iou: float) -> list[int]:
     """Weighted non-maximum suppression: each kept detection averages its cluster by score.
 
@@ -64,7 +53,7 @@ def weighted_nms(scores: np.ndarray, boxes: np.ndarray, points: np.ndarray, iou:
     kept = []
     while order:
         lead = order[0]
-        overlap = _iou(boxes[lead], boxes[order]) > iou
+        overlap = box_iou(boxes[lead], boxes[order])[0] > iou
         cluster = np.array(order)[overlap]
         w = scores[cluster] / scores[cluster].sum()
         boxes[lead] = w @ boxes[cluster]
@@ -80,9 +69,9 @@ class BlazePoseDetector:
     joints: tuple[str, ...] = ()   # its 4 keypoints are ROI helpers, not body joints
     default_score = 0.5
 
-    def __init__(self, model: Model, min_score: float = 0.5, nms_iou: float = 0.3):
+    def __init__(self, model: Model, start_score: float = 0.5, nms_iou: float = 0.3):
         self.model = model
-        self.min_score = min_score
+        self.start_score = self.min_score = start_score   # no weak detections: each starts a track
         self.nms_iou = nms_iou
         spec = model.contract.input
         self.size = int(spec.size[0])
@@ -100,7 +89,8 @@ class BlazePoseDetector:
         crop = cv2.warpAffine(image_rgb, m, (self.size, self.size), flags=cv2.INTER_AREA if side > self.size else cv2.INTER_LINEAR)
         return crop, side / self.size, pad
 
-    def __call__(self, image_rgb: np.ndarray, max_people: int | None = None) -> list[Detection]:
+    def __call__(self, image_rgb: np.ndarray, person_px: float | None = None) -> list[Detection]:
+        """People in the image, most confident first (one run: `person_px` is not used)."""
         crop, scale, pad = self.letterbox(image_rgb)
         out = self.model.run({self.model.contract.input.name: to_input_tensor(crop[None], self.model.contract.input)})
         a = len(self.anchors)
@@ -116,7 +106,7 @@ class BlazePoseDetector:
         half = raw[:, 2:4] / self.scale / 2
         boxes = np.concatenate([centre - half, centre + half], axis=1)
         points = raw[:, 4:12].reshape(-1, 4, 2) / self.scale + anchors[:, None, :]
-        kept = weighted_nms(scores, boxes, points, self.nms_iou)[:max_people]
+        kept = weighted_nms(scores, boxes, points, self.nms_iou)
         unit_to_px = self.size * scale  # letterbox unit square -> image pixels, less the padding
         result = []
         for i in kept:
@@ -126,24 +116,33 @@ class BlazePoseDetector:
         return result
 
 
+# The search: a person this tall in the detector's input is found with a confident score
+# (measured on vtest.avi's hand counts, bench/bench_people.py); the image is searched in
+# tiles small enough to show its smallest people at that height, at most MAX_TILES a side.
+FOUND_PX = 50
+MAX_TILES = 3
+TILE_OVERLAP = 0.25    # each tile reaches this fraction of its width into its neighbours
+WEAK_FRACTION = 1 / 3  # detections down to this fraction of the start score keep tracks alive
+
+
 class MoveNetDetector:
     """MoveNet MultiPose: up to 6 people per run, each a box and 17 scored COCO keypoints.
 
-    `input_size` is the long side the image is resized to (the contract's default when None);
-    larger finds smaller people, at a cost that grows with its square. Asked for more people
-    than one run returns, it also searches 4 overlapping tiles (crowds, small people).
+    `input_size` is the long side an image (or a tile) is resized to (the contract's default
+    when None). Asked for people of `person_px` pixels, the image is also searched in
+    overlapping tiles, as many as showing them at FOUND_PX in the input needs.
     """
 
     default_score = 0.25   # people seen from behind or half hidden score 0.3 to 0.5
 
-    def __init__(self, model: Model, min_score: float = 0.2, input_size: int | None = None):
+    def __init__(self, model: Model, start_score: float = default_score, input_size: int | None = None):
         self.model = model
-        self.min_score = min_score
+        self.start_score = start_score
+        self.min_score = start_score * WEAK_FRACTION
         spec = model.contract.input
         self.multiple = spec.multiple or 32
         self.input_size = int(input_size or max(spec.size))
         self.joints = model.contract.joints
-        self.per_run = 6    # people one run returns (the output's second axis; read on each run)
         names = {n: i for i, n in enumerate(self.joints)}
         try:
             self._hips = (names["left_hip"], names["right_hip"])
@@ -163,19 +162,35 @@ class MoveNetDetector:
         canvas[:nh, :nw] = small
         return canvas, 1.0 / s
 
-    def __call__(self, image_rgb: np.ndarray, max_people: int | None = None) -> list[Detection]:
-        """People in the image, most confident first. When `max_people` exceeds what one run
-        returns, 2 x 2 overlapping tiles are searched too (more and smaller people) and the
-        detections of one person merged."""
+    def tiles(self, width: int, height: int, person_px: float | None) -> list[tuple[int, int, int, int]]:
+        """The tiles (x0, y0, x1, y1) searched besides the whole image for people `person_px`
+        tall: a grid whose tiles show them at FOUND_PX in the input, overlapping by TILE_OVERLAP;
+        none when the whole image already does (or `person_px` is None)."""
+        if not person_px:
+            return []
+        reach = self.input_size * person_px / FOUND_PX     # image pixels one run covers at that scale
+        nx, ny = (int(np.clip(round(side / reach), 1, MAX_TILES)) for side in (width, height))
+        if nx == ny == 1:
+            return []
+        tw, th = min(width, round(width / nx * (1 + TILE_OVERLAP))), min(height, round(height / ny * (1 + TILE_OVERLAP)))
+        return [(x0, y0, x0 + tw, y0 + th) for x0 in np.linspace(0, width - tw, nx).round().astype(int)
+                for y0 in np.linspace(0, height - th, ny).round().astype(int)]
+
+    def __call__(self, image_rgb: np.ndarray, person_px: float | None = None) -> list[Detection]:
+        """People in the image, most confident first: one run on the whole image, and one on
+        each tile that shows people `person_px` tall at FOUND_PX (see `tiles`). A person cut by
+        a tile's inner edge is left to the tile or the whole image that holds them, and the
+        detections of one person are merged."""
+        h, w = image_rgb.shape[:2]
         found = self._detect(image_rgb, np.zeros(2))
-        if max_people is not None and max_people > self.per_run:
-            h, w = image_rgb.shape[:2]
-            tw, th = round(w * 0.6), round(h * 0.6)   # 2 x 2 tiles overlapping by a fifth of the image
-            for x0 in (0, w - tw):
-                for y0 in (0, h - th):
-                    found += self._detect(image_rgb[y0:y0 + th, x0:x0 + tw], np.array([x0, y0], float))
-            found = _merge(found)
-        return sorted(found, key=lambda d: -d.score)[:max_people]
+        for x0, y0, x1, y1 in self.tiles(w, h, person_px):
+            inner = np.array([x0 > 0, y0 > 0, x1 < w, y1 < h])   # tile edges inside the image
+            edge = 0.01 * max(x1 - x0, y1 - y0)
+            for d in self._detect(image_rgb[y0:y1, x0:x1], np.array([x0, y0], float)):
+                gap = np.abs(d.box - [x0, y0, x1, y1])
+                if not (inner & (gap < edge)).any():
+                    found.append(d)
+        return sorted(_merge(found), key=lambda d: -d.score)
 
     def _detect(self, image_rgb: np.ndarray, offset: np.ndarray) -> list[Detection]:
         canvas, to_image = self.prepare(image_rgb)
@@ -183,7 +198,6 @@ class MoveNetDetector:
         raw = self.model.run({spec.name: to_input_tensor(canvas[None], spec)})
         self.model.check_shapes(raw, {"people": (1, None, 3 * len(self.joints) + 5)})
         out = raw["people"][0].astype(np.float64)
-        self.per_run = len(out)
         in_h, in_w = canvas.shape[:2]
         k = len(self.joints)
         result = []
@@ -205,14 +219,37 @@ def _merge(detections: list[Detection], iou: float = 0.5, same: float = 0.5) -> 
     `iou`) or whose keypoints agree (OKS above `same`: a person cut by a tile's edge)."""
     kept: list[Detection] = []
     for d in sorted(detections, key=lambda d: -d.score):
-        boxes = np.array([k.box for k in kept]).reshape(-1, 4)
-        lo, hi = np.maximum(d.box[:2], boxes[:, :2]), np.minimum(d.box[2:], boxes[:, 2:])
-        inter = np.prod(np.clip(hi - lo, 0, None), axis=1)
-        overlap = inter / np.maximum(_area(d.box) + _area(boxes) - inter, 1e-9)
+        overlap = box_iou(d.box, np.array([k.box for k in kept]))[0]
         if not any(o > iou or oks(d.keypoints, d.keypoint_scores, k.keypoints, k.keypoint_scores,
-                                  float(_area(k.box))) > same for o, k in zip(overlap, kept)):
+                                  float(box_area(k.box))) > same for o, k in zip(overlap, kept)):
             kept.append(d)
     return kept
+
+
+def detect_any_turn(detector: "Detector", image_rgb: np.ndarray, person_px: float | None = None) -> list[Detection]:
+    """People in any orientation, most confident first: the detector (made for upright people)
+    run on the image and on it turned by 90, 180 and 270 degrees, each detection carried back
+    (its ROI keeps the person's orientation) and one kept per person."""
+    h, w = image_rgb.shape[:2]
+    found = detector(image_rgb, person_px)
+    for turns in (1, 2, 3):
+        def back(points: np.ndarray, turns: int = turns) -> np.ndarray:
+            return turned_back(points, turns, w, h)
+        for d in detector(np.ascontiguousarray(np.rot90(image_rgb, turns)), person_px):
+            corners = back(d.box[[0, 1, 2, 1, 2, 3, 0, 3]].reshape(4, 2))
+            found.append(Detection(d.score, np.concatenate([corners.min(axis=0), corners.max(axis=0)]),
+                                   back(d.keypoints), d.keypoint_scores, d.roi.moved(back)))
+    return sorted(_merge(found), key=lambda d: -d.score)
+
+
+def turned_back(points: np.ndarray, turns: int, width: int, height: int) -> np.ndarray:
+    """(N, 2) pixels of `np.rot90(image, turns)` (quarter turns anticlockwise) -> pixels of the
+    image (`width` x `height`), undoing the last turn first."""
+    points = np.asarray(points, float).reshape(-1, 2)
+    for done in range(turns - 1, -1, -1):
+        before = width if done % 2 == 0 else height   # the width of the image that turn was applied to
+        points = np.stack([before - 1 - points[:, 1], points[:, 0]], axis=1)
+    return points
 
 
 # COCO keypoint sigmas (OKS), used when there are 17 keypoints; 0.07 for each otherwise.
@@ -235,14 +272,15 @@ def oks(points_a: np.ndarray, conf_a: np.ndarray, points_b: np.ndarray, conf_b: 
 
 
 Detector = BlazePoseDetector | MoveNetDetector
+
+
 def load_detector(name_or_path: str, threads: int | None = None, min_score: float | None = None,
                   input_size: int | None = None, device: str = "cpu") -> Detector:
     """A bundled detector by name (see contract.DETECTORS) or a detector .onnx file, decoded as its
     metadata says. `min_score` is the score that starts a track (None: the detector's
-    `default_score`); MoveNet's detections down to a third of it are kept too (they keep
-    tracks alive), BlazePose's from it."""
+    `default_score`, kept as its `start_score`); MoveNet's detections down to WEAK_FRACTION of
+    it are kept too (they keep tracks alive), BlazePose's from it (`min_score` of each)."""
     model = load_model(name_or_path, threads, kind="detector", device=device)
     if model.contract.decoder == "movenet_multipose":
-        score = MoveNetDetector.default_score if min_score is None else min_score
-        return MoveNetDetector(model, score / 3, input_size)
+        return MoveNetDetector(model, MoveNetDetector.default_score if min_score is None else min_score, input_size)
     return BlazePoseDetector(model, BlazePoseDetector.default_score if min_score is None else min_score)

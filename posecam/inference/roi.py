@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -60,6 +61,13 @@ class Roi:
         c, n = np.cos(self.angle), np.sin(self.angle)
         x, y = vectors[..., 0], vectors[..., 1]
         return np.stack([c * x - n * y, n * x + c * y, vectors[..., 2]], axis=-1)
+
+    def moved(self, to_image: Callable[[np.ndarray], np.ndarray]) -> "Roi":
+        """This ROI carried by a rigid map of (N, 2) points (e.g. from a turned copy of the
+        image back to the image): its centre and its up direction are mapped."""
+        up = self.rotate_to_image(np.array([0.0, -self.size / (2 * ROI_SCALE), 0.0]))[:2]
+        centre, top = to_image(np.array([[self.cx, self.cy], [self.cx + up[0], self.cy + up[1]]]))
+        return Roi.from_alignment_points(centre, top)
 
     @property
     def box(self) -> np.ndarray:

@@ -3,14 +3,15 @@
 JSON: {"posecam", "model", "joints", "root_joint", "inputs": [{"source", "width", "height", "frame",
 "intrinsics": {"fx", "fy", "cx", "cy", "source"}, "fps", "frames": [{"index", "time",
 "people": [{"id", "score", "bbox", "keypoints_2d", "keypoints_3d", "confidence", "root"[, "height",
-"height_source", "height_estimated", "height_sd", "depth_sd"]}]}][, "floor": {"normal", "distance",
-"spread", "contacts", "tracks"}]}]}. The height fields (m; depth_sd in mm) are there when the
+"height_source", "height_estimated", "height_sd", "depth_sd"]}], "dropped": [{"stage", "score",
+"bbox"}]}][, "floor": {"normal", "distance", "spread", "contacts", "tracks"}]}]}. The height fields (m; depth_sd in mm) are there when the
 person's metric scale was fixed (posecam.metric); "floor" when a ground plane was fitted (camera
 frame, mm). Files without them (older posecam) read as before.
 CSV: one row per joint, header exactly CSV_HEADER (height and depth_sd empty where unknown).
 With angles (`posecam predict --angles`, posecam.angles) each person also holds "angles": {name:
 degrees}, and the CSV gains one column per angle after CSV_HEADER's (the person's angles in that
 frame, repeated on each of its joint rows).
+"dropped" lists the people seen but left out in the frame, with the stage that did it.
 
 Both are written frame by frame (`write_poses`), so no second copy of a long video's poses is
 built in memory. Values that are not finite (a joint a model could not place) are written as
@@ -35,7 +36,7 @@ from posecam.io.atomic import atomic_path
 from posecam.io.jsonstream import JsonStream
 from posecam.validate import MAX_FPS, MAX_INDEX, MAX_JOINTS, MAX_MM, MAX_PEOPLE, MAX_PIXEL, MAX_SECONDS, Field
 from posecam.media import check_input
-from posecam.results import Frame, Person, Recording
+from posecam.results import Dropped, Frame, Person, Recording
 from posecam.skeleton import skeleton_of
 
 POSE_SUFFIXES = (".json", ".csv")   # the pose files posecam writes (and reads, .json)
@@ -89,7 +90,8 @@ def _header(r: Recording) -> dict:
 
 
 def frame_to_dict(f: Frame) -> dict:
-    return {"index": f.index, "time": _number(f.time, 4), "people": [person_to_dict(p) for p in f.people]}
+    return {"index": f.index, "time": _number(f.time, 4), "people": [person_to_dict(p) for p in f.people],
+            "dropped": [{"stage": d.stage, "score": _number(d.score, 4), "bbox": _round(d.bbox, 1)} for d in f.dropped]}
 
 
 def _dumps(value) -> str:
@@ -290,18 +292,29 @@ def _optional(value: float | None) -> float:
 
 
 def _read_frame(stream: JsonStream, check: Field, shape: dict) -> Frame:
-    fields, people = {}, []
+    fields, people, dropped = {}, [], []
     for key in stream.keys():
         if key == "people":
             for n in stream.items(MAX_PEOPLE, f"{check.where}.people"):
                 people.append(_read_person(stream.value(), Field(f"{check.where} people[{n}]"), shape))
+        elif key == "dropped":
+            for n in stream.items(MAX_PEOPLE, f"{check.where}.dropped"):
+                dropped.append(_read_dropped(stream.value(), Field(f"{check.where} dropped[{n}]")))
         else:
             fields[key] = stream.value()
     if "index" not in fields:
         raise check.fail("index", "is missing")
     index = check.number(fields["index"], "index", 0, MAX_INDEX, whole=True)
     time = check.number(fields.get("time"), "time", -MAX_SECONDS, MAX_SECONDS, optional=True)
-    return Frame(index, _optional(time), people)
+    return Frame(index, _optional(time), people, dropped)
+
+
+def _read_dropped(d: object, check: Field) -> Dropped:
+    """One person seen but left out (absent in older files)."""
+    check.table(d, "dropped")
+    return Dropped(check.text(d.get("stage", ""), "stage", limit=64),
+                   _optional(check.number(d.get("score"), "score", 0, 1, optional=True)),
+                   check.numbers(d.get("bbox", [None] * 4), "bbox", ((4,),), -MAX_PIXEL, MAX_PIXEL, nulls=True))
 
 
 def _read_person(p: object, check: Field, shape: dict) -> Person:

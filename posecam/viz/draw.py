@@ -19,13 +19,36 @@ def _side_colour(name: str) -> tuple[int, int, int]:
     return CENTRE
 
 
+def place_labels(sizes: list[tuple[int, int]], anchors: list[tuple[float, float]], width: int,
+                 height: int, gap: int = 2) -> list[tuple[int, int]]:
+    """Top-left corners for text boxes of `sizes` (w, h), each as near as it can be to its
+    anchor (the bottom-left corner it wants), inside the image and clear of the boxes placed
+    before it: tried at the anchor, then stepped down and up a box height at a time."""
+    placed: list[tuple[int, int, int, int]] = []
+    corners = []
+    for (w, h), (ax, ay) in zip(sizes, anchors):
+        x = int(np.clip(ax, 0, max(width - w, 0)))
+        want = int(np.clip(ay - h, 0, max(height - h, 0)))
+        steps = [0] + [sign * k for k in range(1, 2 * len(sizes) + 1) for sign in (1, -1)]
+        for step in steps:
+            y = int(np.clip(want + step * (h + gap), 0, max(height - h, 0)))
+            if all(x + w + gap <= x0 or x0 + w0 + gap <= x or y + h + gap <= y0 or y0 + h0 + gap <= y
+                   for x0, y0, w0, h0 in placed):
+                break
+        placed.append((x, y, w, h))
+        corners.append((x, y))
+    return corners
+
+
 def draw_people(image_rgb: np.ndarray, people: list[Person], joints: tuple[str, ...],
                 min_confidence: float = 0.3) -> np.ndarray:
-    """A copy of the image with each person's skeleton, id and root depth drawn on it."""
+    """A copy of the image with each person's skeleton, id and root depth drawn on it; the
+    labels stay inside the image and do not overlap."""
     out = image_rgb.copy()
     skeleton = skeleton_of(joints)
     scale = max(out.shape[:2]) / 1000
     thick = max(1, round(3 * scale))
+    font = 0.7 * scale + 0.2
     for p in people:
         uv = p.keypoints_2d
         ok = p.confidence >= min_confidence
@@ -35,8 +58,15 @@ def draw_people(image_rgb: np.ndarray, people: list[Person], joints: tuple[str, 
                          _side_colour(joints[b]), thick, cv2.LINE_AA)
         for j in np.flatnonzero(ok):
             cv2.circle(out, tuple(np.round(uv[j]).astype(int)), thick + 1, (255, 255, 255), -1, cv2.LINE_AA)
-        label = f"#{p.id}  z={p.root[2] / 1000:.2f} m"
-        org = (int(p.bbox[0]), max(int(p.bbox[1]) - 8, 16))
-        cv2.putText(out, label, org, cv2.FONT_HERSHEY_SIMPLEX, 0.7 * scale + 0.2, (0, 0, 0), thick + 2, cv2.LINE_AA)
-        cv2.putText(out, label, org, cv2.FONT_HERSHEY_SIMPLEX, 0.7 * scale + 0.2, (255, 255, 0), thick, cv2.LINE_AA)
+    labels = [f"#{p.id} z={p.root[2] / 1000:.2f} m" for p in people]
+    sizes, baselines = [], []
+    for label in labels:
+        (w, h), base = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, font, thick + 2)
+        sizes.append((w + 2, h + base + 2))
+        baselines.append(base)
+    corners = place_labels(sizes, [(p.bbox[0], p.bbox[1] - 4) for p in people], out.shape[1], out.shape[0])
+    for label, (x, y), (w, h), base in zip(labels, corners, sizes, baselines):
+        org = (x + 1, y + h - base - 1)
+        cv2.putText(out, label, org, cv2.FONT_HERSHEY_SIMPLEX, font, (0, 0, 0), thick + 2, cv2.LINE_AA)
+        cv2.putText(out, label, org, cv2.FONT_HERSHEY_SIMPLEX, font, (255, 255, 0), thick, cv2.LINE_AA)
     return out

@@ -1,0 +1,28 @@
+"""Overlays: each person's label stays inside the image and clear of the others' labels."""
+
+import numpy as np
+
+from posecam.viz.draw import place_labels
+
+
+def _boxes(corners, sizes):
+    return [(x, y, x + w, y + h) for (x, y), (w, h) in zip(corners, sizes)]
+
+
+def test_labels_of_a_crowd_stay_inside_and_apart():
+    rng = np.random.default_rng(3)
+    width, height = 768, 576
+    sizes = [(int(w), 18) for w in rng.integers(90, 140, 20)]
+    # people side by side, several at the image's edges, two with the same anchor
+    anchors = [(float(x), float(y)) for x, y in zip(rng.uniform(-50, width, 20), rng.uniform(-30, height + 30, 20))]
+    anchors[1] = anchors[0]
+    boxes = _boxes(place_labels(sizes, anchors, width, height), sizes)
+    for i, (x0, y0, x1, y1) in enumerate(boxes):
+        assert 0 <= x0 and x1 <= width and 0 <= y0 and y1 <= height, boxes[i]
+        for a0, b0, a1, b1 in boxes[:i]:
+            assert x1 <= a0 or a1 <= x0 or y1 <= b0 or b1 <= y0, (boxes[i], (a0, b0, a1, b1))
+
+
+def test_a_label_with_room_sits_just_above_its_person():
+    (corner,) = place_labels([(100, 20)], [(200.0, 150.0)], 768, 576)
+    assert corner == (200, 130)
