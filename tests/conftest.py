@@ -66,3 +66,13 @@ def invoke_posecam(*args: str):
         warnings.showwarning = saved[0]
         for s, handler in saved[1].items():
             signal.signal(s, handler)
+
+
+def the_subject(recording):
+    """The recording with only the track of the tallest person of its first frame (the man on
+    the balance board; a bystander stands at the left edge of the Pose2Sim clips)."""
+    import dataclasses
+
+    first = max(recording.frames[0].people, key=lambda p: p.bbox[3] - p.bbox[1])
+    return dataclasses.replace(recording, frames=[
+        dataclasses.replace(f, people=[p for p in f.people if p.id == first.id]) for f in recording.frames])

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from conftest import DATA, run_posecam
+from conftest import DATA, run_posecam, the_subject
 from posecam.errors import InputError
 from posecam.filters import SmoothOptions, butterworth, one_euro, runs, smooth_recording
 
@@ -57,7 +57,7 @@ def test_bad_options_are_refused(kwargs):
 
 @pytest.fixture(scope="module")
 def clip(estimator):
-    return estimator.predict_file(DATA / "balance_cam01_30f.mp4")
+    return the_subject(estimator.predict_file(DATA / "balance_cam01_30f.mp4"))
 
 
 def test_smoothing_follows_each_track_on_a_real_clip(clip):

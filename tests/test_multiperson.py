@@ -1,9 +1,11 @@
 """Several people: the MoveNet MultiPose detector, crops that hold one person, the tracker."""
 
+import json
+
 import numpy as np
 import pytest
 
-from conftest import DATA
+from conftest import DATA, run_posecam
 from posecam import EstimatorOptions, PoseEstimator
 from posecam.inference.detector import Detection
 from posecam.inference.roi import Roi
@@ -32,12 +34,34 @@ def test_people_counted_in_photos(people, image, count):
     assert len(people.predict_image(read_image(DATA / image)).people) == count
 
 
-def test_tiles_for_crowds_find_each_person_once():
-    # more people asked for than one MoveNet run returns: 4 overlapping tiles are searched too
-    crowd = PoseEstimator(EstimatorOptions(max_people=10))
+def test_tiles_find_each_person_once(people):
+    # searched for people 40 px tall, the photos are cut in overlapping tiles: one detection each
     for image, count in (("basketball2.png", 2), ("messi5.jpg", 1)):
-        frame = crowd.predict_image(read_image(DATA / image))
-        assert len(frame.people) == count, image
+        rgb = read_image(DATA / image)
+        h, w = rgb.shape[:2]
+        assert len(people.detector.tiles(w, h, 40)) >= 4
+        confident = [d for d in people.detector(rgb, 40) if d.score >= people.detector.start_score]
+        assert len(confident) == count, image
+
+
+def test_search_is_set_by_the_people_not_by_max_people():
+    image = read_image(DATA / "basketball2.png")
+    one = PoseEstimator(EstimatorOptions(max_people=1)).predict_image(image)
+    assert len(one.people) == 1
+    # the second player is not lost in silence: listed as dropped over max_people, with the detector's score
+    (over,) = [d for d in one.dropped if d.stage == "max_people"]
+    assert over.score >= 0.25 and over.bbox.shape == (4,)
+    assert box_iou(over.bbox, one.people[0].bbox)[0, 0] < 0.3   # the other player, not the one kept
+
+
+def test_dropped_people_are_counted_and_listed_in_the_json(tmp_path):
+    out = tmp_path / "two.json"
+    r = run_posecam("predict", DATA / "basketball2.png", "--max-people", "1", "-o", out)
+    assert r.returncode == 0, r.stderr
+    frame = json.loads(out.read_text())["inputs"][0]["frames"][0]
+    assert len(frame["people"]) == 1
+    assert [d["stage"] for d in frame["dropped"]] == ["max_people"] and len(frame["dropped"][0]["bbox"]) == 4
+    assert "1 over --max-people" in " ".join(r.stdout.split())   # the summary counts them
 
 
 def test_two_players_get_one_skeleton_each(people):

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import DATA, run_posecam
+from conftest import DATA, run_posecam, the_subject
 from posecam.io.trc import to_y_up, trc_paths, write_trc
 
 REPO = Path(__file__).resolve().parent.parent
@@ -66,8 +66,8 @@ def as_array(rows) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def clip(estimator):
-    """A real 30-frame clip (Pose2Sim's balance take, cam01) as predicted by posecam."""
-    return estimator.predict_file(DATA / "balance_cam01_30f.mp4")
+    """A real 30-frame clip (Pose2Sim's balance take, cam01) as predicted by posecam: the man on the board."""
+    return the_subject(estimator.predict_file(DATA / "balance_cam01_30f.mp4"))
 
 
 def test_round_trip_through_opensim_and_pose2sim(clip, tmp_path):
@@ -115,8 +115,11 @@ def test_predict_cli_writes_trc_and_refuses_several_inputs(tmp_path):
     out = tmp_path / "clip.trc"
     r = run_posecam("predict", DATA / "balance_cam01_30f.mp4", "-o", out, "--trc-y-up")
     assert r.returncode == 0, r.stderr
-    lines = out.read_text().splitlines()
-    assert lines[0].startswith("PathFileType\t4\t(X/Y/Z)\tclip.trc") and lines[2].split("\t")[4] == "m"
+    # one file per person (the man on the board and a bystander): the man's is in every frame
+    texts = [p.read_text() for p in sorted(tmp_path.glob("clip_id*.trc"))]
+    assert len(texts) == 2
+    lines = max(texts, key=len).splitlines()
+    assert lines[0].startswith("PathFileType\t4\t(X/Y/Z)\tclip_id") and lines[2].split("\t")[4] == "m"
     assert len(lines) == 5 + 30
     r = run_posecam("predict", DATA / "messi5.jpg", DATA / "fruits.jpg", "-o", tmp_path / "two.trc")
     assert r.returncode == 2 and r.stderr.startswith("posecam: error:") and "one input" in r.stderr

@@ -228,14 +228,15 @@ def _merge(detections: list[Detection], iou: float = 0.5, same: float = 0.5) -> 
 
 def detect_any_turn(detector: "Detector", image_rgb: np.ndarray, person_px: float | None = None) -> list[Detection]:
     """People in any orientation, most confident first: the detector (made for upright people)
-    run on the image and on it turned by 90, 180 and 270 degrees, each detection carried back
-    (its ROI keeps the person's orientation) and one kept per person."""
+    run on the image (searched for people `person_px` tall) and on the whole image turned by 90,
+    180 and 270 degrees, each detection carried back (its ROI keeps the person's orientation)
+    and one kept per person."""
     h, w = image_rgb.shape[:2]
     found = detector(image_rgb, person_px)
     for turns in (1, 2, 3):
         def back(points: np.ndarray, turns: int = turns) -> np.ndarray:
             return turned_back(points, turns, w, h)
-        for d in detector(np.ascontiguousarray(np.rot90(image_rgb, turns)), person_px):
+        for d in detector(np.ascontiguousarray(np.rot90(image_rgb, turns))):
             corners = back(d.box[[0, 1, 2, 1, 2, 3, 0, 3]].reshape(4, 2))
             found.append(Detection(d.score, np.concatenate([corners.min(axis=0), corners.max(axis=0)]),
                                    back(d.keypoints), d.keypoint_scores, d.roi.moved(back)))
