@@ -219,7 +219,8 @@ class Tracker:
             else:
                 t.lost += 1
         self.tracks = [t for t in self.tracks if t.lost <= o.max_lost]
-        for d in left:   # births, most confident first, while there is room
+        # births, the tallest (nearest) first, while there is room: the people in front get the first ids
+        for d in sorted(left, key=lambda d: d.box[1] - d.box[3]):
             if len(self.active()) >= o.max_people:
                 self.refused.append(Dropped("max_people", d.score, d.box))
                 continue

@@ -183,7 +183,8 @@ def views(xyz: np.ndarray) -> tuple[dict, dict, dict]:
 def balance_33(tmp_path_factory):
     """The 33 landmarks of the balancing adult in 30 real frames (Pose2Sim's demo, cam01)."""
     out = tmp_path_factory.mktemp("angles") / "poses.json"
-    run = run_posecam("predict", str(DATA / "balance_cam01_30f.mp4"), "--skeleton", "33", "--angles", "-o", str(out))
+    run = run_posecam("predict", str(DATA / "balance_cam01_30f.mp4"), "--skeleton", "33", "--angles", "-o", str(out),
+                      "--max-people", "1")   # the adult (the tallest); a bystander stands at the left edge
     assert run.returncode == 0, run.stderr
     return json.loads(out.read_text())
 
@@ -222,7 +223,7 @@ def test_angles_match_sports2d_on_a_real_clip(balance_33):
 def test_predict_csv_angles_and_plot_pages(balance_33, tmp_path):
     csv_out, page, png = tmp_path / "poses.csv", tmp_path / "angles.html", tmp_path / "angles.png"
     run = run_posecam("predict", DATA / "balance_cam01_30f.mp4", "--skeleton", "33", "--angles", "-o", csv_out,
-                      "--plot", page)
+                      "--plot", page, "--max-people", "1")
     assert run.returncode == 0, run.stderr
     lines = csv_out.read_text().splitlines()
     header = lines[0].split(",")
@@ -233,7 +234,7 @@ def test_predict_csv_angles_and_plot_pages(balance_33, tmp_path):
     assert [float(v) for v in row[n:]] == pytest.approx([first["angles"][a] for a in header[n:]], abs=0.051)
     text = page.read_text()
     assert text.startswith("<!DOCTYPE html>") and "<polyline" in text and "person #0" in text and "http" not in text.replace("http://www.w3.org/2000/svg", "")
-    run = run_posecam("predict", DATA / "balance_cam01_30f.mp4", "--plot", png)   # 17 joints: no ankle panel
+    run = run_posecam("predict", DATA / "balance_cam01_30f.mp4", "--plot", png, "--max-people", "1")   # 17 joints: no ankle panel
     assert run.returncode == 0, run.stderr
     image = cv2.imread(str(png))
     assert image.shape[1] == COLUMN_W and image.shape[0] > 5 * 150

@@ -80,7 +80,7 @@ def test_predict_keeps_source_indices_and_times(tmp_path):
     assert [f["index"] for f in rec["frames"]] == list(range(6, 24, 2))
     assert [f["time"] for f in rec["frames"]] == pytest.approx([i / 60 for i in range(6, 24, 2)], abs=1e-4)
     assert rec["fps"] == pytest.approx(30.0) and all(f["people"] for f in rec["frames"])
-    run = run_posecam("predict", CLIP, "--start", "20", "-o", trc)
+    run = run_posecam("predict", CLIP, "--start", "20", "-o", trc, "--max-people", "1")   # the adult, not the bystander: one .trc
     assert run.returncode == 0, run.stderr
     rows = [line.split("\t") for line in trc.read_text().splitlines()[5:] if line.strip()]
     assert rows[0][:2] == ["21", "0.333333"] and len(rows) == 10    # TRC counts frames from 1

@@ -31,7 +31,7 @@ def test_each_view_gets_its_own_camera_from_one_estimator(estimator, tmp_path):
     recs = load_views(VIEWS, intrinsics=IntrinsicsOptions(file=str(calib), camera="left,right"), estimator=estimator)
     assert [(r.intrinsics.fx, r.intrinsics.source) for r in recs] == [
         (401.0, "file:calib.toml#left"), (1501.0, "file:calib.toml#right")]
-    assert [len(r.frames[0].people) for r in recs] == [1, 1]
+    assert all(r.frames[0].people for r in recs)     # the man first (the tallest); a bystander in some views
     # the same pose, lifted with a focal length 1501 / 1681.2 of the lab's: the pinhole puts it nearer
     lab = estimator.predict_file(VIEWS[1], IntrinsicsOptions(file=str(EXAMPLES / "cam01_intrinsics.json")))
     ratio = recs[1].frames[0].people[0].root[2] / lab.frames[0].people[0].root[2]

@@ -48,7 +48,7 @@ def draw_people(image_rgb: np.ndarray, people: list[Person], joints: tuple[str, 
     skeleton = skeleton_of(joints)
     scale = max(out.shape[:2]) / 1000
     thick = max(1, round(3 * scale))
-    font = 0.7 * scale + 0.2
+    font = 0.5 * scale + 0.15
     for p in people:
         uv = p.keypoints_2d
         ok = p.confidence >= min_confidence
