@@ -304,8 +304,9 @@ def vtest(args) -> None:
     with sink if sink else _nothing():
         for rgb, frame in zip(frames, est.track(frames)):
             people.append(frame.people)
-            for d in frame.dropped:
-                dropped[d.stage] = dropped.get(d.stage, 0) + 1
+            for d in frame.dropped:   # (a posecam before the stages listed presence scores only)
+                stage = getattr(d, "stage", "presence")
+                dropped[stage] = dropped.get(stage, 0) + 1
             if sink:
                 sink.write(draw_people(rgb, frame.people, est.joints))
     fps = len(people) / (time.perf_counter() - t0)

@@ -16,7 +16,7 @@ from posecam.tracking import Tracker, TrackerOptions, foreign_joints
 
 @pytest.fixture(scope="module")
 def people(estimator):
-    assert estimator.options.max_people == 6
+    assert estimator.options.max_people == EstimatorOptions().max_people   # the defaults
     return estimator
 
 
