@@ -19,7 +19,7 @@ from posecam.geometry.camera import Rig
 from posecam.io.calibration import read_calibration
 from posecam.io.intrinsics import IntrinsicsOptions, is_calibration
 from posecam.io.poses import read_poses
-from posecam.media import FrameSelection, open_media
+from posecam.media import DEFAULT_FPS, FrameSelection, open_media
 from posecam.multiview.fuse import FuseOptions, check_lengths
 from posecam.results import Recording
 
@@ -82,9 +82,9 @@ def load_views(inputs: list[str], options: EstimatorOptions | None = None, intri
 
 def select_frames(rec: Recording, frames: FrameSelection | None) -> Recording:
     """The frames of a pose file's recording that `frames` keeps, by their source index (a
-    recording without a frame rate is taken at 30 fps, as the smoother takes it)."""
+    recording without a frame rate is taken at DEFAULT_FPS, as the smoother takes it)."""
     if frames is None or not rec.frames:
         return rec
-    fps = rec.fps or 30.0
+    fps = rec.fps or DEFAULT_FPS
     kept = frames.frames(fps, max(f.index for f in rec.frames) + 1)
     return dataclasses.replace(rec, frames=[f for f in rec.frames if f.index in kept], fps=fps / kept.step)

@@ -175,7 +175,9 @@ def angle_options(f: Callable) -> Callable:
 
 def check_angles(angles: bool, output: str | None, plot: str | None) -> None:
     """Refuse --angles without a JSON/CSV output to hold them, and a --plot of the wrong kind."""
-    if angles and not (output and Path(output).suffix.lower() in (".json", ".csv")):
+    from posecam.io.poses import POSE_SUFFIXES
+
+    if angles and not (output and Path(output).suffix.lower() in POSE_SUFFIXES):
         raise InputError("--angles writes the angles into -o FILE.json or FILE.csv; give one (or only --plot)")
     check_output(plot, (".png", ".html"), "--plot")
 

@@ -38,6 +38,7 @@ from posecam.multiview.report import CameraReport, camera_reports
 from posecam.multiview.sync import (MAX_SPREAD, MIN_CORRELATION, MIN_MOTION, SyncResult, estimate_offsets,
                                     motion_correlation, motion_offset, motion_signals)
 from posecam.metric import stature
+from posecam.media import DEFAULT_FPS
 from posecam.results import Frame, Person, Recording
 from posecam.skeleton import skeleton_of
 
@@ -163,7 +164,7 @@ def _shared_motion(association: Association, recordings: list[Recording], v: int
     shared = [p for p in association.people if ref in p.views and v in p.views]
     if not shared:
         return None
-    fps = recordings[ref].fps or 30.0
+    fps = recordings[ref].fps or DEFAULT_FPS
     signals, excursion = [], []
     for u in (ref, v):
         parts = [motion_signals(*p.view_arrays(u, len(recordings[u].frames))[1:3], fps, opts.min_conf) for p in shared]

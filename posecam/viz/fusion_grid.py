@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 
 from posecam.errors import InputError, PosecamError
-from posecam.media import VIDEO_SUFFIXES, FrameSelection, open_media
+from posecam.media import DEFAULT_FPS, VIDEO_SUFFIXES, FrameSelection, open_media
 from posecam.multiview.fuse import FusionResult
 from posecam.results import Frame, Recording
 from posecam.viz.draw import draw_people
@@ -106,7 +106,7 @@ def write_grid(path: str | os.PathLike, result: FusionResult, recordings: list[R
     if suffix in PICTURE_SUFFIXES:
         write_image(path, first)
         return
-    with VideoSink(path, (fused or result.recording).fps or 30.0, first.shape[1], first.shape[0]) as sink:
+    with VideoSink(path, (fused or result.recording).fps or DEFAULT_FPS, first.shape[1], first.shape[0]) as sink:
         sink.write(first)
         for picture in pictures_left:
             sink.write(picture)

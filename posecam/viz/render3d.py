@@ -21,6 +21,7 @@ import cv2
 import numpy as np
 
 from posecam.geometry.camera import Rig
+from posecam.media import DEFAULT_FPS
 from posecam.results import Recording
 from posecam.media import VIDEO_SUFFIXES
 from posecam.viz.sinks import VideoSink
@@ -118,7 +119,7 @@ def render_frames(rec: Recording, rig: Rig | None = None, size: tuple[int, int] 
 
 def write_view3d_video(path: str | os.PathLike, rec: Recording, rig: Rig | None = None) -> None:
     """Write `render_frames` to FILE.mp4 at the recording's frame rate."""
-    with VideoSink(path, rec.fps or 30.0, *SIZE) as sink:
+    with VideoSink(path, rec.fps or DEFAULT_FPS, *SIZE) as sink:
         for image in render_frames(rec, rig):
             sink.write(image)
 
