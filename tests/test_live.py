@@ -106,15 +106,18 @@ def test_ctrl_c_ends_a_live_stream_with_complete_files(mjpeg, tmp_path):
 
 
 def test_a_second_ctrl_c_abandons_the_outputs(mjpeg, tmp_path):
+    """The second Ctrl-C lands while posecam finishes (drawing the 3D view of every frame, which
+    takes seconds): nothing is written, exit 130."""
     url, out = mjpeg(None), tmp_path / "live.json"
-    proc = subprocess.Popen([sys.executable, "-m", "posecam", "predict", url, "-o", str(out)],
+    proc = subprocess.Popen([sys.executable, "-m", "posecam", "predict", url, "-o", str(out),
+                             "--viz3d", str(tmp_path / "view.mp4")],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 60
-        while time.monotonic() < deadline and _staged_bytes(tmp_path) < 20_000:
+        while time.monotonic() < deadline and _staged_bytes(tmp_path) < 100_000:
             time.sleep(0.2)
         proc.send_signal(signal.SIGINT)
-        time.sleep(0.05)
+        time.sleep(0.3)
         proc.send_signal(signal.SIGINT)
         _, stderr = proc.communicate(timeout=60)
     finally:

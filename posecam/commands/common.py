@@ -148,9 +148,9 @@ def stop_on_interrupt() -> Iterator[threading.Event]:
 def frame_options(f: Callable) -> Callable:
     """--start, --end and --stride, shared by `predict` and `fuse`, read by `make_frame_selection`."""
     for opt in reversed([
-        click.option("--start", help="First frame to read: a frame number (120) or a time (2s, 1.5s); default: 0."),
-        click.option("--end", help="Stop before this frame (a frame number or a time, e.g. 4s); default: the end."),
-        click.option("--stride", help="Read every Nth frame (a number of frames, or a time such as 0.1s); default: 1."),
+        click.option("--start", metavar="N|Ts", help="First frame to read: a frame number (120) or a time (2s, 1.5s); default: 0."),
+        click.option("--end", metavar="N|Ts", help="Stop before this frame (a frame number or a time, e.g. 4s); default: the end."),
+        click.option("--stride", metavar="N|Ts", help="Read every Nth frame (a number of frames, or a time such as 0.1s); default: 1."),
     ]):
         f = opt(f)
     return f
