@@ -20,7 +20,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from posecam.errors import InputError, OutputError, PosecamError
+from posecam.errors import InputError, OutputError, PosecamError, note_signal
 from posecam.estimate import EstimatorOptions, shared_estimator
 from posecam.filters import smooth_recording
 from posecam.io.atomic import OutputSet
@@ -147,6 +147,7 @@ def _stop_worker(signum, frame) -> None:
     files removed, nothing committed) and no other task starts; an idle worker just ends."""
     global _stopping
     _stopping = True
+    note_signal(signum)
     for other in (signal.SIGINT, signal.SIGTERM):   # a second signal must not break the clean-up
         signal.signal(other, _ignore)   # (not SIG_IGN: Python reports a signal already pending then)
     if not _busy:

@@ -20,17 +20,9 @@ from posecam._version import __version__
 from posecam.commands.export import export_command
 from posecam.commands.fuse import fuse_command
 from posecam.commands.predict import predict_command
-from posecam.errors import WRITE_ERRNOS, OutputError, PosecamError, ReaderLeft, printable
+from posecam.errors import WRITE_ERRNOS, OutputError, PosecamError, ReaderLeft, Terminated, on_signal, printable
 
 _NO_ARGS = getattr(click.exceptions, "NoArgsIsHelpError", ())   # click >= 8.2
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM, raised like Ctrl-C so that every `with` block removes its temporary files."""
-
-
-def _raise_terminated(signum, frame) -> None:
-    raise Terminated
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
@@ -76,8 +68,8 @@ class _Group(click.Group):
             return super().main(args, prog_name, complete_var, standalone_mode, **extra)
         main_thread = threading.current_thread() is threading.main_thread()
         if main_thread:   # installed here, when the command runs, never at import
-            signal.signal(signal.SIGINT, signal.default_int_handler)
-            signal.signal(signal.SIGTERM, _raise_terminated)
+            signal.signal(signal.SIGINT, on_signal)
+            signal.signal(signal.SIGTERM, on_signal)
         warnings.showwarning = _show_warning
         for stream in (sys.stdout, sys.stderr):   # an ASCII-only terminal and a name that is not
             if hasattr(stream, "reconfigure"):     # ASCII: escapes, not UnicodeEncodeError

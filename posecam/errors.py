@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import errno
 import re
+import signal
 import warnings
 
 # errors only writing gives: such an OSError is an output's (exit code 4), never an input's
@@ -41,6 +42,30 @@ class FusionError(PosecamError):
     """Multi-view fusion that cannot be done with these inputs (exit code 5)."""
 
     exit_code = 5
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised like Ctrl-C so that every `with` block removes its temporary files."""
+
+
+_received: list[int] = []   # the signals (SIGINT, SIGTERM) this process received, in order
+
+
+def on_signal(signum: int, frame: object = None) -> None:
+    """The CLI's handler for Ctrl-C and SIGTERM: the signal is noted, so that no output is
+    committed after it even where a library swallows the exception, then raised."""
+    note_signal(signum)
+    raise Terminated if signum == signal.SIGTERM else KeyboardInterrupt
+
+
+def note_signal(signum: int) -> None:
+    _received.append(signum)
+
+
+def raise_if_signalled() -> None:
+    """Raise the Ctrl-C or SIGTERM this process received, if any (an OutputSet before it commits)."""
+    if _received:
+        raise Terminated if _received[-1] == signal.SIGTERM else KeyboardInterrupt
 
 
 class ReaderLeft(Exception):

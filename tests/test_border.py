@@ -536,3 +536,28 @@ def test_a_signal_ends_a_jobs_run_within_2_s_writing_nothing_after_it(tmp_path, 
     assert "Traceback" not in err and "Error" not in err, err
     assert took < 2.0, f"{took:.1f} s"
     assert {p.name for p in out.iterdir()} == written, "a file was written after the signal, or staging left"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("after", [0.0, 1.5, 3.0])
+def test_ctrl_c_during_export_quantize_leaves_nothing(tmp_path, after):
+    """Ctrl-C once the fp32 model is staged (verifying, calibrating, quantising): no file."""
+    pytest.importorskip("torch")
+    from export import ResNetU, ResNetUConfig, save_checkpoint
+
+    save_checkpoint(ResNetU(ResNetUConfig(backbone="mobilenetv2", input_size=128, head_channels=16)), tmp_path / "ck.pt")
+    out = tmp_path / "out"
+    out.mkdir()
+    proc = subprocess.Popen([sys.executable, "-m", "posecam", "export", tmp_path / "ck.pt", "-o", out / "m.onnx",
+                             "--verify", "--quantize", "int8"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True, start_new_session=True)
+    deadline = time.time() + 300
+    while time.time() < deadline and not list(out.glob(".posecam-*/1.onnx")) and proc.poll() is None:
+        time.sleep(0.05)
+    time.sleep(after)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=300)
+    if proc.returncode == 0:
+        pytest.skip("the export finished before the signal")
+    assert proc.returncode == 130 and err.strip().splitlines()[-1] == "posecam: interrupted", (proc.returncode, err)
+    assert list(out.iterdir()) == []

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING
 
 import click
 
-from posecam.errors import InputError, OutputError, ReaderLeft, printable
+from posecam.errors import InputError, OutputError, ReaderLeft, on_signal, printable
 from posecam.inference.contract import DETECTORS, POSE_MODELS
 from posecam.validate import MAX_PEOPLE, MAX_PIXEL
 
@@ -135,7 +135,7 @@ def stop_on_interrupt() -> Iterator[threading.Event]:
 
     def ask(signum, frame) -> None:
         stop.set()
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGINT, on_signal)
         click.echo("posecam: stopping after this frame (Ctrl-C again to abandon the outputs)", err=True)
 
     previous = signal.signal(signal.SIGINT, ask)

@@ -29,7 +29,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from types import TracebackType
 
-from posecam.errors import WRITE_ERRNOS, OutputError, PosecamError, ReaderLeft, printable, warn
+from posecam.errors import WRITE_ERRNOS, OutputError, PosecamError, ReaderLeft, printable, raise_if_signalled, warn
 from posecam.media import VIDEO_SUFFIXES, readable_video
 
 _MAX_SUFFIX = 16   # longer "extensions" are not kept in temporary names
@@ -151,6 +151,7 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     tmp_path = Path(tmp)
     try:
         yield tmp_path
+        raise_if_signalled()
         _verify(tmp_path, target)
         _publish(tmp_path, target)
     except OSError as exc:
@@ -306,6 +307,7 @@ class OutputSet:
                 shutil.rmtree(stage, ignore_errors=True)
 
     def _commit_all(self) -> None:
+        raise_if_signalled()   # a Ctrl-C that a library swallowed still stops the commit
         missing = [t for t in self.targets if t not in self._staged]
         if missing:
             raise OutputError(f"internal: no output was written for {missing[0]}")
