@@ -23,6 +23,7 @@ import errno
 import os
 import re
 import shutil
+import signal
 import tempfile
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
@@ -143,11 +144,14 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
     folder = _folder(target)
     if not folder.is_dir():
         raise OutputError(f"cannot write {target}: folder {folder} does not exist")
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})   # as in OutputSet._stage
     try:
         fd, tmp = tempfile.mkstemp(prefix=_prefix(), suffix=suffix or _suffix(target), dir=folder)
         os.close(fd)
     except OSError as exc:
         raise OutputError(f"cannot write {target}: {_describe(exc)}") from None
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
     tmp_path = Path(tmp)
     try:
         yield tmp_path
@@ -271,10 +275,14 @@ class OutputSet:
     def _stage(self, folder: Path) -> Path:
         key = folder.resolve()
         if key not in self._folders:
+            # a Ctrl-C between making the folder and noting it would leave it behind: held back
+            held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
             try:
                 self._folders[key] = Path(tempfile.mkdtemp(prefix=_prefix(), dir=folder))
             except OSError as exc:
                 raise OutputError(f"cannot write in {folder}: {_describe(exc)}") from None
+            finally:
+                signal.pthread_sigmask(signal.SIG_SETMASK, held)
         return self._folders[key]
 
     def _name_target(self, exc: OSError) -> Path | None:
