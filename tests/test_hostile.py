@@ -332,6 +332,8 @@ def test_ctrl_c_while_starting_is_one_line(delay):
     out, err = proc.communicate(timeout=60)
     if proc.returncode == 0:   # the machine was fast enough to finish first
         return
+    if "init_import_site" in err:   # Python itself was still starting, before any posecam code
+        pytest.skip("the signal came while the interpreter was starting")
     assert proc.returncode in (130, -signal.SIGINT) and "Traceback" not in err, (proc.returncode, err)
     assert err.strip() in ("posecam: interrupted", ""), err
 
