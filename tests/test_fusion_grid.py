@@ -11,7 +11,7 @@ import numpy as np
 from conftest import DATA, run_posecam
 
 
-def _synthetic_views(tmp_path, n_frames=40):
+def _synthetic_views(tmp_path, n_frames=25):
     from synth_rig import make_rig, monocular_views, skeleton_motion
 
     from posecam.io.calibration import write_toml
@@ -33,7 +33,7 @@ def test_fused_video_has_every_frame_and_names_it(tmp_path):
     assert run.returncode == 0, run.stderr
     frames = json.loads(out.read_text())["inputs"][0]["frames"]
     cap = cv2.VideoCapture(str(video))
-    assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == len(frames) == 35
+    assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == len(frames) == 20
     ok, first = cap.read()
     tile_w = first.shape[1] // len(cams)
     assert ok and first.shape[0] == 480 and len(cams) <= 4
@@ -50,7 +50,7 @@ def test_fused_video_has_every_frame_and_names_it(tmp_path):
     cap.set(cv2.CAP_PROP_POS_FRAMES, 0)
     video_frames = [cap.read()[1].astype(int) for _ in frames]
     k = int(np.argmin([np.abs(f - picture).mean() for f in video_frames]))
-    assert np.abs(video_frames[k] - picture).mean() < 3.0 and 5 < k < 30    # a middle frame
+    assert np.abs(video_frames[k] - picture).mean() < 3.0 and 4 < k < 16    # a middle frame
     same = np.abs(video_frames[k][5:45, 5:300] - label).mean()
     neighbour = np.abs(video_frames[k + 1][5:45, 5:300] - label).mean()     # "frame k+1": other digits
     assert same < 2.0 < neighbour, (same, neighbour)
