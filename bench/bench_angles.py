@@ -9,7 +9,8 @@ options of predict cost.
    calibration (a confidence-weighted DLT, the videos' offsets as measured), smoothed the same
    way, and their angles in the calibration's Z-up world. Per angle: the median over frames of
    |monocular - triangulated|, for each camera (camera frame: a level camera assumed) and for
-   `posecam fuse` with the lab calibration. The reference shares the 2D keypoints of the same
+   `posecam fuse` with the lab calibration; "+floor": the camera's poses with the vertical
+   taken from the ground plane posecam fits under the feet (`angles_of(..., up=-floor.normal)`). The reference shares the 2D keypoints of the same
    network, so this measures the 3D lifting and the camera's unknown tilt, not 2D detection.
 2. Cost: reading cam01.mp4 through `Media.frames()` (the frame-selection reader) against the
    plain OpenCV loop it replaced, in this process, alternated; `add_angles` per frame; and
@@ -36,6 +37,7 @@ from bench_smooth import predictions, take_file  # noqa: E402
 from posecam.angles import angle_names, angles_of  # noqa: E402
 from posecam.filters import butterworth, smooth_recording  # noqa: E402
 from posecam.geometry.triangulate import triangulate  # noqa: E402
+from posecam.metric import MetricOptions, scale_recording  # noqa: E402
 from posecam.skeleton import H36M_JOINTS  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
@@ -63,10 +65,18 @@ def accuracy(cams, recs) -> None:
     want = angles_of(world, H36M_JOINTS, "world")
     names = angle_names(H36M_JOINTS)
     rows = {}
+    floors = []
     for cam, rec in zip(cams, recs):
         start = OFFSETS[cam.name] - min(OFFSETS.values())
         xyz = _first_person(smooth_recording(rec).frames[start:start + n], "keypoints_3d", (17, 3))
         rows[f"{cam.name} alone"] = angles_of(xyz, H36M_JOINTS, "camera")
+        floor = scale_recording(rec, MetricOptions()).floor      # the ground plane posecam fits
+        floors.append((cam.name, xyz, floor))
+    for name, xyz, floor in floors:       # the same poses, the vertical from that plane
+        if floor is not None:
+            rows[f"{name} +floor"] = angles_of(xyz, H36M_JOINTS, "camera", up=-floor.normal)
+        else:
+            print(f"  {name}: no floor fitted")
     fused = fuse_recordings(recs, FuseOptions(calibration=Rig(cams), offsets=[OFFSETS[c.name] for c in cams])).recording
     start = -min(OFFSETS.values())
     rows["fused (lab calibration)"] = angles_of(

@@ -96,16 +96,20 @@ def _flexion_3d(a: np.ndarray, joint: np.ndarray, b: np.ndarray) -> np.ndarray:
     return 180.0 - np.degrees(np.arctan2(np.linalg.norm(np.cross(u, v), axis=-1), np.sum(u * v, -1)))
 
 
-def angles_of(xyz: np.ndarray, joints: tuple[str, ...], frame_of_reference: str = "camera") -> np.ndarray:
+def angles_of(xyz: np.ndarray, joints: tuple[str, ...], frame_of_reference: str = "camera",
+              up: np.ndarray | None = None) -> np.ndarray:
     """(..., J, 3) joints in mm (posecam's axes for `frame_of_reference`) -> (..., A) angles in
-    degrees, in the order of `angle_names(joints)` (see the module doc for each)."""
+    degrees, in the order of `angle_names(joints)` (see the module doc for each). `up`: the
+    vertical in those axes when it is known better than the frame's own (e.g. `-floor.normal`
+    of a fitted ground plane, for a camera that is not level)."""
     joints = tuple(joints)
     roles = _roles(joints)
     p = to_y_up(np.asarray(xyz, float), frame_of_reference)          # +Y is up
     at = {role: p[..., list(idx), :].mean(axis=-2) for role, idx in roles.items()}
-    up = np.array([0.0, 1.0, 0.0])
+    up = np.array([0.0, 1.0, 0.0]) if up is None else to_y_up(np.asarray(up, float), frame_of_reference)
+    up = up / np.linalg.norm(up)
     lateral = at["l_hip"] - at["r_hip"]
-    lateral = lateral - lateral[..., 1:2] * up                      # horizontal mediolateral axis M
+    lateral = lateral - np.sum(lateral * up, -1, keepdims=True) * up   # horizontal mediolateral axis M
     lateral = lateral / np.linalg.norm(lateral, axis=-1, keepdims=True)
     forward = np.cross(lateral, up)                                  # F = M x U
 

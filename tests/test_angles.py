@@ -100,6 +100,21 @@ def test_angles_of_a_skeleton_posed_by_hand(joints, yaw):
         assert values[name] == pytest.approx(EXPECTED[name], abs=1e-6), name
 
 
+def test_a_given_vertical_undoes_a_tilted_camera():
+    """The hand-posed skeleton seen by a camera pitched 25 degrees down: with the frame's own
+    vertical the segment angles carry the pitch; with the true vertical given, none do."""
+    pitch = np.radians(25.0)
+    turn = np.array([[1, 0, 0], [0, np.cos(pitch), -np.sin(pitch)], [0, np.sin(pitch), np.cos(pitch)]])
+    cam = _skeleton(H36M_JOINTS, 37.0) @ turn.T
+    names = angle_names(H36M_JOINTS)
+    level = dict(zip(names, angles_of(cam, H36M_JOINTS)))
+    true_up = turn @ np.array([0.0, -1.0, 0.0])          # the world's up, in the tilted camera's axes
+    given = dict(zip(names, angles_of(cam, H36M_JOINTS, up=true_up)))
+    assert abs(level["trunk_sagittal"] - EXPECTED["trunk_sagittal"]) > 5
+    for name in names:
+        assert given[name] == pytest.approx(EXPECTED[name], abs=1e-6), name
+
+
 def test_world_frame_is_z_up_and_missing_joints_give_nan():
     cam = _skeleton(H36M_JOINTS, 20.0)
     # a Z-up world whose Y-up axes (x, y, z) are (Y, Z, X), as Pose2Sim turns it
