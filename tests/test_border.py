@@ -122,6 +122,14 @@ def test_a_folder_in_out_dir_is_not_a_finished_output(tmp_path):
     check_promise(r, 4, "existing folder")
 
 
+@pytest.mark.parametrize("name, flag", [("p" * 300 + ".json", "-o"), ("d/" * 2500 + "p.json", "-o"),
+                                        ("v" * 300 + ".png", "--viz"), ("d/" * 2500 + "v.png", "--viz")])
+def test_a_name_too_long_is_exit_4(tmp_path, name, flag):
+    r = run_posecam("predict", DATA / "messi5.jpg", "--model", "lite", flag, f"{tmp_path}/{name}")
+    check_promise(r, 4, "File name too long")
+    assert list(tmp_path.iterdir()) == []
+
+
 # stdout is an output: a full one is exit 4 and nothing is written; a closed pipe ends quietly
 # with the files written, as Unix tools do.
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 import signal
 import threading
 from collections.abc import Callable, Iterator
@@ -219,6 +220,12 @@ def check_output(path: str | None, suffixes: tuple[str, ...], what: str) -> None
     if Path(path).suffix.lower() not in suffixes:
         raise InputError(f"{what} must end in {' or '.join(suffixes)}, got {path}")
     folder = Path(path).parent
+    try:
+        os.stat(folder)
+    except FileNotFoundError:
+        raise OutputError(f"cannot write {path}: folder {folder} does not exist") from None
+    except OSError as exc:   # a name too long, a loop of links
+        raise OutputError(f"cannot write {path}: {exc.strerror}") from None
     if not folder.is_dir():
         raise OutputError(f"cannot write {path}: folder {folder} does not exist")
 

@@ -214,7 +214,7 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     if not paths:
         raise InputError(f"no readable input: the {len(unreadable)} photos given cannot be read")
     inputs = [str(p) for p in paths]
-    viz_folder = bool(viz) and (len(inputs) > 1 or viz.endswith(("/", os.sep)) or Path(viz).is_dir())
+    viz_folder = bool(viz) and (len(inputs) > 1 or viz.endswith(("/", os.sep)) or os.path.isdir(viz))
     check_output(output, (*POSE_SUFFIXES, *MARKER_SUFFIXES), "output")
     check_output(viz3d, VIEW3D_SUFFIXES, "--viz3d")
     check_angles(angles, output, plot)
