@@ -171,3 +171,47 @@ def test_min_cost_assignment_matches_scipy_on_random_matrices():
         ref_rows, ref_cols = linear_sum_assignment(cost)
         assert len(rows) == min(n, m) and len(set(rows)) == len(rows) and len(set(cols)) == len(cols)
         assert np.isclose(cost[rows, cols].sum(), cost[ref_rows, ref_cols].sum())
+
+
+def test_tiles_follow_the_image_and_its_smallest_people(people):
+    d = people.detector
+    assert d.tiles(768, 576, None) == []                       # no size asked: the whole image only
+    assert len(d.tiles(768, 576, 40)) == 9                      # vtest.avi before anyone is seen: 3 x 3
+    assert len(d.tiles(768, 576, 55)) == 6                      # ... once its people are seen: 3 x 2
+    assert d.tiles(1080, 1920, 900) == []                       # people a metre tall in a portrait video
+    for x0, y0, x1, y1 in d.tiles(768, 576, 40):
+        assert 0 <= x0 < x1 <= 768 and 0 <= y0 < y1 <= 576
+
+
+def _follow(tracker, dets, frames, width=1000, height=800):
+    """Frames of the same detections, the pose model finding each tracked person; the frames on
+    which the tracker asked for the detector."""
+    asked = []
+    for f in range(frames):
+        run = tracker.needs_detection(width, height)
+        asked.append(run)
+        tracks = tracker.begin_frame(dets if run else None)
+        tracker.end_frame(tracks, [True] * len(tracks), [None] * len(tracks), [None] * len(tracks),
+                          [t.roi for t in tracks])
+    return [f for f, run in enumerate(asked) if run]
+
+
+def test_detector_runs_more_often_while_people_may_be_missing():
+    alone = [_det([400, 200, 480, 400])]                        # one person in the middle
+    asked = _follow(Tracker(), alone, 40)
+    assert asked[:3] == [0, 3, 6] and asked[3:] == [21, 36]     # confirmed after 3 runs: every 15 frames
+    at_edge = [_det([960, 200, 1000, 400])]                     # entering at the right edge: every 3
+    assert _follow(Tracker(), at_edge, 40) == list(range(0, 40, 3))
+    crowd = [_det([100 + 150 * i, 200, 180 + 150 * i, 400]) for i in range(3)]   # 3 people: every 3
+    assert _follow(Tracker(), crowd, 40) == list(range(0, 40, 3))
+
+
+def test_someone_the_detector_misses_stays_with_the_pose_model():
+    tracker = Tracker(TrackerOptions(coast=2))
+    _follow(tracker, [_det([400, 200, 480, 400])], 1)
+    for run in range(3):                                        # detector runs that find nobody
+        tracks = tracker.begin_frame([])
+        followed = [t for t in tracks if t.detection is None]
+        assert len(followed) == (1 if run < 2 else 0), run      # posed from its last crop, twice
+        tracker.end_frame(tracks, [True] * len(tracks), [None] * len(tracks), [None] * len(tracks),
+                          [t.roi for t in tracks])
