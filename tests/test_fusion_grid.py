@@ -101,3 +101,27 @@ def test_predict_viz_draws_every_photo_of_a_folder(tmp_path):
     assert run.returncode == 2 and "--viz DIR draws photos" in run.stderr
     run = run_posecam("predict", photos, "--viz", tmp_path / "missing")
     assert run.returncode == 4 and "does not exist" in run.stderr
+
+
+def test_joints_a_view_cannot_see_are_not_drawn():
+    """A fused joint that is missing (NaN) or behind a camera is left out of that camera's tile
+    (OpenCV cannot draw them), and a person wholly behind it is not drawn at all."""
+    from synth_rig import make_rig, skeleton_motion
+
+    from posecam.results import Frame, Person, Recording
+    from posecam.skeleton import H36M_JOINTS
+    from posecam.viz.fusion_grid import _in_view, _tile
+
+    cam = make_rig()[0]
+    xyz = skeleton_motion(1)[0]
+    xyz[3] = np.nan
+    xyz[6] = cam.centre - 500.0 * cam.rotation[2]          # half a metre behind the camera
+    person = Person(0, 1.0, np.zeros(4), np.zeros((17, 2)), xyz, np.ones(17))
+    seen = _in_view(cam, person)
+    assert seen.confidence[3] == 0 and seen.confidence[6] == 0 and seen.confidence[0] == 1
+    assert np.isfinite(seen.keypoints_2d).all() and np.isfinite(seen.bbox).all()
+    behind = Person(1, 1.0, np.zeros(4), np.zeros((17, 2)), np.tile(xyz[6], (17, 1)), np.ones(17))
+    assert _in_view(cam, behind) is None
+    rec = Recording("v", cam.size[0], cam.size[1], cam.intrinsics, H36M_JOINTS)
+    tile = _tile(cam, rec, Frame(0, 0.0, [person, behind]), np.zeros((cam.size[1], cam.size[0], 3), np.uint8))
+    assert tile.shape[0] == 480 and tile.max() > 0

@@ -18,7 +18,7 @@ import numpy as np
 from posecam.errors import InputError, PosecamError
 from posecam.media import DEFAULT_FPS, VIDEO_SUFFIXES, FrameSelection, open_media
 from posecam.multiview.fuse import FusionResult
-from posecam.results import Frame, Recording
+from posecam.results import Frame, Person, Recording
 from posecam.viz.draw import draw_people
 from posecam.viz.sinks import PICTURE_SUFFIXES, VideoSink, write_image
 
@@ -46,12 +46,23 @@ class _ViewReader:
         return self.image if self.index == index else self.black
 
 
+def _in_view(cam, person) -> Person | None:
+    """The fused person as this camera sees it: joints in its coordinates (the label gives the
+    depth from it) and pixels; joints behind it or far off its image lose their confidence
+    (not drawn); None when none is left."""
+    xyz = cam.to_camera(person.keypoints_3d)
+    uv = cam.project(person.keypoints_3d)
+    w, h = cam.size
+    seen = (xyz[:, 2] > 0) & np.isfinite(uv).all(axis=1) & (np.abs(uv - [w / 2, h / 2]) < 2 * max(w, h)).all(axis=1)
+    if not seen.any():
+        return None
+    box = np.concatenate([uv[seen].min(axis=0), uv[seen].max(axis=0)])
+    return dataclasses.replace(person, keypoints_2d=np.where(seen[:, None], uv, 0.0), keypoints_3d=xyz,
+                               confidence=np.where(seen, person.confidence, 0.0), bbox=box)
+
+
 def _tile(cam, rec: Recording, frame: Frame, image: np.ndarray) -> np.ndarray:
-    # each pose in this camera's coordinates, so the label gives its depth from this camera
-    people = [dataclasses.replace(p, keypoints_2d=cam.project(p.keypoints_3d), keypoints_3d=cam.to_camera(p.keypoints_3d))
-              for p in frame.people]
-    for p in people:
-        p.bbox = np.concatenate([p.keypoints_2d.min(axis=0), p.keypoints_2d.max(axis=0)])
+    people = [q for q in (_in_view(cam, p) for p in frame.people) if q is not None]
     img = draw_people(image, people, rec.joints)
     scale = TILE_HEIGHT / img.shape[0]
     return cv2.resize(img, (round(img.shape[1] * scale), TILE_HEIGHT))
