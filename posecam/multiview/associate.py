@@ -33,10 +33,10 @@ from posecam.results import Recording
 
 MIN_TRACK_FRAMES = 8            # shorter tracks are left out (detector flicker)
 MIN_COMMON_FRAMES = 10          # a pair of tracks needs this many frames seen by both
-MAX_PAIR_MM = 300.0             # consensus residual above which a track is not that person
 MAX_PAIR_ANGLE = 0.03           # rad (50 px at f = 1700): calibrated pair gate
 FOCAL_RANGE = (0.25, 4.0)       # focal / assumed focal a pair may imply
 MAX_SHARED = 2                  # frames two tracks of one view may share and still join
+PAIR_FRAMES = 300               # common frames (evenly spaced) that score a calibrated pair
 
 
 @dataclass
@@ -167,7 +167,9 @@ def pair_cost_calibrated(cams: list[CameraCalibration], offsets: list[int], n: i
         if common < MIN_COMMON_FRAMES:
             return PairFit(np.inf)
         rig = Rig([cams[a.view], cams[b.view]])
-        uv, conf = np.stack([pa[0], pb[0]]), np.stack([pa[2], pb[2]])
+        step = -(-common // PAIR_FRAMES)                          # a median needs no more frames
+        uv, conf = np.stack([pa[0][::step], pb[0][::step]]), np.stack([pa[2][::step], pb[2][::step]])
+        common = uv.shape[1]
         err = rig.reprojection_errors(rig.triangulate(uv, conf, min_conf), uv, conf, min_conf)
         focal = np.array([cams[a.view].intrinsics.fx, cams[b.view].intrinsics.fx])[:, None, None]
         per_frame = np.nanmedian(np.where(np.isfinite(err), err / focal, np.nan).reshape(2 * common, -1), axis=1)
@@ -240,7 +242,7 @@ def _k(cam: CameraCalibration) -> np.ndarray:
 
 def _hypothesis_cost(pairs: list[tuple[int, Track]], fused: list[tuple[np.ndarray, np.ndarray]], ref_cam: CameraCalibration,
                      info: list[ViewInfo], offsets: list[int], min_conf: float) -> float:
-    """Sum over the pairs (person, track of the new view) of frames x (residual - MAX_PAIR_MM)
+    """Sum over the pairs (person, track of the new view) of frames x (epipolar residual / MAX_PAIR_ANGLE - 1)
     under ONE consensus of all the pairs: negative when one camera explains them all."""
     n = len(fused[0][0])
     v = pairs[0][1].view

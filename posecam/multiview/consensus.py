@@ -73,6 +73,7 @@ class ConsensusOptions:
     tol: float = 1e-5              # largest change (rad, or relative) that counts as converged
     cauchy_scale: float = 2.5      # outlier scale, in robust standard deviations of the residuals
     joint: bool = True             # stage 2 (all views at once); False: stage 1 only, quicker
+    max_frames: int = 300          # frames used, evenly spaced (the cost is linear in them)
 
 
 @dataclass
@@ -211,7 +212,8 @@ def _run_stage(views: list[View], s: _State, w0: np.ndarray, opts: ConsensusOpti
 
 def estimate_rig(views: list[View], options: ConsensusOptions | None = None) -> ConsensusResult:
     """Intrinsics and extrinsics of every camera, relative to the reference camera, from the
-    views' time-aligned monocular poses (same F frames, same J joints in every view)."""
+    views' time-aligned monocular poses (same F frames, same J joints in every view; at most
+    `max_frames` of them, evenly spaced, take part)."""
     opts = options or ConsensusOptions()
     if len(views) < 2:
         raise FusionError(f"camera estimation needs at least two views, got {len(views)}")
@@ -219,6 +221,9 @@ def estimate_rig(views: list[View], options: ConsensusOptions | None = None) -> 
     if len(shapes) != 1:
         raise FusionError(f"views must hold the same frames and joints, got shapes {sorted(shapes)}")
     n, ref = len(views), opts.reference
+    step = -(-len(views[0].uv) // opts.max_frames)
+    if step > 1:
+        views = [View(v.name, v.size, v.intrinsics, v.uv[::step], v.xyz[::step], v.conf[::step]) for v in views]
     w0 = np.stack([v.weights(opts.min_conf) for v in views])
     k0 = np.array([[v.intrinsics.fx, v.intrinsics.fy, v.intrinsics.cx, v.intrinsics.cy] for v in views])
     s = _State(np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 3)), k0.copy())
