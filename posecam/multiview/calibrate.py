@@ -152,6 +152,9 @@ def estimate_cameras(info: list[ViewInfo], people: list[Observations], joints: t
                 fit = bundle_adjust(rig, obs.uv, obs.conf, _bone_lengths(obs, joints, min_conf), joints,
                                     bundle_options)
                 rig, med, points, spreads = fit.rig, fit.median_error_px, fit.points, fit.spreads
+                if not fit.converged and not any("iteration limit" in w for w in warnings):
+                    warnings.append("the bundle adjustment stopped at its iteration limit: the cameras may be "
+                                    "short of their best")
             else:
                 spreads = None
                 points = rig.triangulate(obs.uv, obs.conf, min_conf)

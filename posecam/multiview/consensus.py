@@ -86,11 +86,16 @@ class ConsensusResult:
     converged: bool
 
 
+def scaled_depth(xyz: np.ndarray, root: np.ndarray, g: float) -> np.ndarray:
+    """(F, J) depths of monocular poses (F, J, 3) whose root depths (F,) grow by g = f / f0
+    (the depth model above: z_i = (z0_i - z0_root) + g z0_root); the one place it is written."""
+    return xyz[..., 2] + (g - 1.0) * root[:, None]
+
+
 def camera_points(view: View, k: np.ndarray) -> np.ndarray:
     """(F, J, 3) the view's pose under intrinsics k = (fx, fy, cx, cy): depth model above, eq. 4."""
     g = np.sqrt(k[0] * k[1] / (view.intrinsics.fx * view.intrinsics.fy))
-    root = view.root_depth()[:, None]
-    z = view.xyz[..., 2] + (g - 1.0) * root
+    z = scaled_depth(view.xyz, view.root_depth(), g)
     x = (view.uv[..., 0] - k[2]) * z / k[0]
     y = (view.uv[..., 1] - k[3]) * z / k[1]
     return np.stack([x, y, z], axis=-1)

@@ -403,4 +403,4 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
                              [spread[v] for v in views], swaps, people, fused, opts.min_conf, camera_spreads)
     recording = _to_recording(fused, rig, views.index(ref), recordings[ref])
     recording.cameras = [r.to_dict() for r in reports]
-    return FusionResult(recording, rig, offsets, reports, views, warnings, scale_source)
+    return FusionResult(recording, rig, offsets, reports, views, list(dict.fromkeys(warnings)), scale_source)

@@ -16,7 +16,7 @@ import numpy as np
 
 from posecam.geometry.camera import Intrinsics, Rig
 from posecam.multiview.associate import Observations
-from posecam.multiview.consensus import fuse_points
+from posecam.multiview.consensus import fuse_points, scaled_depth
 
 MAX_VIEW_ANGLE = 0.04           # rad, about 70 px at f = 1700
 
@@ -45,8 +45,8 @@ def camera_space(rig: Rig, assumed: list[Intrinsics], obs: Observations, anchor:
         k = cam.intrinsics
         g = np.sqrt(k.fx * k.fy / (k0.fx * k0.fy))
         w = np.where(conf > 0, conf, 1e-6)
-        root = np.sum(w * np.nan_to_num(xyz[..., 2]), axis=-1, keepdims=True) / np.sum(w, axis=-1, keepdims=True)
-        z = xyz[..., 2] + (g - 1.0) * root
+        root = np.sum(w * np.nan_to_num(xyz[..., 2]), axis=-1) / np.sum(w, axis=-1)
+        z = scaled_depth(xyz, root, g)
         if anchor is not None:
             target = cam.to_camera(anchor)[..., 2]                                   # (F, J)
             wa = np.where(np.isfinite(target) & np.isfinite(z) & (conf >= min_conf), conf, 0.0)
