@@ -117,3 +117,16 @@ def test_pose_files_with_joints_posecam_does_not_know_are_refused_in_one_line(es
         read_poses(tmp_path / "b.json")
     r = invoke_posecam("fuse", tmp_path / "a.json", tmp_path / "b.json", "-o", tmp_path / "x.json")
     assert r.exit_code == 2 and "neither posecam's 17 joints" in r.stderr and len(r.stderr.splitlines()) == 1, r.stderr
+
+
+def test_fuse_views_are_predicted_with_the_options_given(estimator):
+    """The detection options reach every view: the two-person clip gives two people a frame
+    with the defaults and one with max_people=1, from one estimator built for the options."""
+    from posecam.estimate import EstimatorOptions, shared_estimator
+
+    views = [str(DATA / "balance_cam01_30f.mp4"), str(DATA / "two_people_cam03_30f.mp4")]
+    default = load_views(views, estimator=estimator)
+    one = load_views(views, EstimatorOptions(max_people=1))
+    assert max(len(f.people) for f in default[1].frames) == 2
+    assert max(len(f.people) for r in one for f in r.frames) == 1
+    assert shared_estimator(EstimatorOptions(max_people=1)) is shared_estimator(EstimatorOptions(max_people=1))
