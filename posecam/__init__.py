@@ -11,6 +11,12 @@ from __future__ import annotations
 
 import importlib
 import os
+import sys
+
+if sys.argv[:1] == ["-m"]:   # `python -m posecam` is starting (runpy sets argv[0] so meanwhile)
+    from posecam._start import guard_start
+
+    guard_start()
 
 from posecam._version import __version__
 

@@ -1,0 +1,157 @@
+"""What the checks at the border cost and what they save (issue 21).
+
+1. Reading a pose file: `read_poses` (streamed, every field checked) against `json.loads` of
+   the same file (a parse that checks nothing and builds no arrays: the floor any reader pays),
+   and against another checkout's `read_poses` with --source (before/after in one run). The
+   file has the length of vtest.avi (795 frames) with 6 people per frame, written by posecam's
+   own writer from random poses. Time and peak resident memory of a child process; medians.
+2. Bombs: peak memory and exit code of `posecam` on a 30000 x 30000 TIFF, a 20000 x 20000 JPEG
+   (small files whose headers claim that much), a pose JSON with a million people in one frame,
+   and (with torch) a 2 MB checkpoint that inflates to 2 GiB. Budget: 1 GB each.
+3. `predict --out-dir --jobs 2` on 5 clips: seconds from Ctrl-C (to the process group) or
+   SIGTERM (to posecam) to the end, and the files written after the signal; medians.
+
+    python bench/bench_border.py
+    python bench/bench_border.py --source /tmp/before     # the pose read of another checkout too
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import signal
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO / "tests"))
+RUNS = 3
+
+
+def child(args: list[str], source: Path = REPO) -> tuple[int, float, float, str]:
+    """(exit code, seconds, peak MB, last stderr line) of a child Python importing `source`."""
+    env = {**os.environ, "PYTHONPATH": str(source)}
+    start = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, *args], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            text=True)
+    err = proc.stderr.read()
+    _, status, usage = os.wait4(proc.pid, 0)
+    seconds = time.perf_counter() - start
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    return os.waitstatus_to_exitcode(status), seconds, usage.ru_maxrss / 1024, lines[-1][:110] if lines else ""
+
+
+def pose_file(path: Path, frames: int = 795, people: int = 6) -> None:
+    import numpy as np
+
+    from posecam.geometry.camera import Intrinsics
+    from posecam.io.poses import write_poses
+    from posecam.results import Frame, Person, Recording
+    from posecam.skeleton import H36M_JOINTS
+
+    rng = np.random.default_rng(0)
+
+    def person(i):
+        return Person(i, 0.9, np.array([0, 0, 50, 100.0]), rng.uniform(0, 700, (17, 2)),
+                      rng.uniform(-1000, 5000, (17, 3)), rng.uniform(0, 1, 17))
+
+    rec = Recording("vtest.avi", 768, 576, Intrinsics(600, 600, 384, 288, "flags"), H36M_JOINTS,
+                    [Frame(i, i / 10, [person(p) for p in range(people)]) for i in range(frames)], model="bench",
+                    fps=10.0)
+    write_poses(path, [rec])
+
+
+def bench_read(tmp: Path, before: Path | None) -> None:
+    path = tmp / "poses.json"
+    pose_file(path)
+    print(f"1. reading a pose file of 795 frames x 6 people ({path.stat().st_size / 1e6:.1f} MB), median of {RUNS}")
+    readers = [("json.loads (peer: parses, checks nothing)", f"import json; json.load(open({str(path)!r}))", REPO),
+               ("read_poses, this checkout", f"from posecam.io.poses import read_poses; read_poses({str(path)!r})", REPO)]
+    if before:
+        readers.append((f"read_poses, {before}", f"from posecam.io.poses import read_poses; read_poses({str(path)!r})",
+                        before))
+    for name, code, source in readers:
+        runs = [child(["-c", code], source) for _ in range(RUNS)]
+        print(f"   {name:48s} {statistics.median(r[1] for r in runs):6.2f} s  "
+              f"{statistics.median(r[2] for r in runs):6.0f} MB peak")
+
+
+def bench_bombs(tmp: Path) -> None:
+    from test_border import _patched_jpeg, _patched_tiff
+    from test_hostile import _pose_file
+
+    _patched_tiff(tmp / "huge.tiff", 30000, 30000)
+    _patched_jpeg(tmp / "huge.jpg", 20000, 20000)
+    _pose_file(tmp / "a.json")
+    doc = json.loads((tmp / "a.json").read_text())
+    person = json.dumps(doc["inputs"][0]["frames"][0]["people"][0])
+    (tmp / "crowd.json").write_text(json.dumps(doc).replace(
+        '"people": [' + person, '"people": [' + ", ".join([person] * 1000 + ["{}"] * 999_000), 1))
+    cases = [("30000x30000 TIFF", ["predict", tmp / "huge.tiff", "--model", "lite"]),
+             ("20000x20000 JPEG", ["predict", tmp / "huge.jpg", "--model", "lite"]),
+             ("a million people in one frame", ["fuse", tmp / "a.json", tmp / "crowd.json", "--offsets", "0,0"])]
+    try:
+        import torch  # noqa: F401
+        import zipfile
+
+        with zipfile.ZipFile(tmp / "bomb.pt", "w", zipfile.ZIP_DEFLATED) as z:
+            with z.open("archive/data.pkl", "w", force_zip64=True) as f:
+                for _ in range(128):
+                    f.write(b"\0" * (1 << 24))
+        cases.append(("2 MB checkpoint inflating to 2 GiB", ["export", tmp / "bomb.pt", "-o", tmp / "m.onnx"]))
+    except ImportError:
+        print("   (no torch: the checkpoint bomb is left out)")
+    print("2. bombs: exit code, peak memory (budget 1 GB), the line")
+    for name, args in cases:
+        code, seconds, peak, line = child(["-m", "posecam", *map(str, args)])
+        print(f"   {name:36s} exit {code}  {peak:5.0f} MB  {seconds:4.1f} s  {line}")
+
+
+def bench_signals(tmp: Path) -> None:
+    clip = REPO / "tests" / "data" / "balance_cam01_30f.mp4"
+    inputs = []
+    for i in range(5):
+        inputs.append(tmp / f"v{i}.mp4")
+        shutil.copy(clip, inputs[-1])
+    print(f"3. predict --out-dir --jobs 2 on 5 clips, signal once the first file is written; median of {RUNS}")
+    for sig, group in ((signal.SIGINT, True), (signal.SIGTERM, False)):
+        took, late = [], []
+        for _ in range(RUNS):
+            out = tmp / "out"
+            shutil.rmtree(out, ignore_errors=True)
+            out.mkdir()
+            proc = subprocess.Popen([sys.executable, "-m", "posecam", "predict", *map(str, inputs), "--model", "lite",
+                                     "--out-dir", str(out), "--jobs", "2"], env={**os.environ, "PYTHONPATH": str(REPO)},
+                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+            while not any(p.suffix == ".json" for p in out.iterdir()):
+                time.sleep(0.02)
+            time.sleep(0.3)
+            before = {p.name for p in out.iterdir() if p.suffix == ".json"}
+            start = time.perf_counter()
+            os.killpg(proc.pid, sig) if group else proc.send_signal(sig)
+            proc.wait()
+            took.append(time.perf_counter() - start)
+            time.sleep(1.0)
+            late.append(len({p.name for p in out.iterdir() if p.suffix == ".json"} - before))
+        name = "Ctrl-C (process group)" if group else "SIGTERM (posecam only)"
+        print(f"   {name:24s} ends in {statistics.median(took):.2f} s; files written after it: {max(late)}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--source", type=Path, help="another checkout, for the pose read before/after")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        bench_read(Path(tmp), args.source)
+        bench_bombs(Path(tmp))
+        bench_signals(Path(tmp))
+
+
+if __name__ == "__main__":
+    main()
