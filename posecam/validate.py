@@ -29,8 +29,21 @@ MAX_PEOPLE = 1000             # people in one frame of a pose file
 MAX_JOINTS = 1000
 MAX_TEXT = 4096               # characters of a name, a source, a model name
 ROTATION_TOLERANCE = 1e-3     # |R^T R - I| and |det R - 1| of a rotation matrix
+MAX_FILE_BYTES = 16 << 20     # a calibration or intrinsics file is small; larger ones are not read
 
 _NUMBER = (int, float)
+
+
+def read_small(path, what: str) -> bytes:
+    """The bytes of a small file (a calibration, intrinsics), refused when over MAX_FILE_BYTES."""
+    try:
+        with open(path, "rb") as f:
+            data = f.read(MAX_FILE_BYTES + 1)
+    except OSError as exc:
+        raise InputError(f"{path} cannot be read ({exc.strerror})") from None
+    if len(data) > MAX_FILE_BYTES:
+        raise InputError(f"{path}: an {what} file of more than {MAX_FILE_BYTES >> 20} MB is not read")
+    return data
 
 
 def _shown(value: object, limit: int = 60) -> str:

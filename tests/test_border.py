@@ -209,6 +209,7 @@ def files(tmp_path):
     cases = {
         "size-zero": ("size = [ 1080.0, 1920.0]", "size = [0, 0]"),
         "size-400-digits": ("size = [ 1080.0, 1920.0]", f"size = [{'9' * 400}, 1920]"),
+        "size-5000-digits": ("size = [ 1080.0, 1920.0]", f"size = [{'9' * 5000}, 1920]"),
         "rotation-zero": ("rotation = [ 1.6882754799999995, 1.0483220499999997, -0.4195585200000001]",
                           "rotation = [[0, 0, 0], [0, 0, 0], [0, 0, 0]]"),
         "translation-nan": ("translation = [ 0.32110488999999975,", "translation = [ nan,"),
@@ -241,6 +242,7 @@ FILE_ROWS = [
     # calibration TOML
     ("toml-size-zero", FUSE + "size-zero.toml", 2, "[cam01]: size: must be 2 whole numbers in 1..65535"),
     ("toml-size-400-digits", FUSE + "size-400-digits.toml", 2, "[cam01]: size: must be 2 whole numbers"),
+    ("toml-size-5000-digits", FUSE + "size-5000-digits.toml", 2, "is not a calibration TOML (Exceeds the limit"),
     ("toml-rotation-zero", FUSE + "rotation-zero.toml", 2, "[cam01]: rotation: must be a rotation"),
     ("toml-translation-nan", FUSE + "translation-nan.toml", 2, "[cam01]: translation: must hold finite numbers"),
     ("toml-translation-1e300", FUSE + "translation-1e300.toml", 2, "[cam01]: translation: must hold numbers in"),

@@ -22,7 +22,7 @@ import numpy as np
 from posecam.geometry.camera import CameraCalibration, Intrinsics, Rig, natural_key
 from posecam.errors import InputError
 from posecam.io.atomic import write_text
-from posecam.validate import MAX_MM, MAX_PIXEL, MAX_SIDE, Field
+from posecam.validate import MAX_MM, MAX_PIXEL, MAX_SIDE, Field, read_small
 
 
 def _toml_camera(table: dict, key: str, check: Field, source: str) -> CameraCalibration:
@@ -58,12 +58,12 @@ def _toml_camera(table: dict, key: str, check: Field, source: str) -> CameraCali
 def read_toml(path: str | os.PathLike) -> list[CameraCalibration]:
     """Cameras of an anipose/Pose2Sim calibration TOML, in file order (translation -> mm)."""
     path = Path(path)
+    if not path.exists():
+        raise InputError(f"calibration file {path} does not exist")
     try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputError(f"calibration file {path} does not exist") from None
-    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
-        raise InputError(f"{path} is not a calibration TOML ({exc})") from None
+        doc = tomllib.loads(read_small(path, "calibration").decode("utf-8"))
+    except (UnicodeDecodeError, ValueError) as exc:   # TOMLDecodeError, an integer of 5000 digits
+        raise InputError(f"{path} is not a calibration TOML ({str(exc)[:160]})") from None
     cams = [_toml_camera(table, key, Field(f"{path} [{key}]"), f"file:{path.name}")
             for key, table in doc.items()
             if key != "metadata" and isinstance(table, dict) and "matrix" in table]
@@ -80,7 +80,8 @@ def read_calibration(path: str | os.PathLike) -> Rig:
     told apart by content (a leading '<' is XML), not only by suffix."""
     path = Path(path)
     try:
-        head = path.read_bytes()[:512].lstrip()
+        with open(path, "rb") as f:
+            head = f.read(512).lstrip()
     except FileNotFoundError:
         raise InputError(f"calibration file {path} does not exist") from None
     except OSError as exc:
@@ -167,11 +168,11 @@ def read_qualisys(path: str | os.PathLike, image_widths: dict[str, int] | None =
     difference and the size follows.
     """
     path = Path(path)
+    if not path.exists():
+        raise InputError(f"calibration file {path} does not exist")
     try:
-        root = ET.parse(path).getroot()
-    except FileNotFoundError:
-        raise InputError(f"calibration file {path} does not exist") from None
-    except (OSError, ET.ParseError) as exc:
+        root = ET.fromstring(read_small(path, "calibration"))
+    except ET.ParseError as exc:
         raise InputError(f"{path} is not a Qualisys calibration ({exc})") from None
     cams = []
     for number, cam in enumerate(root.findall("cameras/camera")):

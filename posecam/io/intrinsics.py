@@ -15,7 +15,7 @@ from pathlib import Path
 from posecam.geometry.camera import Intrinsics
 from posecam.errors import InputError
 from posecam.io.exif import focal_length_35mm
-from posecam.validate import MAX_PIXEL, Field
+from posecam.validate import MAX_PIXEL, Field, read_small
 from posecam.media import check_input
 
 
@@ -44,21 +44,8 @@ class IntrinsicsOptions:
                              "give the file too (--intrinsics FILE)")
 
 
-MAX_FILE_BYTES = 16 << 20   # an intrinsics or calibration file is small; larger ones are not read
 # the camera matrix's name in OpenCV FileStorage files (calibrateCamera samples, stereo tools)
 FILESTORAGE_MATRIX = ("camera_matrix", "cameraMatrix", "K", "M1", "intrinsic_matrix", "intrinsics")
-
-
-def read_small(path: Path, what: str) -> bytes:
-    """The bytes of a small text file (intrinsics, calibration), refused when over MAX_FILE_BYTES."""
-    try:
-        with open(path, "rb") as f:
-            data = f.read(MAX_FILE_BYTES + 1)
-    except OSError as exc:
-        raise InputError(f"{path} cannot be read ({exc.strerror})") from None
-    if len(data) > MAX_FILE_BYTES:
-        raise InputError(f"{path}: an {what} file of more than {MAX_FILE_BYTES >> 20} MB is not read")
-    return data
 
 
 def _checked(values: dict, check: Field, source: str) -> Intrinsics:
