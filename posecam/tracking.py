@@ -141,6 +141,7 @@ class TrackerOptions:
     redetect_every: int = 15        # frames between detector runs while nobody may be missing
     search_every: int = 3           # ... while people may be missing (see needs_detection)
     crowd: int = 3                  # this many people followed make a crowd
+    walking: float = 0.005          # box heights a frame: someone at the edge moving faster is entering or leaving
     edge: float = 0.05              # a box this close to the image's border (fraction of its side): entering or leaving
     confirm_hits: int = 3           # a track younger than this may be a false start or half of a person
     high_score: float = 0.3         # a detection this confident may start a track ...
@@ -167,8 +168,9 @@ class Tracker:
         """Detect on the first frame, while nobody is followed, as soon as someone followed was
         lost, and on every frame where two people's boxes overlap (there a crop placed from the
         last pose may slide onto the neighbour); every `search_every` frames while people may be
-        missing (a track not yet confirmed, one at the image's edge: entering or leaving, a
-        crowd); else every `redetect_every` frames."""
+        missing (a track not yet confirmed, someone walking at the image's edge: entering or
+        leaving, a crowd); else every `redetect_every` frames (someone standing at the edge is
+        neither)."""
         o, active = self.options, self.active()
         if not active or self._dropped:
             return True
@@ -177,7 +179,9 @@ class Tracker:
         if (iou[np.triu_indices(len(active), 1)] > 0).any():
             return True
         margin = o.edge * np.array([width, height])
-        missing = (((boxes[:, :2] < margin) | (boxes[:, 2:] > [width, height] - margin)).any()
+        at_edge = ((boxes[:, :2] < margin) | (boxes[:, 2:] > [width, height] - margin)).any(axis=1)
+        speed = np.array([np.hypot(*t.kalman.x[4:6]) / max(t.kalman.x[3], 1.0) for t in active])
+        missing = ((at_edge & (speed > o.walking)).any()
                    or any(t.hits < o.confirm_hits for t in active) or len(active) >= o.crowd)
         return self._since_detection >= (min(o.search_every, o.redetect_every) if missing else o.redetect_every)
 

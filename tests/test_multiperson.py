@@ -184,13 +184,13 @@ def test_tiles_follow_the_image_and_its_smallest_people(people):
 
 
 def _follow(tracker, dets, frames, width=1000, height=800):
-    """Frames of the same detections, the pose model finding each tracked person; the frames on
-    which the tracker asked for the detector."""
+    """Frames of detections (the same ones, or `dets(frame)`), the pose model finding each
+    tracked person; the frames on which the tracker asked for the detector."""
     asked = []
     for f in range(frames):
         run = tracker.needs_detection(width, height)
         asked.append(run)
-        tracks = tracker.begin_frame(dets if run else None)
+        tracks = tracker.begin_frame((dets(f) if callable(dets) else dets) if run else None)
         tracker.end_frame(tracks, [True] * len(tracks), [None] * len(tracks), [None] * len(tracks),
                           [t.roi for t in tracks])
     return [f for f, run in enumerate(asked) if run]
@@ -200,8 +200,10 @@ def test_detector_runs_more_often_while_people_may_be_missing():
     alone = [_det([400, 200, 480, 400])]                        # one person in the middle
     asked = _follow(Tracker(), alone, 40)
     assert asked[:3] == [0, 3, 6] and asked[3:] == [21, 36]     # confirmed after 3 runs: every 15 frames
-    at_edge = [_det([960, 200, 1000, 400])]                     # entering at the right edge: every 3
-    assert _follow(Tracker(), at_edge, 40) == list(range(0, 40, 3))
+    standing = [_det([960, 200, 1000, 400])]                    # standing at the right edge: every 15
+    assert _follow(Tracker(), standing, 40)[3:] == [21, 36]
+    entering = lambda f: [_det([960 - 2 * f, 200, 1000 - 2 * f, 400])]   # walking in at the edge: every 3
+    assert _follow(Tracker(), entering, 25) == list(range(0, 25, 3))    # (it leaves the edge at frame 25)
     crowd = [_det([100 + 150 * i, 200, 180 + 150 * i, 400]) for i in range(3)]   # 3 people: every 3
     assert _follow(Tracker(), crowd, 40) == list(range(0, 40, 3))
 
