@@ -20,8 +20,8 @@ pelvis's distance to the nearest true pelvis of its frame (median, mm).
 Before / after in one run: `--before DIR` runs the same fuses with another checkout's posecam
 (`git archive <commit> posecam | tar -x -C DIR`) in a subprocess and scores them the same way.
 
-Speed: the time to fuse from the pose JSON against the time `posecam predict` took to make it
-(the same videos, measured once when the cache is made); and the single take looped to 3600
+Speed: the time of `posecam fuse --sync auto` from the pose JSON against the time of `posecam
+predict` on the same videos, alternated twice in this run (medians); and the single take looped to 3600
 frames, fused without a calibration and with the lab's (time, frames/s, peak memory).
 
 Usage: python bench/bench_fuse.py [--cache DIR] [--take single|multi|both] [--before DIR] [--loops N]
@@ -358,21 +358,37 @@ def run_worker(take: str, cache: Path, offsets: list[float], code: Path) -> dict
     return json.loads(out.read_text())
 
 
-def predict(cache: Path, take: str) -> float:
-    """Predict the take's four videos with the default `posecam predict` into the cache once
-    (its pose JSON are what every fuse reads), and again into a scratch folder in this run:
-    seconds taken now, the peer of the time to fuse."""
+def predict(cache: Path, take: str) -> None:
+    """Predict the take's four videos with the default `posecam predict` into the cache, once:
+    the pose JSON every fuse reads."""
     folder = cache / take
-    scratch = cache / take / "predict_now"
-    for out in ([folder] if not all((folder / f"{n}.json").exists() for n in NAMES) else []) + [scratch]:
-        out.mkdir(parents=True, exist_ok=True)
+    if not all((folder / f"{n}.json").exists() for n in NAMES):
+        folder.mkdir(parents=True, exist_ok=True)
+        subprocess.run([sys.executable, "-m", "posecam", "predict", "--out-dir", str(folder),
+                        *[str(ROOT / TAKES[take][0] / f"{n}.mp4") for n in NAMES]], check=True,
+                       env=dict(os.environ, PYTHONPATH=str(ROOT)), stdout=subprocess.DEVNULL)
+
+
+def speed_ratio(cache: Path, take: str, rounds: int = 2) -> tuple[list[float], list[float]]:
+    """Seconds to predict the four videos (`posecam predict`, into a scratch folder) and to fuse
+    their pose JSON (`posecam fuse --sync auto`, no calibration), alternated `rounds` times."""
+    scratch, env = cache / take / "predict_now", dict(os.environ, PYTHONPATH=str(ROOT))
+    scratch.mkdir(parents=True, exist_ok=True)
+    predicting, fusing = [], []
+    for _ in range(rounds):
         for n in NAMES:
             (scratch / f"{n}.json").unlink(missing_ok=True)
         t0 = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "posecam", "predict", "--out-dir", str(out),
-                        *[str(ROOT / TAKES[take][0] / f"{n}.mp4") for n in NAMES]], check=True,
-                       env=dict(os.environ, PYTHONPATH=str(ROOT)), stdout=subprocess.DEVNULL)
-    return time.perf_counter() - t0
+        subprocess.run([sys.executable, "-m", "posecam", "predict", "--out-dir", str(scratch),
+                        *[str(ROOT / TAKES[take][0] / f"{n}.mp4") for n in NAMES]], check=True, env=env,
+                       stdout=subprocess.DEVNULL)
+        predicting.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "posecam", "fuse", *[str(cache / take / f"{n}.json") for n in NAMES],
+                        "--sync", "auto", "-o", str(scratch / "fused.json")], check=True, env=env,
+                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        fusing.append(time.perf_counter() - t0)
+    return predicting, fusing
 
 
 def show(label: str, runs: dict[str, dict], truth: Truth) -> None:
@@ -424,7 +440,7 @@ def from_lab(truth: Truth, take: str) -> dict:
 
 
 def bench(cache: Path, take: str, before: Path | None) -> None:
-    seconds = predict(cache, take)
+    predict(cache, take)
     truth = Truth(take, cache)
     print(f"== {take}: truth offsets (lab rig, plain DLT): combination {truth.combination}, "
           f"pairwise {truth.pairwise}")
@@ -436,11 +452,10 @@ def bench(cache: Path, take: str, before: Path | None) -> None:
     label = "bundle adjustment started from the lab rig (the keypoints' limit; no pelvis: scale not fixed)"
     runs["after"][label] = from_lab(truth, take)
     show(label, {"after": runs["after"]}, truth)
-    for code, res in runs.items():
-        r = res.get("no calibration, --sync auto", {})
-        if "time_s" in r:
-            print(f"   {code:6s}: fuse from pose JSON (no calibration, --sync auto) {r['time_s']:.1f} s vs "
-                  f"predicting the 4 videos {seconds:.1f} s: ratio {r['time_s'] / seconds:.2f}")
+    predicting, fusing = speed_ratio(cache, take)
+    print(f"   speed (this checkout, alternated): predict the 4 videos {', '.join(f'{t:.1f}' for t in predicting)} s, "
+          f"fuse their pose JSON (--sync auto, no calibration) {', '.join(f'{t:.1f}' for t in fusing)} s: "
+          f"ratio of medians {np.median(fusing) / np.median(predicting):.2f}")
 
 
 def main() -> None:

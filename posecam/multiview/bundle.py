@@ -40,6 +40,9 @@ class BundleOptions:
     centre_sigma: float = 0.1         # principal point prior, in image widths / heights
     max_frames: int = 150             # frames used (chosen for coverage), to bound the problem's size
     max_nfev: int = 200
+    # relative cost change that ends the adjustment: 1e-6 ends it in half the time of scipy's 1e-8
+    # with the same rig on both Pose2Sim takes (rotation within 0.04 deg, focal 0.3 %)
+    ftol: float = 1e-6
     max_error_px: float = 60.0        # median reprojection error above this: did not converge
 
 
@@ -263,7 +266,7 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
             return vstack([problem.jacobian(x), prior]).tocsr()
 
     fit = least_squares(fun, x0, jac=jac, loss="soft_l1", f_scale=F_SCALE, x_scale="jac", method="trf",
-                        tr_solver="lsmr", max_nfev=opts.max_nfev)
+                        tr_solver="lsmr", max_nfev=opts.max_nfev, ftol=opts.ftol)
     p, pts = problem.unpack(fit.x)
     loss_w = 1.0 / np.sqrt(1.0 + (problem.residuals(fit.x) / F_SCALE) ** 2)     # soft_l1's weights
     cov = camera_covariance(problem, fit.x, loss_w)
