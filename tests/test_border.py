@@ -388,7 +388,7 @@ def test_a_million_people_in_one_frame_is_refused_in_flat_memory(tmp_path):
     text = json.dumps(doc).replace('"people": [' + person, '"people": [' + ", ".join([person] * 1000 + ["{}"] * 999_000), 1)
     (tmp_path / "crowd.json").write_text(text)
     r, peak = _peak_mb("fuse", tmp_path / "a.json", tmp_path / "crowd.json", "--offsets", "0,0", "-o", tmp_path / "f.json")
-    check_promise(r, 2, "people: must hold at most 1000 entries")
+    check_promise(r, 2, "crowd.json inputs[0] frames[0] people: must hold at most 1000 entries")
     assert peak < 1024, f"{peak:.0f} MB"
 
 

@@ -6,7 +6,7 @@ memory and a reader can refuse a list before it is built (a frame of a million p
     stream = JsonStream(file, "poses.json")
     for key in stream.keys():                  # {"joints": [...], "inputs": [...]}
         if key == "inputs":
-            for n in stream.items(most=100, field="inputs"):
+            for n in stream.items(most=100, field="poses.json inputs"):
                 ...                            # read item n with keys(), items() or value()
         else:
             value = stream.value()
@@ -95,7 +95,8 @@ class JsonStream:
 
     def items(self, most: int, field: str) -> Iterator[int]:
         """Enter an array: yield the index of each item; the caller reads the item before the
-        next. More than `most` items: InputError, before the one over is read."""
+        next. More than `most` items: InputError naming `field` (the file and the place in it),
+        before the one over is read."""
         self._expect("[")
         if self._peek() == "]":
             self.i += 1
@@ -103,7 +104,7 @@ class JsonStream:
         n = 0
         while True:
             if n >= most:
-                raise InputError(f"{self.where}: {field}: must hold at most {most} entries")
+                raise InputError(f"{field}: must hold at most {most} entries")
             yield n
             n += 1
             if self._peek() == ",":

@@ -223,7 +223,7 @@ def _read_document(stream: JsonStream, check: Field) -> list[Recording]:
     header, inputs, shape = {}, [], {}
     for key in stream.keys():
         if key == "inputs":
-            for n in stream.items(MAX_INPUTS, "inputs"):
+            for n in stream.items(MAX_INPUTS, f"{check.where} inputs"):
                 inputs.append(_read_input(stream, Field(f"{check.where} inputs[{n}]"), shape))
         else:
             header[key] = stream.value()
@@ -255,7 +255,7 @@ def _read_input(stream: JsonStream, check: Field, shape: dict) -> dict:
     for key in stream.keys():
         if key == "frames":
             last = -1
-            for n in stream.items(MAX_INDEX, "frames"):
+            for n in stream.items(MAX_INDEX, f"{check.where} frames"):
                 frame = _read_frame(stream, Field(f"{check.where} frames[{n}]"), shape)
                 if frame.index <= last:
                     raise check.fail(f"frames[{n}].index", f"must increase (the frame before is {last})",
@@ -295,10 +295,10 @@ def _read_frame(stream: JsonStream, check: Field, shape: dict) -> Frame:
     fields, people, dropped = {}, [], []
     for key in stream.keys():
         if key == "people":
-            for n in stream.items(MAX_PEOPLE, f"{check.where}.people"):
+            for n in stream.items(MAX_PEOPLE, f"{check.where} people"):
                 people.append(_read_person(stream.value(), Field(f"{check.where} people[{n}]"), shape))
         elif key == "dropped":
-            for n in stream.items(MAX_PEOPLE, f"{check.where}.dropped"):
+            for n in stream.items(MAX_PEOPLE, f"{check.where} dropped"):
                 dropped.append(_read_dropped(stream.value(), Field(f"{check.where} dropped[{n}]")))
         else:
             fields[key] = stream.value()
