@@ -523,7 +523,7 @@ def test_a_variable_frame_rate_video_gets_its_real_times(tmp_path):
 ])
 def test_a_signal_ends_a_jobs_run_within_2_s_writing_nothing_after_it(tmp_path, sig, code, word, group):
     inputs = []
-    for i in range(5):
+    for i in range(8):
         inputs.append(tmp_path / f"v{i}.mp4")
         shutil.copy(VIDEO, inputs[-1])
     out = tmp_path / "out"
@@ -536,7 +536,7 @@ def test_a_signal_ends_a_jobs_run_within_2_s_writing_nothing_after_it(tmp_path, 
         time.sleep(0.02)
     time.sleep(0.3)                         # the next tasks are under way
     written = {p.name for p in out.iterdir() if p.suffix == ".json"}
-    assert written and len(written) < 5
+    assert written and len(written) < 8
     start = time.perf_counter()
     os.killpg(proc.pid, sig) if group else proc.send_signal(sig)
     _, err = proc.communicate(timeout=60)
