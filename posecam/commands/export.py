@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 from rich.console import Console
 
+from posecam.commands.common import stdout_report
 from posecam.errors import InputError
 
 err = Console(stderr=True, highlight=False)
@@ -49,11 +50,12 @@ def export_command(checkpoint, output, name, verify, quantize, images, max_crops
         opts.images = [str(p) for p in expand_inputs(images)[0]]
     int8 = int8_path(output) if quantize else None
     staged = OutputSet([output, int8], [checkpoint, *opts.images])  # checked before the work
-    with staged, err.status("exporting") as status:  # both files or neither
-        tmp = staged.path(output)
-        lines = export_checkpoint(checkpoint, tmp, opts, step=lambda msg: status.update(msg))
+    with staged:  # both files or neither
+        with err.status("exporting") as status:
+            tmp = staged.path(output)
+            lines = export_checkpoint(checkpoint, tmp, opts, step=lambda msg: status.update(msg))
         if int8:
             staged.adopt(int8, int8_path(tmp))
-    lines = [line.replace(str(int8_path(tmp)), str(int8)).replace(str(tmp), str(output)) for line in lines]
-    for line in lines:
-        click.echo(line)
+        with stdout_report():   # stdout is an output too: written before the files are
+            for line in lines:
+                click.echo(line.replace(str(int8_path(tmp)), str(int8)).replace(str(tmp), str(output)))
