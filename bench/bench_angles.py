@@ -32,11 +32,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_predict import OFFSETS, _first_person  # noqa: E402
-from bench_smooth import predictions, take_file  # noqa: E402
+from bench_smooth import lab_joints as lab_smooth_joints, predictions, take_file  # noqa: E402
 
 from posecam.angles import angle_names, angles_of  # noqa: E402
 from posecam.filters import butterworth, smooth_recording  # noqa: E402
-from posecam.geometry.triangulate import triangulate  # noqa: E402
 from posecam.metric import MetricOptions, scale_recording  # noqa: E402
 from posecam.skeleton import H36M_JOINTS  # noqa: E402
 
@@ -44,17 +43,9 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 def lab_joints(cams, recs) -> tuple[np.ndarray, int]:
-    """All 17 joints triangulated through the lab calibration (world mm, Z up) over the frames
-    every view sees, smoothed at 6 Hz as posecam smooths; and their count n (from cam01's
-    frame -min(offsets))."""
-    n = 100 - max(OFFSETS.values()) + min(OFFSETS.values())
-    uv, conf = [], []
-    for cam, rec in zip(cams, recs):
-        start = OFFSETS[cam.name] - min(OFFSETS.values())
-        frames = rec.frames[start:start + n]
-        uv.append(_first_person(frames, "keypoints_2d", (17, 2)))
-        conf.append(_first_person(frames, "confidence", (17,)))
-    return butterworth(triangulate(cams, np.stack(uv), np.stack(conf)), 60.0), n
+    """bench_smooth's lab triangulation of all 17 joints, smoothed at 6 Hz as posecam smooths."""
+    world, n = lab_smooth_joints(cams, recs)
+    return butterworth(world, 60.0), n
 
 
 def accuracy(cams, recs) -> None:

@@ -88,9 +88,10 @@ def jitter(track: np.ndarray) -> tuple[float, float]:
     return float(np.nanmean(acc)), float(np.nanmean(acc[:, 0]))
 
 
-def lab_root(cams, recs) -> tuple[np.ndarray, int]:
-    """The pelvis triangulated from all views (world mm) over the synchronised frames, as
-    bench_predict.accuracy builds it; and n, the number of those frames."""
+def lab_joints(cams, recs) -> tuple[np.ndarray, int]:
+    """All 17 joints triangulated from all views through the lab calibration (world mm) over
+    the synchronised frames, as bench_predict.accuracy builds them; and n, the number of those
+    frames (from cam01's frame -min(offsets))."""
     n = 100 - max(OFFSETS.values()) + min(OFFSETS.values())
     uv, conf = [], []
     for cam, rec in zip(cams, recs):
@@ -98,7 +99,13 @@ def lab_root(cams, recs) -> tuple[np.ndarray, int]:
         frames = rec.frames[start:start + n]
         uv.append(_first_person(frames, "keypoints_2d", (17, 2)))
         conf.append(_first_person(frames, "confidence", (17,)))
-    return triangulate(cams, np.stack(uv), np.stack(conf))[:, 0], n
+    return triangulate(cams, np.stack(uv), np.stack(conf)), n
+
+
+def lab_root(cams, recs) -> tuple[np.ndarray, int]:
+    """The pelvis of lab_joints, and n."""
+    joints, n = lab_joints(cams, recs)
+    return joints[:, 0], n
 
 
 def root_error(cam, rec, world_root: np.ndarray, n: int) -> float:
