@@ -24,6 +24,7 @@ from test_hostile import _pose_file, _snapshot, check_promise
 
 from posecam.errors import OutputError
 from posecam.io.atomic import OutputSet
+from posecam.io.calibration import read_qualisys, write_toml
 
 VIDEO = DATA / "balance_cam01_30f.mp4"
 
@@ -166,7 +167,16 @@ def test_an_ascii_terminal_and_escape_codes_in_names(tmp_path):
 
 # ---- files read: every field checked at load, one line naming the file, the field, the rule ----
 
-CALIB = Path(__file__).parent.parent / "examples" / "demo" / "single"
+CAMERA_WIDTHS = {"cam01": 1080, "cam02": 1080, "cam03": 1088, "cam04": 1088}   # the demo videos'
+
+
+def _lab_calibration(folder: Path) -> tuple[str, str]:
+    """Pose2Sim's shipped Calib.qca.txt (from the wheel `python -m export.assets` fetches) and
+    the same cameras as the TOML examples/fetch_demo.py writes from it."""
+    assets = pytest.importorskip("export.assets", reason="the Pose2Sim wheel comes with the export extra")
+    qca = assets.pose2sim_demo_path("calibration/Calib.qca.txt")
+    write_toml(folder / "lab.toml", read_qualisys(qca, image_widths=CAMERA_WIDTHS), {"source": "Calib.qca.txt"})
+    return (folder / "lab.toml").read_text(), qca.read_text()
 
 
 def _toml(text: str, old: str, new: str) -> str:
@@ -205,7 +215,7 @@ def files(tmp_path):
     inp, out = tmp_path / "in", tmp_path / "out"
     inp.mkdir()
     out.mkdir()
-    toml = (CALIB / "Calib.toml").read_text()
+    toml, qca = _lab_calibration(tmp_path)
     cases = {
         "size-zero": ("size = [ 1080.0, 1920.0]", "size = [0, 0]"),
         "size-400-digits": ("size = [ 1080.0, 1920.0]", f"size = [{'9' * 400}, 1920]"),
@@ -220,7 +230,6 @@ def files(tmp_path):
     }
     for name, (old, new) in cases.items():
         (inp / f"{name}.toml").write_text(_toml(toml, old, new))
-    qca = (CALIB / "Calib.qca.txt").read_text()
     (inp / "fov-zero.qca.txt").write_text(qca.replace('<fov_video bottom="1919" left="0" right="1087" top="0"/>',
                                                       '<fov_video bottom="0" left="0" right="0" top="0"/>', 1))
     (inp / "focal-nan.qca.txt").write_text(re.sub(r'focalLengthU="[^"]+"', 'focalLengthU="nan"', qca, count=1))
