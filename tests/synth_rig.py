@@ -202,3 +202,18 @@ def write_qca(path, cams: list[CameraCalibration]) -> None:
             f'tangentalDistortion1="0" tangentalDistortion2="0"/></camera>')
     with open(path, "w") as f:
         f.write("<?xml version='1.0'?>\n<qca><cameras>" + "".join(rows) + "</cameras></qca>\n")
+
+
+def write_take(folder, n_frames: int) -> tuple[list[CameraCalibration], list, object]:
+    """A synthetic take on disk: the default rig's views of `n_frames` of motion as posecam
+    pose JSON files (one per camera) and the rig as calib.toml, all in `folder`."""
+    from posecam.io.calibration import write_toml
+    from posecam.io.poses import write_poses
+
+    cams = make_rig()
+    paths = []
+    for rec in monocular_views(cams, skeleton_motion(n_frames)):
+        paths.append(folder / f"{rec.source}.json")
+        write_poses(paths[-1], [rec])
+    write_toml(folder / "calib.toml", cams)
+    return cams, paths, folder / "calib.toml"

@@ -98,17 +98,9 @@ def test_predict_refuses_bad_selections(tmp_path, args, message):
 
 
 def test_fuse_picks_the_same_frames_of_pose_files(tmp_path):
-    from synth_rig import make_rig, monocular_views, skeleton_motion
+    from synth_rig import write_take
 
-    from posecam.io.calibration import write_toml
-    from posecam.io.poses import write_poses
-
-    cams = make_rig()
-    paths = []
-    for rec in monocular_views(cams, skeleton_motion(60)):
-        paths.append(tmp_path / f"{rec.source}.json")
-        write_poses(paths[-1], [rec])
-    write_toml(tmp_path / "calib.toml", cams)
+    _, paths, _ = write_take(tmp_path, 60)
     out = tmp_path / "fused.json"
     run = run_posecam("fuse", *paths, "--calibration", tmp_path / "calib.toml", "--start", "10", "--end", "50",
                       "--stride", "2", "-o", out)

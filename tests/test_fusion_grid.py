@@ -12,18 +12,9 @@ from conftest import DATA, run_posecam
 
 
 def _synthetic_views(tmp_path, n_frames=25):
-    from synth_rig import make_rig, monocular_views, skeleton_motion
+    from synth_rig import write_take
 
-    from posecam.io.calibration import write_toml
-    from posecam.io.poses import write_poses
-
-    cams = make_rig()
-    paths = []
-    for rec in monocular_views(cams, skeleton_motion(n_frames)):
-        paths.append(tmp_path / f"{rec.source}.json")
-        write_poses(paths[-1], [rec])
-    write_toml(tmp_path / "calib.toml", cams)
-    return cams, paths, tmp_path / "calib.toml"
+    return write_take(tmp_path, n_frames)
 
 
 def test_fused_video_has_every_frame_and_names_it(tmp_path):

@@ -158,16 +158,9 @@ def test_c3d_without_the_package_is_refused_before_work(tmp_path):
 def test_fuse_cli_writes_world_trc_y_up_and_a_3d_view(tmp_path):
     """`posecam fuse` with a calibration (world, z up) -> a Y-up TRC that OpenSim reads, in
     metres within 0.1 mm of the fused JSON, and the 3D view beside it."""
-    from posecam.io.calibration import write_toml
-    from posecam.io.poses import write_poses
-    from synth_rig import make_rig, monocular_views, skeleton_motion
+    from synth_rig import write_take
 
-    cams = make_rig()
-    paths = []
-    for rec in monocular_views(cams, skeleton_motion(40)):
-        paths.append(tmp_path / f"{rec.source}.json")
-        write_poses(paths[-1], [rec])
-    write_toml(tmp_path / "calib.toml", cams)
+    _, paths, _ = write_take(tmp_path, 40)
     args = ("fuse", *paths, "--calibration", tmp_path / "calib.toml")
     r = run_posecam(*args, "-o", tmp_path / "fused.trc", "--trc-y-up", "--viz3d", tmp_path / "fused.html")
     assert r.returncode == 0, r.stderr
