@@ -25,13 +25,12 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from posecam.errors import FusionError
-from posecam.geometry.camera import CameraCalibration, Intrinsics, Rig
+from posecam.geometry.camera import CameraCalibration, Rig
 from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
 from posecam.multiview.consensus import ConsensusOptions, View, camera_points, estimate_rig, fuse_points
+from posecam.multiview.observations import Observations, PersonTracks, ViewTrack
 from posecam.multiview.sync import shift
-from posecam.results import Recording
 
-MIN_TRACK_FRAMES = 8            # shorter tracks are left out (detector flicker)
 MIN_COMMON_FRAMES = 10          # a pair of tracks needs this many frames seen by both
 MAX_PAIR_ANGLE = 0.03           # rad (50 px at f = 1700): calibrated pair gate
 FOCAL_RANGE = (0.25, 4.0)       # focal / assumed focal a pair may imply
@@ -40,103 +39,9 @@ PAIR_FRAMES = 300               # common frames (evenly spaced) that score a cal
 
 
 @dataclass
-class Track:
-    """One person id of one view, over that view's own frames (NaN / conf 0 where unseen)."""
-
-    view: int
-    ids: tuple[int, ...]        # person ids in the view's recording (several after an id switch)
-    uv: np.ndarray              # (F_view, J, 2) pixels
-    xyz: np.ndarray             # (F_view, J, 3) camera coordinates, mm
-    conf: np.ndarray            # (F_view, J)
-    score: np.ndarray           # (F_view,) detection score, 0 where unseen
-
-    @property
-    def seen(self) -> np.ndarray:
-        """(F_view,) frames where the track has at least one joint."""
-        return self.conf.max(axis=1) > 0
-
-
-@dataclass
-class Person:
-    """One person across views: its tracks (at most one per view at any frame)."""
-
-    tracks: list[Track]
-
-    @property
-    def views(self) -> list[int]:
-        return sorted({t.view for t in self.tracks})
-
-    def view_arrays(self, view: int, n_frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(uv, xyz, conf, score) of this person in `view`'s own frames (its tracks merged)."""
-        j = self.tracks[0].conf.shape[1]
-        uv, xyz = np.full((n_frames, j, 2), np.nan), np.full((n_frames, j, 3), np.nan)
-        conf, score = np.zeros((n_frames, j)), np.zeros(n_frames)
-        for t in self.tracks:
-            if t.view == view:
-                s = t.seen & (conf.max(axis=1) == 0)
-                uv[s], xyz[s], conf[s], score[s] = t.uv[s], t.xyz[s], t.conf[s], t.score[s]
-        return uv, xyz, conf, score
-
-
-@dataclass
-class Observations:
-    """One person seen by all V views, in the reference camera's frames (offsets applied)."""
-
-    uv: np.ndarray              # (V, F, J, 2)
-    xyz: np.ndarray             # (V, F, J, 3) each view's camera coordinates
-    conf: np.ndarray            # (V, F, J), 0 where the view does not see the person
-    score: np.ndarray           # (V, F)
-
-    def __post_init__(self) -> None:
-        v, f, j = self.conf.shape
-        for name, a, shape in (("uv", self.uv, (v, f, j, 2)), ("xyz", self.xyz, (v, f, j, 3)),
-                               ("score", self.score, (v, f))):
-            if a.shape != shape:
-                raise ValueError(f"Observations.{name}: expected {shape}, got {a.shape}")
-
-    @classmethod
-    def of(cls, person: Person, lengths: list[int], offsets: list[int], n: int) -> "Observations":
-        parts = [person.view_arrays(v, length) for v, length in enumerate(lengths)]
-        return cls(*(np.stack([shift(p[k], o, n, fill) for p, o in zip(parts, offsets)])
-                     for k, fill in ((0, np.nan), (1, np.nan), (2, 0.0), (3, 0.0))))
-
-    def take(self, views: list[int]) -> "Observations":
-        return Observations(self.uv[views], self.xyz[views], self.conf[views], self.score[views])
-
-
-@dataclass
-class ViewInfo:
-    """What the estimation needs of one view."""
-
-    name: str
-    size: tuple[int, int]
-    intrinsics: Intrinsics      # those its monocular poses were made with
-
-
-@dataclass
 class Association:
-    people: list[Person]
-    links: list[tuple[float, Track, Track]] = field(default_factory=list)   # kept pair costs
-
-
-def tracks_of(rec: Recording, view: int, min_frames: int = MIN_TRACK_FRAMES) -> list[Track]:
-    """Every person id of `rec` seen in at least `min_frames` frames, longest first."""
-    n, j = len(rec.frames), len(rec.joints)
-    ids: dict[int, list[int]] = {}
-    for i, f in enumerate(rec.frames):
-        for k, p in enumerate(f.people):
-            ids.setdefault(p.id, []).append(i)
-    tracks = []
-    for pid, frames in ids.items():
-        if len(frames) < min_frames:
-            continue
-        uv, xyz = np.full((n, j, 2), np.nan), np.full((n, j, 3), np.nan)
-        conf, score = np.zeros((n, j)), np.zeros(n)
-        for i in frames:
-            p = next(q for q in rec.frames[i].people if q.id == pid)
-            uv[i], xyz[i], conf[i], score[i] = p.keypoints_2d, p.keypoints_3d, p.confidence, p.score
-        tracks.append(Track(view, (pid,), uv, xyz, conf, score))
-    return sorted(tracks, key=lambda t: -int(t.seen.sum()))
+    people: list[PersonTracks]
+    links: list[tuple[float, ViewTrack, ViewTrack]] = field(default_factory=list)   # kept pair costs
 
 
 @dataclass
@@ -144,10 +49,10 @@ class PairFit:
     cost: float                 # np.inf: not the same person
 
 
-PairCost = Callable[[Track, Track], PairFit]
+PairCost = Callable[[ViewTrack, ViewTrack], PairFit]
 
 
-def _common(a: Track, b: Track, offsets: list[int], n: int, min_conf: float):
+def _common(a: ViewTrack, b: ViewTrack, offsets: list[int], n: int, min_conf: float):
     """Both tracks in the reference's frames, restricted to frames where both are seen."""
     arrays = []
     for t in (a, b):
@@ -162,7 +67,7 @@ def pair_cost_calibrated(cams: list[CameraCalibration], offsets: list[int], n: i
                          min_conf: float = MIN_CONFIDENCE) -> PairCost:
     """Cost of two tracks with a calibration: median reprojection angle of their triangulation."""
 
-    def cost(a: Track, b: Track) -> PairFit:
+    def cost(a: ViewTrack, b: ViewTrack) -> PairFit:
         (pa, pb), common = _common(a, b, offsets, n, min_conf)
         if common < MIN_COMMON_FRAMES:
             return PairFit(np.inf)
@@ -180,11 +85,11 @@ def pair_cost_calibrated(cams: list[CameraCalibration], offsets: list[int], n: i
     return cost
 
 
-def _overlap(a: Track, b: Track) -> int:
+def _overlap(a: ViewTrack, b: ViewTrack) -> int:
     return int((a.seen & b.seen).sum())
 
 
-def associate(tracks: list[list[Track]], pair_cost: PairCost, max_cost: float) -> Association:
+def associate(tracks: list[list[ViewTrack]], pair_cost: PairCost, max_cost: float) -> Association:
     """Association with a calibration: every cross-view pair of tracks scored by `pair_cost`,
     linked from the cheapest up while the link keeps each person's tracks of one view apart in
     time; every track ends in exactly one person, unlinked tracks alone."""
@@ -202,7 +107,7 @@ def associate(tracks: list[list[Track]], pair_cost: PairCost, max_cost: float) -
             links.append((c, a, b))
     return Association(_people(flat, groups), links)
 
-def _merged(groups: dict[int, list[Track]], pairs: list[tuple[Track, Track]]) -> dict[int, list[Track]] | None:
+def _merged(groups: dict[int, list[ViewTrack]], pairs: list[tuple[ViewTrack, ViewTrack]]) -> dict[int, list[ViewTrack]] | None:
     """The groups after linking `pairs`, or None when a person would hold two tracks of one
     view that overlap in time."""
     groups = dict(groups)
@@ -218,7 +123,7 @@ def _merged(groups: dict[int, list[Track]], pairs: list[tuple[Track, Track]]) ->
     return groups
 
 
-def _fused(people: list[Person], core: list[int], rig: Rig, info: list[ViewInfo], lengths: list[int],
+def _fused(people: list[PersonTracks], core: list[int], rig: Rig, assumed: list[CameraCalibration], lengths: list[int],
            offsets: list[int], reference: int, min_conf: float) -> list[tuple[np.ndarray, np.ndarray]]:
     """Each person's (F, J, 3) consensus fusion of the `core` views (reference frame, mm) and
     (F, J) confidence."""
@@ -227,7 +132,7 @@ def _fused(people: list[Person], core: list[int], rig: Rig, info: list[ViewInfo]
     out = []
     for person in people:
         obs = Observations.of(person, lengths, offsets, n).take(core)
-        views = [View(info[v].name, info[v].size, info[v].intrinsics, obs.uv[i], obs.xyz[i], obs.conf[i])
+        views = [View(assumed[v].name, assumed[v].size, assumed[v].intrinsics, obs.uv[i], obs.xyz[i], obs.conf[i])
                  for i, v in enumerate(core)]
         pts = np.stack([c.to_world(camera_points(view, _k(c))) for view, c in zip(views, rig.cameras)])
         w = np.stack([view.weights(min_conf) for view in views])
@@ -240,8 +145,8 @@ def _k(cam: CameraCalibration) -> np.ndarray:
     return np.array([k.fx, k.fy, k.cx, k.cy])
 
 
-def _hypothesis_cost(pairs: list[tuple[int, Track]], fused: list[tuple[np.ndarray, np.ndarray]], ref_cam: CameraCalibration,
-                     info: list[ViewInfo], offsets: list[int], min_conf: float) -> float:
+def _hypothesis_cost(pairs: list[tuple[int, ViewTrack]], fused: list[tuple[np.ndarray, np.ndarray]], ref_cam: CameraCalibration,
+                     assumed: list[CameraCalibration], offsets: list[int], min_conf: float) -> float:
     """Sum over the pairs (person, track of the new view) of frames x (epipolar residual / MAX_PAIR_ANGLE - 1)
     under ONE consensus of all the pairs: negative when one camera explains them all."""
     n = len(fused[0][0])
@@ -259,7 +164,7 @@ def _hypothesis_cost(pairs: list[tuple[int, Track]], fused: list[tuple[np.ndarra
         b_parts.append((uv[both], xyz[both], c[both]))
         bounds.append(bounds[-1] + int(both.sum()))
     views = [View("people", ref_cam.size, ref_cam.intrinsics, *(np.concatenate([x[i] for x in a_parts]) for i in range(3))),
-             View(info[v].name, info[v].size, info[v].intrinsics, *(np.concatenate([x[i] for x in b_parts]) for i in range(3)))]
+             View(assumed[v].name, assumed[v].size, assumed[v].intrinsics, *(np.concatenate([x[i] for x in b_parts]) for i in range(3)))]
     try:
         fit = estimate_rig(views, ConsensusOptions(min_conf=min_conf, max_iter=30, joint=False))
     except FusionError:
@@ -304,10 +209,10 @@ def epipolar_errors(a: np.ndarray, b: np.ndarray, rotation: np.ndarray, w: np.nd
     return out
 
 
-def _best_hypothesis(tracks: list[Track], people: list[Person], fused, ref_cam, info, offsets,
-                     min_conf: float) -> tuple[float, list[tuple[int, Track]]]:
+def _best_hypothesis(tracks: list[ViewTrack], people: list[PersonTracks], fused, ref_cam, assumed, offsets,
+                     min_conf: float) -> tuple[float, list[tuple[int, ViewTrack]]]:
     """The cheapest assignment of a new view's tracks to the people (or to nobody)."""
-    single = {(p, id(t)): _hypothesis_cost([(p, t)], fused, ref_cam, info, offsets, min_conf)
+    single = {(p, id(t)): _hypothesis_cost([(p, t)], fused, ref_cam, assumed, offsets, min_conf)
               for p in range(len(people)) for t in tracks}
     options = [[None] + [p for p in range(len(people)) if single[(p, id(t))] < 0] for t in tracks]
     best, best_pairs = 0.0, []
@@ -317,13 +222,13 @@ def _best_hypothesis(tracks: list[Track], people: list[Person], fused, ref_cam, 
                             for (p, s), (q, t) in itertools.combinations(pairs, 2)):
             continue
         cost = single[(pairs[0][0], id(pairs[0][1]))] if len(pairs) == 1 else \
-            _hypothesis_cost(pairs, fused, ref_cam, info, offsets, min_conf)
+            _hypothesis_cost(pairs, fused, ref_cam, assumed, offsets, min_conf)
         if cost < best:
             best, best_pairs = cost, pairs
     return best, best_pairs
 
 
-def associate_by_consensus(tracks: list[list[Track]], info: list[ViewInfo], lengths: list[int],
+def associate_by_consensus(tracks: list[list[ViewTrack]], assumed: list[CameraCalibration], lengths: list[int],
                            offsets: list[int], reference: int = 0, min_conf: float = MIN_CONFIDENCE) -> Association:
     """Association without a calibration, view by view: the people start as the reference
     view's tracks; each round, every view not yet placed scores every assignment of its tracks
@@ -334,17 +239,16 @@ def associate_by_consensus(tracks: list[list[Track]], info: list[ViewInfo], leng
     flat = [t for view in tracks for t in view]
     groups = {id(t): [t] for t in flat}
     core = [reference]
-    rig = Rig([CameraCalibration(info[reference].name, info[reference].size, info[reference].intrinsics)],
-              info[reference].name)
+    rig = Rig([assumed[reference]], assumed[reference].name)
     pending = [v for v in range(len(tracks)) if v != reference and tracks[v]]
     links = []
     while pending:
         people = _people([t for v in core for t in tracks[v]], groups)
-        fused = _fused(people, core, rig, info, lengths, offsets, reference, min_conf)
+        fused = _fused(people, core, rig, assumed, lengths, offsets, reference, min_conf)
         ref_cam = rig.cameras[core.index(reference)]
         best, best_v, best_pairs = 0.0, None, []
         for v in pending:
-            cost, pairs = _best_hypothesis(tracks[v], people, fused, ref_cam, info, offsets, min_conf)
+            cost, pairs = _best_hypothesis(tracks[v], people, fused, ref_cam, assumed, offsets, min_conf)
             if cost < best:
                 best, best_v, best_pairs = cost, v, pairs
         if best_v is None:
@@ -354,7 +258,7 @@ def associate_by_consensus(tracks: list[list[Track]], info: list[ViewInfo], leng
         for p, t in best_pairs:
             trial = _merged(trial, [(people[p].tracks[0], t)])
         placed = _place(core + [best_v], _people([t for v in core + [best_v] for t in tracks[v]], trial),
-                        info, lengths, offsets, reference, min_conf)
+                        assumed, lengths, offsets, reference, min_conf)
         if placed is None:
             continue
         groups, core, rig = trial, core + [best_v], placed
@@ -362,12 +266,12 @@ def associate_by_consensus(tracks: list[list[Track]], info: list[ViewInfo], leng
     return Association(_people(flat, groups), links)
 
 
-def _place(core: list[int], people: list[Person], info: list[ViewInfo], lengths: list[int], offsets: list[int],
+def _place(core: list[int], people: list[PersonTracks], assumed: list[CameraCalibration], lengths: list[int], offsets: list[int],
            reference: int, min_conf: float) -> Rig | None:
     """The consensus cameras of the `core` views (their order) from the people, None if it fails."""
     obs = [Observations.of(p, lengths, offsets, lengths[reference]).take(core) for p in people]
     uv, xyz, conf = (np.concatenate([getattr(o, k) for o in obs], axis=1) for k in ("uv", "xyz", "conf"))
-    views = [View(info[v].name, info[v].size, info[v].intrinsics, uv[i], xyz[i], conf[i]) for i, v in enumerate(core)]
+    views = [View(assumed[v].name, assumed[v].size, assumed[v].intrinsics, uv[i], xyz[i], conf[i]) for i, v in enumerate(core)]
     try:
         return estimate_rig(views, ConsensusOptions(reference=core.index(reference), min_conf=min_conf,
                                                     max_iter=40)).rig
@@ -375,12 +279,12 @@ def _place(core: list[int], people: list[Person], info: list[ViewInfo], lengths:
         return None
 
 
-def _people(flat: list[Track], groups: dict[int, list[Track]]) -> list[Person]:
+def _people(flat: list[ViewTrack], groups: dict[int, list[ViewTrack]]) -> list[PersonTracks]:
     people, seen = [], set()
     for t in flat:
         g = groups[id(t)]
         if id(g) not in seen:
             seen.add(id(g))
-            people.append(Person(g))
+            people.append(PersonTracks(g))
     people.sort(key=lambda p: (-len(p.views), -sum(int(t.seen.sum()) for t in p.tracks)))
     return people

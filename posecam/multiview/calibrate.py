@@ -20,10 +20,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from posecam.errors import FusionError
-from posecam.geometry.camera import Rig
-from posecam.multiview.associate import Observations, ViewInfo
+from posecam.geometry.camera import CameraCalibration, Rig
 from posecam.multiview.bundle import BundleOptions, CameraSpread, bundle_adjust
 from posecam.multiview.consensus import ConsensusOptions, View, estimate_rig, stretch_residuals
+from posecam.multiview.observations import Observations
 from posecam.skeleton import skeleton_of
 
 MIN_FRAMES = 15                 # frames a camera must share with the others (>= 6 confident joints)
@@ -50,13 +50,6 @@ class RigEstimate:
     spreads: list[CameraSpread] | None = None   # (len(views),) from the bundle adjustment
 
 
-def stack(people: list[Observations], views: list[int]) -> Observations:
-    """The people of `views` side by side along the frame axis."""
-    parts = [p.take(views) for p in people]
-    return Observations(*(np.concatenate([getattr(p, k) for p in parts], axis=1)
-                          for k in ("uv", "xyz", "conf", "score")))
-
-
 def _bone_lengths(obs: Observations, joints: tuple[str, ...], min_conf: float) -> np.ndarray:
     """(B,) median metric bone lengths of the monocular poses."""
     idx = skeleton_of(joints).bone_indices
@@ -65,14 +58,14 @@ def _bone_lengths(obs: Observations, joints: tuple[str, ...], min_conf: float) -
     return np.nanmedian(np.where(ok, lengths, np.nan).reshape(-1, len(idx)), axis=0)
 
 
-def _consensus(info: list[ViewInfo], people: list[Observations], views: list[int], ref: int,
+def _consensus(assumed: list[CameraCalibration], people: list[Observations], views: list[int], ref: int,
                min_conf: float) -> Rig:
     """Consensus on the people, a second time without the outlier stretches of the first."""
-    obs = stack(people, views)
+    obs = Observations.side_by_side([p.take(views) for p in people])
     conf = obs.conf.copy()
     lengths = np.cumsum([0] + [p.conf.shape[1] for p in people])
     for _ in range(2):
-        vs = [View(info[v].name, info[v].size, info[v].intrinsics, obs.uv[i], obs.xyz[i], conf[i])
+        vs = [View(assumed[v].name, assumed[v].size, assumed[v].intrinsics, obs.uv[i], obs.xyz[i], conf[i])
               for i, v in enumerate(views)]
         fit = estimate_rig(vs, ConsensusOptions(reference=views.index(ref), min_conf=min_conf))
         res = stretch_residuals(fit.rig, vs, lengths, min_conf)          # (V, P) mm
@@ -129,25 +122,25 @@ def _usable_frames(people: list[Observations], n_views: int, min_conf: float) ->
     return out
 
 
-def estimate_cameras(info: list[ViewInfo], people: list[Observations], joints: tuple[str, ...], reference: int,
+def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations], joints: tuple[str, ...], reference: int,
                      min_conf: float, bundle: bool = True, bundle_options: BundleOptions | None = None) -> RigEstimate:
     """Cameras of the views that the people allow; FusionError when fewer than two are left."""
-    views = list(range(len(info)))
+    views = list(range(len(assumed)))
     warnings = []
     people = [p for p in people if ((p.conf.max(axis=-1) > 0).sum(axis=0) >= 2).any()]   # seen twice
-    usable = _usable_frames(people, len(info), min_conf)
+    usable = _usable_frames(people, len(assumed), min_conf)
     for v in list(views):
         if v != reference and usable[v] < MIN_FRAMES:
-            warnings.append(f"camera {info[v].name} dropped: it sees people that another camera sees "
+            warnings.append(f"camera {assumed[v].name} dropped: it sees people that another camera sees "
                             f"in only {usable[v]} frames")
             views.remove(v)
     while True:
         if len(views) < 2:
             raise FusionError("fewer than two cameras can be estimated from the poses"
                               + (": " + "; ".join(warnings) if warnings else ""))
-        obs = stack(people, views)
+        obs = Observations.side_by_side([p.take(views) for p in people])
         try:
-            rig = _consensus(info, people, views, reference, min_conf)
+            rig = _consensus(assumed, people, views, reference, min_conf)
             if bundle:
                 fit = bundle_adjust(rig, obs.uv, obs.conf, _bone_lengths(obs, joints, min_conf), joints,
                                     bundle_options)
@@ -164,17 +157,17 @@ def estimate_cameras(info: list[ViewInfo], people: list[Observations], joints: t
             if len(views) == 2:
                 raise
             weakest = min((v for v in views if v != reference), key=lambda v: usable[v])
-            warnings.append(f"camera {info[weakest].name} dropped: the estimation failed with it ({exc})")
+            warnings.append(f"camera {assumed[weakest].name} dropped: the estimation failed with it ({exc})")
             views.remove(weakest)
             continue
         reasons = _gate(rig, points, med, obs, min_conf, spreads)
         bad = [i for i, r in enumerate(reasons) if r is not None and views[i] != reference]
         if reasons[views.index(reference)] is not None and not bad:
-            raise FusionError(f"reference camera {info[reference].name} cannot be estimated: "
+            raise FusionError(f"reference camera {assumed[reference].name} cannot be estimated: "
                               f"{reasons[views.index(reference)]}")
         if not bad:
             return RigEstimate(rig, views, med, warnings, spreads)
         worst = max(bad, key=lambda i: np.nan_to_num(med[i], nan=np.inf))
-        warnings.append(f"camera {info[views[worst]].name} dropped: {reasons[worst]}")
+        warnings.append(f"camera {assumed[views[worst]].name} dropped: {reasons[worst]}")
         views.pop(worst)
 

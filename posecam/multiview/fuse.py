@@ -26,14 +26,15 @@ from threadpoolctl import threadpool_limits
 
 from posecam.errors import FusionError, InputError
 from posecam.heights import Heights
-from posecam.geometry.camera import Rig
+from posecam.geometry.camera import CameraCalibration, Rig
 from posecam.geometry.triangulate import MIN_CONFIDENCE
-from posecam.multiview.associate import (MAX_PAIR_ANGLE, Association, Observations, associate,
-                                         associate_by_consensus, pair_cost_calibrated, tracks_of, ViewInfo)
+from posecam.multiview.associate import (MAX_PAIR_ANGLE, Association, associate, associate_by_consensus,
+                                         pair_cost_calibrated)
 from posecam.multiview.bundle import BundleOptions
 from posecam.multiview.calibrate import RigEstimate, estimate_cameras
 from posecam.multiview.fuse_people import FusedPerson, fuse_person
 from posecam.multiview.left_right import fix_swaps
+from posecam.multiview.observations import Observations, assumed_cameras, tracks_of
 from posecam.multiview.report import CameraReport, camera_reports
 from posecam.multiview.sync import (MAX_SPREAD, MIN_CORRELATION, MIN_MOTION, SyncResult, estimate_offsets,
                                     motion_correlation, motion_offset, motion_signals)
@@ -311,18 +312,18 @@ def _given_rig(recordings: list[Recording], tracks, names: list[str], offsets: l
     return stage
 
 
-def _estimated_rig(recordings: list[Recording], tracks, info: list[ViewInfo], offsets: list[int],
+def _estimated_rig(recordings: list[Recording], tracks, assumed: list[CameraCalibration], offsets: list[int],
                    opts: FuseOptions, say: Callable[[str], None]) -> _RigStage:
     """Association by consensus hypotheses, the offsets from the motion (with --sync auto), then
     the cameras (posecam.multiview.calibrate) at those offsets."""
     ref = opts.reference
-    association = associate_by_consensus(tracks, info, [len(r.frames) for r in recordings], offsets, ref,
+    association = associate_by_consensus(tracks, assumed, [len(r.frames) for r in recordings], offsets, ref,
                                          opts.min_conf)
 
     def estimate(offsets: list[int]) -> RigEstimate:
         say("estimating the cameras")
         people = _observations(association, recordings, offsets, list(range(len(recordings))), ref)
-        return estimate_cameras(info, people, recordings[ref].joints, ref, opts.min_conf, opts.bundle,
+        return estimate_cameras(assumed, people, recordings[ref].joints, ref, opts.min_conf, opts.bundle,
                                 opts.bundle_options)
 
     confidence, spread, sync_warnings = [1.0] * len(recordings), None, []
@@ -338,12 +339,12 @@ def _estimated_rig(recordings: list[Recording], tracks, info: list[ViewInfo], of
         if not unrelated:
             break
         corr, v = min(unrelated)
-        line = (f"camera {info[v].name} dropped: its people do not move as the reference's do (motion "
+        line = (f"camera {assumed[v].name} dropped: its people do not move as the reference's do (motion "
                 f"correlation {np.nan_to_num(corr):.2f}): not the same scene, or not the same time?")
         kept = [u for u in est.views if u != v]
         if len(kept) < 2:
             raise FusionError(line.replace(" dropped:", " cannot be fused:"))
-        est = estimate_cameras([info[u] for u in kept], [p.take(kept) for p in
+        est = estimate_cameras([assumed[u] for u in kept], [p.take(kept) for p in
                                _observations(association, recordings, offsets, list(range(len(recordings))), ref)],
                                recordings[ref].joints, kept.index(ref), opts.min_conf, opts.bundle, opts.bundle_options)
         est.views, est.warnings = [kept[i] for i in est.views], [line] + est.warnings
@@ -366,13 +367,13 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
     ref = opts.reference
     offsets = list(opts.offsets) if opts.offsets is not None else [0] * len(recordings)
     tracks = [tracks_of(r, v) for v, r in enumerate(recordings)]
-    info = [ViewInfo(name, (r.width, r.height), r.intrinsics) for name, r in zip(names, recordings)]
+    assumed = assumed_cameras(names, recordings)
 
     say("associating people across views")
     if opts.calibration is not None:
         stage = _given_rig(recordings, tracks, names, offsets, opts, say)
     else:
-        stage = _estimated_rig(recordings, tracks, info, offsets, opts, say)
+        stage = _estimated_rig(recordings, tracks, assumed, offsets, opts, say)
     rig, views, offsets, warnings = stage.rig, stage.views, stage.offsets, stage.warnings
     camera_spreads = stage.camera_spreads
 
@@ -381,7 +382,7 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
     people, swaps = _fix_left_right(rig, people, recordings[ref].joints)
     if swaps.any() and opts.calibration is None:
         say("estimating the cameras without the swaps")
-        again = estimate_cameras([info[v] for v in views], people, recordings[ref].joints, views.index(ref),
+        again = estimate_cameras([assumed[v] for v in views], people, recordings[ref].joints, views.index(ref),
                                  opts.min_conf, opts.bundle, opts.bundle_options)
         rig, warnings, camera_spreads = again.rig, warnings + again.warnings, again.spreads
         people, swaps, views = [p.take(again.views) for p in people], swaps[again.views], \

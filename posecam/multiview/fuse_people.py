@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from posecam.geometry.camera import Intrinsics, Rig
-from posecam.multiview.associate import Observations
 from posecam.multiview.consensus import fuse_points, scaled_depth
+from posecam.multiview.observations import Observations
 
 MAX_VIEW_ANGLE = 0.04           # rad, about 70 px at f = 1700
 

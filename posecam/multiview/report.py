@@ -9,9 +9,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from posecam.geometry.camera import Rig
-from posecam.multiview.associate import Observations
 from posecam.multiview.bundle import CameraSpread
 from posecam.multiview.fuse_people import FusedPerson
+from posecam.multiview.observations import Observations
 
 
 @dataclass

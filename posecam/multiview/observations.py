@@ -1,0 +1,122 @@
+"""The multi-view data: people's keypoints and monocular poses as the views saw them.
+
+    ViewTrack       one person id of one view, over that view's own frames: what a view's
+                    recording gives (`tracks_of`), the unit the association links
+    PersonTracks    one person across views: the view tracks the association linked
+    Observations    one person (or several, side by side along the frames) seen by V views, in the
+                    reference camera's frames (offsets applied): what every stage after the
+                    association works on (sync, the cameras, left/right, fusion, the report)
+
+The views' own cameras, as their monocular poses assumed them (name, image size, intrinsics,
+no pose), are posecam.geometry.camera.CameraCalibration (`assumed_cameras`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from posecam.geometry.camera import CameraCalibration
+from posecam.multiview.sync import shift
+from posecam.results import Recording
+
+MIN_TRACK_FRAMES = 8            # shorter tracks are left out (detector flicker)
+
+
+@dataclass
+class ViewTrack:
+    """One person id of one view, over that view's own frames (NaN / conf 0 where unseen)."""
+
+    view: int
+    ids: tuple[int, ...]        # person ids in the view's recording (several after an id switch)
+    uv: np.ndarray              # (F_view, J, 2) pixels
+    xyz: np.ndarray             # (F_view, J, 3) camera coordinates, mm
+    conf: np.ndarray            # (F_view, J)
+    score: np.ndarray           # (F_view,) detection score, 0 where unseen
+
+    @property
+    def seen(self) -> np.ndarray:
+        """(F_view,) frames where the track has at least one joint."""
+        return self.conf.max(axis=1) > 0
+
+
+@dataclass
+class PersonTracks:
+    """One person across views: its view tracks (at most one per view at any frame)."""
+
+    tracks: list[ViewTrack]
+
+    @property
+    def views(self) -> list[int]:
+        return sorted({t.view for t in self.tracks})
+
+    def view_arrays(self, view: int, n_frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(uv, xyz, conf, score) of this person in `view`'s own frames (its tracks merged)."""
+        j = self.tracks[0].conf.shape[1]
+        uv, xyz = np.full((n_frames, j, 2), np.nan), np.full((n_frames, j, 3), np.nan)
+        conf, score = np.zeros((n_frames, j)), np.zeros(n_frames)
+        for t in self.tracks:
+            if t.view == view:
+                s = t.seen & (conf.max(axis=1) == 0)
+                uv[s], xyz[s], conf[s], score[s] = t.uv[s], t.xyz[s], t.conf[s], t.score[s]
+        return uv, xyz, conf, score
+
+
+@dataclass
+class Observations:
+    """People seen by V views, in the reference camera's frames (offsets applied)."""
+
+    uv: np.ndarray              # (V, F, J, 2)
+    xyz: np.ndarray             # (V, F, J, 3) each view's camera coordinates
+    conf: np.ndarray            # (V, F, J), 0 where the view does not see the person
+    score: np.ndarray           # (V, F)
+
+    def __post_init__(self) -> None:
+        v, f, j = self.conf.shape
+        for name, a, shape in (("uv", self.uv, (v, f, j, 2)), ("xyz", self.xyz, (v, f, j, 3)),
+                               ("score", self.score, (v, f))):
+            if a.shape != shape:
+                raise ValueError(f"Observations.{name}: expected {shape}, got {a.shape}")
+
+    @classmethod
+    def of(cls, person: PersonTracks, lengths: list[int], offsets: list[float], n: int) -> "Observations":
+        """The person in every view (lengths: each view's frames), shifted by the offsets
+        (posecam.multiview.sync) onto the reference's n frames."""
+        parts = [person.view_arrays(v, length) for v, length in enumerate(lengths)]
+        return cls(*(np.stack([shift(p[k], o, n, fill) for p, o in zip(parts, offsets)])
+                     for k, fill in ((0, np.nan), (1, np.nan), (2, 0.0), (3, 0.0))))
+
+    @classmethod
+    def side_by_side(cls, people: list["Observations"]) -> "Observations":
+        """Several people's observations (the same views) as one, along the frame axis."""
+        return cls(*(np.concatenate([getattr(p, k) for p in people], axis=1) for k in ("uv", "xyz", "conf", "score")))
+
+    def take(self, views: list[int]) -> "Observations":
+        return Observations(self.uv[views], self.xyz[views], self.conf[views], self.score[views])
+
+
+def assumed_cameras(names: list[str], recordings: list[Recording]) -> list[CameraCalibration]:
+    """Each view's camera as its monocular poses assumed it: name, image size, the intrinsics
+    the poses were made with; no pose yet."""
+    return [CameraCalibration(name, (r.width, r.height), r.intrinsics) for name, r in zip(names, recordings)]
+
+
+def tracks_of(rec: Recording, view: int, min_frames: int = MIN_TRACK_FRAMES) -> list[ViewTrack]:
+    """Every person id of `rec` seen in at least `min_frames` frames, longest first."""
+    n, j = len(rec.frames), len(rec.joints)
+    ids: dict[int, list[int]] = {}
+    for i, f in enumerate(rec.frames):
+        for p in f.people:
+            ids.setdefault(p.id, []).append(i)
+    tracks = []
+    for pid, frames in ids.items():
+        if len(frames) < min_frames:
+            continue
+        uv, xyz = np.full((n, j, 2), np.nan), np.full((n, j, 3), np.nan)
+        conf, score = np.zeros((n, j)), np.zeros(n)
+        for i in frames:
+            p = next(q for q in rec.frames[i].people if q.id == pid)
+            uv[i], xyz[i], conf[i], score[i] = p.keypoints_2d, p.keypoints_3d, p.confidence, p.score
+        tracks.append(ViewTrack(view, (pid,), uv, xyz, conf, score))
+    return sorted(tracks, key=lambda t: -int(t.seen.sum()))
