@@ -27,7 +27,8 @@ from scipy.optimize import least_squares
 from posecam.errors import FusionError
 from posecam.geometry.camera import CameraCalibration, Rig
 from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
-from posecam.multiview.consensus import ConsensusOptions, View, camera_points, estimate_rig, fuse_points
+from posecam.multiview.consensus import (ConsensusOptions, camera_points, estimate_rig, fuse_points,
+                                        intrinsics_vectors)
 from posecam.multiview.observations import Observations, PersonTracks, ViewTrack
 from posecam.multiview.sync import shift
 
@@ -129,20 +130,15 @@ def _fused(people: list[PersonTracks], core: list[int], rig: Rig, assumed: list[
     (F, J) confidence."""
     n = lengths[reference]
     rot = np.stack([c.rotation for c in rig.cameras])
+    core_assumed = [assumed[v] for v in core]
     out = []
     for person in people:
         obs = Observations.of(person, lengths, offsets, n).take(core)
-        views = [View(assumed[v].name, assumed[v].size, assumed[v].intrinsics, obs.uv[i], obs.xyz[i], obs.conf[i])
-                 for i, v in enumerate(core)]
-        pts = np.stack([c.to_world(camera_points(view, _k(c))) for view, c in zip(views, rig.cameras)])
-        w = np.stack([view.weights(min_conf) for view in views])
+        local = camera_points(obs, core_assumed, intrinsics_vectors(rig.cameras))
+        pts = np.stack([c.to_world(p) for p, c in zip(local, rig.cameras)])
+        w = obs.weights(min_conf)
         out.append((fuse_points(pts, rot, w), np.where(w.sum(axis=0) > 0, obs.conf.max(axis=0), 0.0)))
     return out
-
-
-def _k(cam: CameraCalibration) -> np.ndarray:
-    k = cam.intrinsics
-    return np.array([k.fx, k.fy, k.cx, k.cy])
 
 
 def _hypothesis_cost(pairs: list[tuple[int, ViewTrack]], fused: list[tuple[np.ndarray, np.ndarray]], ref_cam: CameraCalibration,
@@ -163,17 +159,19 @@ def _hypothesis_cost(pairs: list[tuple[int, ViewTrack]], fused: list[tuple[np.nd
         a_parts.append((ref_cam.project(pts[both]), pts[both], conf[both]))
         b_parts.append((uv[both], xyz[both], c[both]))
         bounds.append(bounds[-1] + int(both.sum()))
-    views = [View("people", ref_cam.size, ref_cam.intrinsics, *(np.concatenate([x[i] for x in a_parts]) for i in range(3))),
-             View(assumed[v].name, assumed[v].size, assumed[v].intrinsics, *(np.concatenate([x[i] for x in b_parts]) for i in range(3)))]
+    uv, xyz, conf = (np.stack([np.concatenate([x[i] for x in parts]) for parts in (a_parts, b_parts)]) for i in range(3))
+    obs = Observations(uv, xyz, conf, np.zeros(conf.shape[:2]))
     try:
-        fit = estimate_rig(views, ConsensusOptions(min_conf=min_conf, max_iter=30, joint=False))
+        fit = estimate_rig([CameraCalibration("people", ref_cam.size, ref_cam.intrinsics), assumed[v]], obs,
+                           ConsensusOptions(min_conf=min_conf, max_iter=30, joint=False))
     except FusionError:
         return np.inf
     if not FOCAL_RANGE[0] < fit.focal_scale[1] < FOCAL_RANGE[1]:
         return np.inf
-    a = ref_cam.normalise(views[0].uv)
-    b = fit.rig.cameras[1].normalise(views[1].uv)
-    w = np.minimum(views[0].weights(min_conf), views[1].weights(min_conf))
+    a = ref_cam.normalise(obs.uv[0])
+    b = fit.rig.cameras[1].normalise(obs.uv[1])
+    weights = obs.weights(min_conf)
+    w = np.minimum(weights[0], weights[1])
     err = epipolar_errors(a, b, fit.rig.cameras[1].rotation, w)                          # (F, J) rad
     per_frame = np.array([np.nanmedian(np.where(w[i] > 0, err[i], np.nan)) if (w[i] > 0).sum() >= 3 else np.nan
                           for i in range(len(w))])
@@ -269,12 +267,11 @@ def associate_by_consensus(tracks: list[list[ViewTrack]], assumed: list[CameraCa
 def _place(core: list[int], people: list[PersonTracks], assumed: list[CameraCalibration], lengths: list[int], offsets: list[int],
            reference: int, min_conf: float) -> Rig | None:
     """The consensus cameras of the `core` views (their order) from the people, None if it fails."""
-    obs = [Observations.of(p, lengths, offsets, lengths[reference]).take(core) for p in people]
-    uv, xyz, conf = (np.concatenate([getattr(o, k) for o in obs], axis=1) for k in ("uv", "xyz", "conf"))
-    views = [View(assumed[v].name, assumed[v].size, assumed[v].intrinsics, uv[i], xyz[i], conf[i]) for i, v in enumerate(core)]
+    obs = Observations.side_by_side([Observations.of(p, lengths, offsets, lengths[reference]).take(core)
+                                     for p in people])
     try:
-        return estimate_rig(views, ConsensusOptions(reference=core.index(reference), min_conf=min_conf,
-                                                    max_iter=40)).rig
+        return estimate_rig([assumed[v] for v in core], obs,
+                            ConsensusOptions(reference=core.index(reference), min_conf=min_conf, max_iter=40)).rig
     except FusionError:
         return None
 

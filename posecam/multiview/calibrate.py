@@ -22,7 +22,7 @@ import numpy as np
 from posecam.errors import FusionError
 from posecam.geometry.camera import CameraCalibration, Rig
 from posecam.multiview.bundle import BundleOptions, CameraSpread, bundle_adjust
-from posecam.multiview.consensus import ConsensusOptions, View, estimate_rig, stretch_residuals
+from posecam.multiview.consensus import ConsensusOptions, estimate_rig, stretch_residuals
 from posecam.multiview.observations import Observations
 from posecam.skeleton import skeleton_of
 
@@ -64,11 +64,11 @@ def _consensus(assumed: list[CameraCalibration], people: list[Observations], vie
     obs = Observations.side_by_side([p.take(views) for p in people])
     conf = obs.conf.copy()
     lengths = np.cumsum([0] + [p.conf.shape[1] for p in people])
+    kept = [assumed[v] for v in views]
     for _ in range(2):
-        vs = [View(assumed[v].name, assumed[v].size, assumed[v].intrinsics, obs.uv[i], obs.xyz[i], conf[i])
-              for i, v in enumerate(views)]
-        fit = estimate_rig(vs, ConsensusOptions(reference=views.index(ref), min_conf=min_conf))
-        res = stretch_residuals(fit.rig, vs, lengths, min_conf)          # (V, P) mm
+        inliers = Observations(obs.uv, obs.xyz, conf, obs.score)
+        fit = estimate_rig(kept, inliers, ConsensusOptions(reference=views.index(ref), min_conf=min_conf))
+        res = stretch_residuals(fit.rig, kept, inliers, lengths, min_conf)          # (V, P) mm
         bad = res > OUTLIER_FACTOR * np.nanmedian(res)
         if not bad.any():
             break

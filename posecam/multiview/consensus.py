@@ -30,39 +30,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from posecam.geometry.camera import Intrinsics
 from posecam.errors import FusionError
-from posecam.geometry.camera import CameraCalibration, Rig
-from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
+from posecam.geometry.camera import CameraCalibration, Intrinsics, Rig
+from posecam.geometry.triangulate import MIN_CONFIDENCE
+from posecam.multiview.observations import Observations
 
 # A monocular pose's depth is this many times less certain than its lateral position.
 DEPTH_NOISE_RATIO = 4.0
 MIN_SHARED_JOINTS = 12
-
-
-@dataclass
-class View:
-    """One camera's monocular poses of one person, frame by frame (NaN or conf 0: missing)."""
-
-    name: str
-    size: tuple[int, int]          # image width, height
-    intrinsics: Intrinsics         # those the monocular poses were computed with (f0)
-    uv: np.ndarray                 # (F, J, 2) pixels
-    xyz: np.ndarray                # (F, J, 3) camera coordinates, mm
-    conf: np.ndarray               # (F, J)
-
-    def weights(self, min_conf: float = MIN_CONFIDENCE) -> np.ndarray:
-        """Confidence as a weight; 0 for missing joints, conf < min_conf, or depth <= 0."""
-        w = observation_weights(self.uv, self.conf, min_conf)
-        return np.where(np.isfinite(self.xyz).all(axis=-1) & (np.nan_to_num(self.xyz[..., 2]) > 0), w, 0.0)
-
-    def root_depth(self) -> np.ndarray:
-        """(F,) confidence-weighted mean depth of each frame's joints: the part that scales with f."""
-        w = observation_weights(self.uv, self.conf, 0.0)
-        w = np.where(np.isfinite(self.xyz[..., 2]), w, 0.0)
-        total = w.sum(axis=1)
-        z = (np.nan_to_num(self.xyz[..., 2]) * w).sum(axis=1)
-        return np.where(total > 0, z / np.maximum(total, 1e-12), np.nan)
 
 
 @dataclass
@@ -86,19 +61,27 @@ class ConsensusResult:
     converged: bool
 
 
-def scaled_depth(xyz: np.ndarray, root: np.ndarray, g: float) -> np.ndarray:
-    """(F, J) depths of monocular poses (F, J, 3) whose root depths (F,) grow by g = f / f0
-    (the depth model above: z_i = (z0_i - z0_root) + g z0_root); the one place it is written."""
-    return xyz[..., 2] + (g - 1.0) * root[:, None]
+def scaled_depth(xyz: np.ndarray, root: np.ndarray, g) -> np.ndarray:
+    """(..., F, J) depths of monocular poses (..., F, J, 3) whose root depths (..., F) grow by
+    g = f / f0 (a number, or one per view broadcast as (V, 1, 1)) (the depth model above:
+    z_i = (z0_i - z0_root) + g z0_root); the one place it is written."""
+    return xyz[..., 2] + (g - 1.0) * root[..., None]
 
 
-def camera_points(view: View, k: np.ndarray) -> np.ndarray:
-    """(F, J, 3) the view's pose under intrinsics k = (fx, fy, cx, cy): depth model above, eq. 4."""
-    g = np.sqrt(k[0] * k[1] / (view.intrinsics.fx * view.intrinsics.fy))
-    z = scaled_depth(view.xyz, view.root_depth(), g)
-    x = (view.uv[..., 0] - k[2]) * z / k[0]
-    y = (view.uv[..., 1] - k[3]) * z / k[1]
+def camera_points(obs: Observations, assumed: list[CameraCalibration], k: np.ndarray) -> np.ndarray:
+    """(V, F, J, 3) each view's poses under intrinsics k (V, 4) = (fx, fy, cx, cy), the views'
+    own cameras `assumed` (f0): depth model above, eq. 4."""
+    k0 = np.array([[c.intrinsics.fx, c.intrinsics.fy] for c in assumed])
+    g = np.sqrt(k[:, 0] * k[:, 1] / (k0[:, 0] * k0[:, 1]))[:, None, None]
+    z = scaled_depth(obs.xyz, obs.root_depth(), g)
+    x = (obs.uv[..., 0] - k[:, 2, None, None]) * z / k[:, 0, None, None]
+    y = (obs.uv[..., 1] - k[:, 3, None, None]) * z / k[:, 1, None, None]
     return np.stack([x, y, z], axis=-1)
+
+
+def intrinsics_vectors(cameras: list[CameraCalibration]) -> np.ndarray:
+    """(V, 4) fx, fy, cx, cy of each camera."""
+    return np.array([[c.intrinsics.fx, c.intrinsics.fy, c.intrinsics.cx, c.intrinsics.cy] for c in cameras])
 
 
 def procrustes(src: np.ndarray, dst: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -111,19 +94,20 @@ def procrustes(src: np.ndarray, dst: np.ndarray, w: np.ndarray) -> tuple[np.ndar
     return r, mu_d - r @ mu_s          # eq. 8: the mean of the per-point translations
 
 
-def fit_focal(view: View, k: np.ndarray, target: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """Focal lengths that bring the view's depths onto `target` (F, J, 3, camera frame):
-    z = rel + g z0_root is linear in g (the counterpart of eq. 10 for this depth model),
-    weighted least squares; fx = g f0x, fy = g f0y."""
-    z0 = view.xyz[..., 2]
-    root = np.broadcast_to(view.root_depth()[:, None], z0.shape)
+def fit_focal(assumed: CameraCalibration, xyz: np.ndarray, root: np.ndarray, k: np.ndarray, target: np.ndarray,
+              w: np.ndarray) -> np.ndarray:
+    """Focal lengths that bring one view's depths (poses xyz (F, J, 3), root depths (F,)) onto
+    `target` (F, J, 3, camera frame): z = rel + g z0_root is linear in g (the counterpart of
+    eq. 10 for this depth model), weighted least squares; fx = g f0x, fy = g f0y."""
+    z0 = xyz[..., 2]
+    root = np.broadcast_to(root[:, None], z0.shape)
     ok = w > 0
     rel, root, zt, wv = (z0 - root)[ok], root[ok], target[..., 2][ok], w[ok]
     g = float(np.sum(wv * root * (zt - rel)) / np.sum(wv * root * root))
     if not np.isfinite(g) or g <= 0.05:
-        raise FusionError(f"camera {view.name}: the poses give no positive focal length")
+        raise FusionError(f"camera {assumed.name}: the poses give no positive focal length")
     out = k.copy()
-    out[0], out[1] = g * view.intrinsics.fx, g * view.intrinsics.fy
+    out[0], out[1] = g * assumed.intrinsics.fx, g * assumed.intrinsics.fy
     return out
 
 
@@ -177,22 +161,23 @@ class _State:
         return float(max(angle.max(), dt.max(), dk.max()))
 
 
-def _points(views: list[View], s: _State) -> tuple[np.ndarray, np.ndarray]:
+def _points(assumed: list[CameraCalibration], obs: Observations, s: _State) -> tuple[np.ndarray, np.ndarray]:
     """Camera-frame points (V, F, J, 3) and the same in the reference frame, X = R^T (x - t)."""
-    p = np.stack([camera_points(v, s.k[i]) for i, v in enumerate(views)])
+    p = camera_points(obs, assumed, s.k)
     return p, np.einsum("vfjk,vki->vfji", p - s.translation[:, None, None], s.rotation)
 
 
-def _run_stage(views: list[View], s: _State, w0: np.ndarray, opts: ConsensusOptions,
-               joint: bool) -> tuple[int, bool]:
+def _run_stage(assumed: list[CameraCalibration], obs: Observations, s: _State, w0: np.ndarray,
+               opts: ConsensusOptions, joint: bool) -> tuple[int, bool]:
     """Alternate extrinsics (Procrustes, eq. 8) and intrinsics until nothing moves.
 
     joint=False: every camera against the reference view (stage 1; the reference is fixed);
     joint=True: every camera against the leave-one-out consensus of the others (stage 2).
     """
     ref = opts.reference
+    root = obs.root_depth()
     for it in range(opts.max_iter):
-        p, x = _points(views, s)
+        p, x = _points(assumed, obs, s)
         if joint:
             target = fuse_points(x, s.rotation, w0, leave_one_out=True)
         else:
@@ -200,57 +185,57 @@ def _run_stage(views: list[View], s: _State, w0: np.ndarray, opts: ConsensusOpti
         w = _robust_weights(np.linalg.norm(x - target, axis=-1), w0, opts.cauchy_scale)
         w = np.where(np.isfinite(target).all(axis=-1), w, 0.0)
         old = s.copy()
-        for i, view in enumerate(views):
+        for i, camera in enumerate(assumed):
             if i == ref and not joint:
                 continue
             ok = w[i] > 0
             if ok.sum() < MIN_SHARED_JOINTS:
-                raise FusionError(f"camera {view.name} shares fewer than {MIN_SHARED_JOINTS} confident "
+                raise FusionError(f"camera {camera.name} shares fewer than {MIN_SHARED_JOINTS} confident "
                                   "joints with the other views")
             if i != ref:
                 s.rotation[i], s.translation[i] = procrustes(target[i][ok], p[i][ok], w[i][ok])
-            s.k[i] = fit_focal(view, s.k[i], target[i] @ s.rotation[i].T + s.translation[i], w[i])
+            s.k[i] = fit_focal(camera, obs.xyz[i], root[i], s.k[i],
+                               target[i] @ s.rotation[i].T + s.translation[i], w[i])
         if it > 0 and s.change(old) < opts.tol:
             return it + 1, True
     return opts.max_iter, False
 
 
-def estimate_rig(views: list[View], options: ConsensusOptions | None = None) -> ConsensusResult:
+def estimate_rig(assumed: list[CameraCalibration], obs: Observations,
+                 options: ConsensusOptions | None = None) -> ConsensusResult:
     """Intrinsics and extrinsics of every camera, relative to the reference camera, from the
-    views' time-aligned monocular poses (same F frames, same J joints in every view; at most
-    `max_frames` of them, evenly spaced, take part)."""
+    views' time-aligned monocular poses `obs` (V views, the same F frames), made with the
+    views' own cameras `assumed` (name, image size, intrinsics f0); at most `max_frames` of the
+    frames, evenly spaced, take part."""
     opts = options or ConsensusOptions()
-    if len(views) < 2:
-        raise FusionError(f"camera estimation needs at least two views, got {len(views)}")
-    shapes = {v.uv.shape[:2] for v in views}
-    if len(shapes) != 1:
-        raise FusionError(f"views must hold the same frames and joints, got shapes {sorted(shapes)}")
-    n, ref = len(views), opts.reference
-    step = -(-len(views[0].uv) // opts.max_frames)
+    if len(assumed) < 2:
+        raise FusionError(f"camera estimation needs at least two views, got {len(assumed)}")
+    n, ref = len(assumed), opts.reference
+    step = -(-obs.conf.shape[1] // opts.max_frames)
     if step > 1:
-        views = [View(v.name, v.size, v.intrinsics, v.uv[::step], v.xyz[::step], v.conf[::step]) for v in views]
-    w0 = np.stack([v.weights(opts.min_conf) for v in views])
-    k0 = np.array([[v.intrinsics.fx, v.intrinsics.fy, v.intrinsics.cx, v.intrinsics.cy] for v in views])
+        obs = obs.frames(step)
+    w0 = obs.weights(opts.min_conf)
+    k0 = intrinsics_vectors(assumed)
     s = _State(np.tile(np.eye(3), (n, 1, 1)), np.zeros((n, 3)), k0.copy())
     # Algorithm 1, line 3: R = I and the translation of eq. 8
-    p, _ = _points(views, s)
+    p, _ = _points(assumed, obs, s)
     for i in range(n):
         both = (w0[i] > 0) & (w0[ref] > 0)
         if both.sum() < MIN_SHARED_JOINTS:
-            raise FusionError(f"cameras {views[i].name} and {views[ref].name} see the person together "
+            raise FusionError(f"cameras {assumed[i].name} and {assumed[ref].name} see the person together "
                               f"in fewer than {MIN_SHARED_JOINTS} confident joints")
         s.translation[i] = (p[i][both] - p[ref][both]).mean(axis=0)
-    it1, _ = _run_stage(views, s, w0, opts, joint=False)
-    it2, converged = _run_stage(views, s, w0, opts, joint=True) if opts.joint else (0, True)
+    it1, _ = _run_stage(assumed, obs, s, w0, opts, joint=False)
+    it2, converged = _run_stage(assumed, obs, s, w0, opts, joint=True) if opts.joint else (0, True)
 
-    _, x = _points(views, s)
+    _, x = _points(assumed, obs, s)
     target = fuse_points(x, s.rotation, w0, leave_one_out=True)
     dist = np.where(w0 > 0, np.linalg.norm(x - target, axis=-1), np.nan)
-    cameras = [CameraCalibration(v.name, v.size, Intrinsics(*map(float, s.k[i]), source="consensus"),
+    cameras = [CameraCalibration(c.name, c.size, Intrinsics(*map(float, s.k[i]), source="consensus"),
                                  s.rotation[i].copy(), s.translation[i].copy())
-               for i, v in enumerate(views)]
+               for i, c in enumerate(assumed)]
     return ConsensusResult(
-        rig=Rig(cameras, reference=views[ref].name),
+        rig=Rig(cameras, reference=assumed[ref].name),
         focal_scale=np.sqrt(s.k[:, 0] * s.k[:, 1] / (k0[:, 0] * k0[:, 1])),
         residual_mm=np.nanmedian(dist.reshape(n, -1), axis=1),
         joints_used=(w0 > 0).reshape(n, -1).sum(axis=1),
@@ -259,18 +244,20 @@ def estimate_rig(views: list[View], options: ConsensusOptions | None = None) -> 
     )
 
 
-def stretch_residuals(rig: Rig, views: list[View], bounds: np.ndarray, min_conf: float = MIN_CONFIDENCE) -> np.ndarray:
-    """(V, S) median distance (mm) of each view's joints to the other views' consensus, per
-    stretch of frames bounds[s] .. bounds[s + 1] (NaN where the view sees nothing there)."""
+def stretch_residuals(rig: Rig, assumed: list[CameraCalibration], obs: Observations, bounds: np.ndarray,
+                      min_conf: float = MIN_CONFIDENCE) -> np.ndarray:
+    """(V, S) median distance (mm) of each view's joints (`obs`, made with the cameras
+    `assumed`) to the other views' consensus under `rig`, per stretch of frames bounds[s] ..
+    bounds[s + 1] (NaN where the view sees nothing there)."""
     rot = np.stack([c.rotation for c in rig.cameras])
-    pts = np.stack([c.to_world(camera_points(v, np.array([c.intrinsics.fx, c.intrinsics.fy,
-                                                            c.intrinsics.cx, c.intrinsics.cy])))
-                    for v, c in zip(views, rig.cameras)])
-    w = np.stack([v.weights(min_conf) for v in views])
+    local = camera_points(obs, assumed, intrinsics_vectors(rig.cameras))
+    pts = np.stack([c.to_world(p) for p, c in zip(local, rig.cameras)])
+    w = obs.weights(min_conf)
+    n = len(rig.cameras)
     dist = np.where(w > 0, np.linalg.norm(pts - fuse_points(pts, rot, w, leave_one_out=True), axis=-1), np.nan)
-    out = np.full((len(views), len(bounds) - 1), np.nan)
+    out = np.full((n, len(bounds) - 1), np.nan)
     for k in range(len(bounds) - 1):
-        d = dist[:, bounds[k]:bounds[k + 1]].reshape(len(views), -1)
+        d = dist[:, bounds[k]:bounds[k + 1]].reshape(n, -1)
         seen = np.isfinite(d).any(axis=1)
         out[seen, k] = np.nanmedian(d[seen], axis=1)
     return out

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from posecam.geometry.camera import CameraCalibration
+from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
 from posecam.multiview.sync import shift
 from posecam.results import Recording
 
@@ -94,6 +95,24 @@ class Observations:
 
     def take(self, views: list[int]) -> "Observations":
         return Observations(self.uv[views], self.xyz[views], self.conf[views], self.score[views])
+
+    def frames(self, step: int) -> "Observations":
+        """Every `step`-th frame."""
+        return Observations(self.uv[:, ::step], self.xyz[:, ::step], self.conf[:, ::step], self.score[:, ::step])
+
+    def weights(self, min_conf: float = MIN_CONFIDENCE) -> np.ndarray:
+        """(V, F, J) confidence as a weight; 0 for missing joints, conf < min_conf, or depth <= 0."""
+        w = observation_weights(self.uv, self.conf, min_conf)
+        return np.where(np.isfinite(self.xyz).all(axis=-1) & (np.nan_to_num(self.xyz[..., 2]) > 0), w, 0.0)
+
+    def root_depth(self) -> np.ndarray:
+        """(V, F) confidence-weighted mean depth of each frame's joints: the part that scales
+        with f (posecam.multiview.consensus)."""
+        w = observation_weights(self.uv, self.conf, 0.0)
+        w = np.where(np.isfinite(self.xyz[..., 2]), w, 0.0)
+        total = w.sum(axis=-1)
+        z = (np.nan_to_num(self.xyz[..., 2]) * w).sum(axis=-1)
+        return np.where(total > 0, z / np.maximum(total, 1e-12), np.nan)
 
 
 def assumed_cameras(names: list[str], recordings: list[Recording]) -> list[CameraCalibration]:
