@@ -57,10 +57,10 @@ class Heights:
     def assign(self, estimated: dict[int, float]) -> dict[int, tuple[float, str]]:
         """For each person id with an estimated height (m), the height to use and its source:
         "given" (by id, or one value for everyone) or "given, rank K" (a list matched tallest
-        first). People with no given height are left out."""
+        first, equal heights by id). People with no given height are left out."""
         if self.by_id:
             return {pid: (self.by_id[pid], "given") for pid in estimated if pid in self.by_id}
         if len(self.ranked) == 1:
             return {pid: (self.ranked[0], "given") for pid in estimated}
-        order = sorted(estimated, key=lambda pid: -estimated[pid])
+        order = sorted(estimated, key=lambda pid: (-estimated[pid], pid))     # equal heights: by id
         return {pid: (h, f"given, rank {k + 1}") for k, (pid, h) in enumerate(zip(order, self.ranked))}

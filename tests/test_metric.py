@@ -14,7 +14,7 @@ from posecam.geometry.camera import Intrinsics, project
 from posecam.geometry.lift import solve_root_translation
 from posecam.heights import Heights
 from posecam.io.poses import read_poses, write_poses
-from posecam.metric import CHAIN_OF_STATURE, MetricOptions, MetricStage, _Sample, scale_recording, stature
+from posecam.metric import CHAIN_OF_STATURE, MODEL_STATURE, MetricOptions, MetricStage, _Sample, scale_recording, stature
 from posecam.results import Frame, Person, Recording
 from posecam.skeleton import H36M_JOINTS
 
@@ -124,6 +124,25 @@ def test_each_track_keeps_one_size_across_frames():
     out = scale_recording(rec, MetricOptions(floor=False))
     kept = np.array([stature(f.people[0].keypoints_3d, f.people[0].confidence, H36M_JOINTS) for f in out.frames])
     assert raw.std() / raw.mean() > 0.03 and kept.std() / kept.mean() < 1e-6
+
+
+def test_tracks_with_nothing_else_to_scale_them_get_the_pose_models_size():
+    """BlazePose's skeleton has one size whoever the person: a track's own size is its error."""
+    import dataclasses
+
+    rec, _ = scene({0: 1700.0, 1: 1700.0}, frames=20)
+    for f in rec.frames:                            # the model sized the two people apart
+        f.people[0].keypoints_3d *= 1630.0 / ADULT
+        f.people[1].keypoints_3d *= 1690.0 / ADULT
+    full = scale_recording(dataclasses.replace(rec, model="blazepose-full"), MetricOptions(floor=False))
+    unknown = scale_recording(rec, MetricOptions(floor=False))
+    size = MODEL_STATURE["blazepose-full"]
+    for f, g, h in zip(rec.frames, full.frames, unknown.frames):
+        for p, q, r, own in zip(f.people, g.people, h.people, (1.63, 1.69)):
+            assert (q.height_source, q.height, q.height_estimated) == ("model", pytest.approx(size), pytest.approx(size))
+            assert q.root[2] == pytest.approx(p.root[2] * size / own, rel=1e-3)        # scaled about the camera
+            assert np.allclose(q.keypoints_2d, p.keypoints_2d)
+            assert r.height == pytest.approx(own, rel=1e-3) and r.root[2] == pytest.approx(p.root[2], rel=1e-3)
 
 
 @pytest.mark.parametrize("why, make", [
