@@ -30,10 +30,15 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 CAMERAS = ("cam01", "cam02", "cam03", "cam04")
 OFFSETS = {"cam01": 0, "cam02": -1, "cam03": 4, "cam04": 0}   # frames, vs cam01 (bench_people.py)
-HEIGHTS = {"single": ("1.72",), "multi": ("1.72,1.21", "1.72,1.40")}   # the issue's; Pose2Sim's Config.toml example
+HEIGHTS = {"single": ("1.72",), "multi": ("1.72,1.21",)}   # the issue's (the second person's measured one is added)
 TRUTH_M = {"adult": 1.72, "child": 1.21}
+ADULT_MM = 1720.0           # the adult's height (both takes), which the lab's statures are scaled by
 GATE_PX = 40.0
+LINK_MM = 400.0             # a person's pelvis moves less than this between synchronised frames
 PELVIS, HEAD, ANKLES = 0, 10, (3, 6)       # posecam's 17 joints
+LEGS = ((1, 2, 3), (4, 5, 6))              # hip, knee, ankle per side
+THORAX = 8
+EAR_OF_STATURE = 0.936      # the ears' height over the stature, upright (Drillis & Contini 1966, in Winter, fig. 4.1)
 
 
 def lab_cameras(take: str):
@@ -72,11 +77,16 @@ def dlt(cams, members: list[tuple[int, np.ndarray]]) -> np.ndarray:
     return vt[-1, :3] / vt[-1, 3]
 
 
-def reference(cams, recs, take: str):
-    """{(camera index, frame index, person id): (world pelvis, 'adult'|'child')} from the 4 views."""
+def lab_people(cams, recs, take: str) -> list[dict]:
+    """The people of the 4 views grouped per synchronised frame (see the module's docstring) and
+    followed from frame to frame in the lab by their pelvis (the nearest within LINK_MM):
+    one dict per group, {"frame", "person" (a lab track, 0, 1, ...), "who", "members" [(camera
+    index, frame index, Person)], "world" {joint index: DLT point (lab mm, z up from the floor)}}.
+    Who is who (multi take): the person whose triangulated bone chain (ankle-knee-hip,
+    pelvis-thorax-ears, whatever the pose) is the longer, median over their frames, is the adult."""
     lo = min(OFFSETS.values())
     n = min(len(r.frames) for r in recs) - max(OFFSETS.values()) + lo
-    out = {}
+    out = []
     for i in range(n):
         views = []
         for c, (cam, rec) in enumerate(zip(cams, recs)):
@@ -97,25 +107,85 @@ def reference(cams, recs, take: str):
             if used.intersection(keys):
                 continue
             used.update(keys)
-            head = dlt(cams, [(c, p.keypoints_2d[HEAD]) for c, _, p in members])
-            feet = np.mean([dlt(cams, [(c, p.keypoints_2d[a]) for c, _, p in members]) for a in ANKLES], axis=0)
-            who = "adult" if take == "single" or np.linalg.norm(head - feet) > 1250 else "child"
-            for key in keys:
-                out[key] = (world, who)
+            joints = {j: dlt(cams, [(c, p.keypoints_2d[j]) for c, _, p in members]) for j in range(len(members[0][2].confidence))}
+            out.append({"frame": i, "members": members, "world": joints})
+    tracks: list[tuple[int, np.ndarray]] = []       # (last frame, last pelvis) per lab track
+    for i in range(n):
+        here = [g for g in out if g["frame"] == i]
+        pairs = sorted((np.linalg.norm(g["world"][PELVIS] - last), k, t) for k, g in enumerate(here)
+                       for t, (f, last) in enumerate(tracks) if i - f <= 10)
+        for dist, k, t in pairs:
+            if dist < LINK_MM and "person" not in here[k] and tracks[t][0] < i:
+                here[k]["person"], tracks[t] = t, (i, here[k]["world"][PELVIS])
+        for g in here:
+            if "person" not in g:
+                g["person"] = len(tracks)
+                tracks.append((i, g["world"][PELVIS]))
+    chain = {t: np.median([bone_chain(g["world"]) for g in out if g["person"] == t]) for t in range(len(tracks))}
+    for g in out:
+        g["who"] = "adult" if take == "single" or chain[g["person"]] >= 0.9 * max(chain.values()) else "child"
     return out
 
 
-def ear_heights(cams, recs, ref) -> dict[str, np.ndarray]:
-    """Per person (adult / child): the ears' midpoint triangulated by the DLT, height above the lab
-    floor (world z, mm), one value per synchronised group: what the lab says of their sizes."""
-    groups: dict[tuple, list] = {}
-    for (c, fi, pid), (world, who) in ref.items():
-        groups.setdefault((tuple(np.round(world, 3)), who), []).append((c, fi, pid))
-    out: dict[str, list] = {"adult": [], "child": []}
-    for (_, who), keys in groups.items():
-        members = [(c, next(p for p in recs[c].frames[fi].people if p.id == pid)) for c, fi, pid in keys]
-        out[who].append(dlt(cams, [(c, p.keypoints_2d[HEAD]) for c, p in members])[2])
-    return {who: np.array(z) for who, z in out.items() if z}
+def bone_chain(world: dict) -> float:
+    """The bone chain of one triangulated pose (mm): mean leg (hip-knee + knee-ankle),
+    pelvis-thorax, thorax-ears."""
+    length = lambda a, b: float(np.linalg.norm(world[a] - world[b]))   # noqa: E731
+    leg = np.mean([length(h, k) + length(k, a) for h, k, a in LEGS])
+    return leg + length(PELVIS, THORAX) + length(THORAX, HEAD)
+
+
+def reference(people: list[dict]) -> dict:
+    """{(camera index, frame index, person id): (world pelvis, 'adult'|'child')} from lab_people."""
+    return {(c, fi, p.id): (g["world"][PELVIS], g["who"]) for g in people for c, fi, p in g["members"]}
+
+
+def lab_statures(people: list[dict], runs: int = 200, seed: int = 0) -> dict[str, dict[str, tuple[float, float]]]:
+    """Each person's stature (mm) from the lab triangulation, three ways, each with its standard
+    uncertainty (the spread over resamplings of blocks of 10 synchronised frames):
+    - "ears": the ears' height above the lab floor (world z = 0) at the person's most upright
+      (the 90th percentile over frames) over EAR_OF_STATURE (anthropometry);
+    - "ears + adult's top": the same ears' height plus the adult's own ear-to-top height, his
+      known height less his ears' (a head's height, which differs little from adult to child);
+    - "chain x adult": the bone chain (ankle-knee-hip, pelvis-thorax-ears; whatever the pose), its
+      median over frames, times the adult's known height over his chain (adult proportions).
+    The adult's height (ADULT_MM) scales the last two; for him they give it back, and "ears" checks it."""
+    rng = np.random.default_rng(seed)
+    per = {}
+    for who in ("adult", "child"):
+        rows = [(g["frame"], g["world"][HEAD][2], bone_chain(g["world"])) for g in people if g["who"] == who]
+        if rows:
+            per[who] = np.array(sorted(rows))
+
+    def estimates(sample: dict) -> dict:
+        ear = {who: np.percentile(r[:, 1], 90) for who, r in sample.items()}
+        chain = {who: np.median(r[:, 2]) for who, r in sample.items()}
+        return {who: {"ears": ear[who] / EAR_OF_STATURE, "ears + adult's top": ear[who] + ADULT_MM - ear["adult"],
+                      "chain x adult": chain[who] * ADULT_MM / chain["adult"]} for who in sample}
+
+    def resampled(rows: np.ndarray) -> np.ndarray:
+        blocks = np.array_split(rows, max(1, len(rows) // 10))
+        return np.vstack([blocks[i] for i in rng.integers(0, len(blocks), len(blocks))])
+
+    value = estimates(per)
+    boot = [estimates({who: resampled(r) for who, r in per.items()}) for _ in range(runs)]
+    return {who: {k: (v, float(np.std([b[who][k] for b in boot]))) for k, v in est.items()} for who, est in value.items()}
+
+
+def given_ranks(recs, ref) -> list[str]:
+    """Per camera, who (by the lab) got each rank of a given list: e.g. "adult, child"."""
+    out = []
+    for c, rec in enumerate(recs):
+        rank, who = {}, {}
+        for f in rec.frames:
+            for p in f.people:
+                if p.height_source.startswith("given, rank"):
+                    rank[p.id] = int(p.height_source.rsplit(" ", 1)[1])
+                if (c, f.index, p.id) in ref:
+                    who.setdefault(p.id, []).append(ref[(c, f.index, p.id)][1])
+        labels = {pid: max(set(w), key=w.count) for pid, w in who.items() if len(w) >= 10}
+        out.append(", ".join(f"{labels.get(pid, 'nobody')}" for pid in sorted(rank, key=rank.get)))
+    return out
 
 
 def root_errors(cams, recs, ref, who: str | None = None) -> list[float]:
@@ -154,14 +224,15 @@ def heights(recs, ref) -> dict[str, list[float]]:
     return out
 
 
-def variants(take: str):
+def variants(take: str, measured: str | None = None):
     from posecam.heights import Heights
     from posecam.metric import MetricOptions
 
+    lists = HEIGHTS[take] + ((measured,) if measured else ())
     return {"before (per-frame scale)": None,
             "after, defaults (track scale + floor)": MetricOptions(),
             "after, no floor (track scale)": MetricOptions(floor=False),
-            **{f"after, --height {h}": MetricOptions(heights=Heights.parse([h])) for h in HEIGHTS[take]}}
+            **{f"after, --height {h}": MetricOptions(heights=Heights.parse([h])) for h in lists}}
 
 
 def take_bench(take: str, cache: Path) -> None:
@@ -170,14 +241,21 @@ def take_bench(take: str, cache: Path) -> None:
 
     cams = lab_cameras(take)
     recs = predictions(take, cams, cache)
-    ref = reference(cams, recs, take)
+    people = lab_people(cams, recs, take)
+    ref = reference(people)
     print(f"\n== {take}-person take: root error (mm) vs the lab DLT pelvis, "
           f"{len(ref)} person-frames matched; unsmoothed | smoothed (predict's default)")
-    print("lab: the ears' height above the floor (m), median / 90th percentile: " + ", ".join(
-        f"{who} {np.median(z) / 1000:.2f} / {np.percentile(z, 90) / 1000:.2f}" for who, z in ear_heights(cams, recs, ref).items())
-        + " (a person's ears are at 0.936 of the stature when upright)")
+    statures = lab_statures(people)
+    for who, est in statures.items():
+        print(f"lab: the {who}'s stature (m, +- its standard uncertainty): " + ", ".join(
+            f"{k} {v / 1000:.3f} +- {sd / 1000:.3f}" for k, (v, sd) in est.items()))
+    measured = None
+    if "child" in statures:
+        child = np.mean([v for v, _ in statures["child"].values()]) / 1000
+        measured = f"1.72,{child:.2f}"
+        print(f"lab: the second person's stature, mean of the three: {child:.2f} m (the issue gives 1.21)")
     print(f"{'':40s}" + "".join(f"{c:>8s}" for c in (*CAMERAS, "all")) + " |" + "".join(f"{c:>8s}" for c in (*CAMERAS, "all")))
-    for label, opts in variants(take).items():
+    for label, opts in variants(take, measured).items():
         scaled = [scale_recording(r, opts) for r in recs] if opts else recs
         raw = root_errors(cams, scaled, ref)
         smooth = root_errors(cams, [smooth_recording(r) for r in scaled], ref)
@@ -192,8 +270,11 @@ def take_bench(take: str, cache: Path) -> None:
             floors = ["%.2f m" % (r.floor.distance / 1000) if r.floor else "refused" for r in scaled]
             one, two, n = depth_sd_coverage(cams, scaled, ref)
             print(f"{'':40s}depth error within depth_sd: {100 * one:.0f} %, within 2 depth_sd: {100 * two:.0f} % ({n})")
+            if opts.heights.ranked and len(opts.heights.ranked) > 1:
+                print(f"{'':40s}the list's ranks went to: " + "; ".join(f"{c} {r}" for c, r in zip(CAMERAS, given_ranks(scaled, ref))))
             print(f"{'':40s}estimated heights (m): " + "; ".join(
-                f"{who} ({TRUTH_M[who]:.2f}) " + ", ".join(f"{h:.2f}" for h in hs) for who, hs in est.items() if hs)
+                f"{who} ({TRUTH_M[who]:.2f}{'' if who == 'adult' or not measured else '; lab ' + measured.split(',')[1]}) "
+                + ", ".join(f"{h:.2f}" for h in hs) for who, hs in est.items() if hs)
                 + f"; floor (camera height): {', '.join(floors)}")
     print(f"{'':40s}lab: camera heights above the floor (world z = 0) "
           + ", ".join(f"{c.centre[2] / 1000:.2f} m" for c in cams))
