@@ -29,8 +29,7 @@ from posecam.geometry.camera import CameraCalibration, Rig
 from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
 from posecam.multiview.consensus import (ConsensusOptions, camera_points, estimate_rig, fuse_points,
                                         intrinsics_vectors)
-from posecam.multiview.observations import Observations, PersonTracks, ViewTrack
-from posecam.multiview.sync import shift
+from posecam.multiview.observations import Observations, PersonTracks, Take, ViewTrack, shift
 
 MIN_COMMON_FRAMES = 10          # a pair of tracks needs this many frames seen by both
 MAX_PAIR_ANGLE = 0.03           # rad (50 px at f = 1700): calibrated pair gate
@@ -43,6 +42,16 @@ PAIR_FRAMES = 300               # common frames (evenly spaced) that score a cal
 class Association:
     people: list[PersonTracks]
     links: list[tuple[float, ViewTrack, ViewTrack]] = field(default_factory=list)   # kept pair costs
+
+
+def associate_people(take: Take, rig: Rig | None, offsets: list[float], min_conf: float = MIN_CONFIDENCE) -> Association:
+    """Who is who across the take's views at these offsets: through `rig` (its cameras the
+    take's views, in order) by `associate` with `pair_cost_calibrated`; without one by
+    `associate_by_consensus`."""
+    if rig is None:
+        return associate_by_consensus(take.tracks, take.assumed, take.lengths, offsets, take.reference, min_conf)
+    n = take.lengths[take.reference]
+    return associate(take.tracks, pair_cost_calibrated(rig.cameras, offsets, n, min_conf), MAX_PAIR_ANGLE)
 
 
 @dataclass

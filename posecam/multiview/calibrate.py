@@ -21,9 +21,11 @@ import numpy as np
 
 from posecam.errors import FusionError
 from posecam.geometry.camera import CameraCalibration, Rig
+from posecam.multiview.associate import Association
 from posecam.multiview.bundle import BundleOptions, CameraSpread, bundle_adjust
 from posecam.multiview.consensus import ConsensusOptions, estimate_rig, stretch_residuals
-from posecam.multiview.observations import Observations
+from posecam.multiview.observations import Observations, Take
+from posecam.multiview.sync import MIN_MOTION, SyncResult, motion_agreement
 from posecam.skeleton import skeleton_of
 
 MIN_FRAMES = 15                 # frames a camera must share with the others (>= 6 confident joints)
@@ -39,15 +41,20 @@ FOCAL_WIDTHS = (0.2, 10.0)      # plausible focal lengths, in image widths
 MAX_ROTATION_SPREAD_DEG = 3.0
 MAX_FOCAL_SPREAD_PCT = 15.0
 OUTLIER_FACTOR = 3.0            # a person's stretch this many times the median residual: outlier
+# views of one scene move alike: the joint speeds of the people two views share correlate by
+# 0.46-0.80 on Pose2Sim's takes; unrelated real clips (OpenCV's vtest.avi against itself 40 s
+# later, or against a Pose2Sim view) by 0.17-0.30: walkers' speeds are periodic and alike
+MIN_SAME_MOTION = 0.38
 
 
 @dataclass
-class RigEstimate:
+class KeptCameras:
+    """The cameras fusion goes on with: given (a calibration matched to the views) or estimated."""
+
     rig: Rig                    # the kept cameras only
     views: list[int]            # indices (into the inputs) of the kept cameras
-    reprojection_px: np.ndarray  # (len(views),) bundle-adjustment median error
-    warnings: list[str]
-    spreads: list[CameraSpread] | None = None   # (len(views),) from the bundle adjustment
+    warnings: list[str]         # of the stage that made them: cameras dropped, names matched, ...
+    spreads: list[CameraSpread] | None = None   # (len(views),) estimated: from the bundle adjustment
 
 
 def _bone_lengths(obs: Observations, joints: tuple[str, ...], min_conf: float) -> np.ndarray:
@@ -123,7 +130,7 @@ def _usable_frames(people: list[Observations], n_views: int, min_conf: float) ->
 
 
 def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations], joints: tuple[str, ...], reference: int,
-                     min_conf: float, bundle: bool = True, bundle_options: BundleOptions | None = None) -> RigEstimate:
+                     min_conf: float, bundle: bool = True, bundle_options: BundleOptions | None = None) -> KeptCameras:
     """Cameras of the views that the people allow; FusionError when fewer than two are left."""
     views = list(range(len(assumed)))
     warnings = []
@@ -166,8 +173,48 @@ def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations
             raise FusionError(f"reference camera {assumed[reference].name} cannot be estimated: "
                               f"{reasons[views.index(reference)]}")
         if not bad:
-            return RigEstimate(rig, views, med, warnings, spreads)
+            return KeptCameras(rig, views, warnings, spreads)
         worst = max(bad, key=lambda i: np.nan_to_num(med[i], nan=np.inf))
         warnings.append(f"camera {assumed[views[worst]].name} dropped: {reasons[worst]}")
         views.pop(worst)
 
+
+def cameras_from_people(take: Take, association: Association, sync: SyncResult, min_conf: float,
+                        bundle: bool = True, bundle_options: BundleOptions | None = None) -> KeptCameras:
+    """The stage without a calibration: `estimate_cameras` on every associated person at the
+    offsets, then, while a kept view's people do not move as the reference's (`motion_agreement`
+    below MIN_SAME_MOTION where they move enough to tell), that view dropped and the cameras
+    estimated again without it."""
+    ref = take.reference
+    every = list(range(len(take.names)))
+    est = estimate_cameras(take.assumed, take.observations(association.people, sync.offsets, every), take.joints,
+                           ref, min_conf, bundle, bundle_options)
+    while True:                          # views whose people do not move as the reference's: not one scene
+        agreement = motion_agreement(take, association.people, sync.offsets, min_conf)
+        unrelated = [(agreement[v][0], v) for v in est.views if v in agreement
+                     and agreement[v][1] >= MIN_MOTION and not agreement[v][0] >= MIN_SAME_MOTION]
+        if not unrelated:
+            return est
+        corr, v = min(unrelated)
+        line = (f"camera {take.names[v]} dropped: its people do not move as the reference's do (motion "
+                f"correlation {np.nan_to_num(corr):.2f}): not the same scene, or not the same time?")
+        kept = [u for u in est.views if u != v]
+        if len(kept) < 2:
+            raise FusionError(line.replace(" dropped:", " cannot be fused:"))
+        est = estimate_cameras([take.assumed[u] for u in kept],
+                               [p.take(kept) for p in take.observations(association.people, sync.offsets, every)],
+                               take.joints, kept.index(ref), min_conf, bundle, bundle_options)
+        est.views, est.warnings = [kept[i] for i in est.views], [line] + est.warnings
+
+
+def cameras_without_swaps(take: Take, cameras: KeptCameras, people: list[Observations], swaps: np.ndarray,
+                          min_conf: float, bundle: bool = True, bundle_options: BundleOptions | None = None
+                          ) -> tuple[KeptCameras, list[Observations], np.ndarray]:
+    """The estimated cameras again, from the people with their left/right swaps undone
+    (posecam.multiview.left_right), and the people and swaps (V,) of the views kept; the new
+    cameras' warnings only."""
+    views = cameras.views
+    again = estimate_cameras([take.assumed[v] for v in views], people, take.joints, views.index(take.reference),
+                             min_conf, bundle, bundle_options)
+    kept = KeptCameras(again.rig, [views[i] for i in again.views], again.warnings, again.spreads)
+    return kept, [p.take(again.views) for p in people], swaps[again.views]

@@ -25,30 +25,20 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from posecam.errors import FusionError, InputError
-from posecam.heights import Heights
-from posecam.geometry.camera import CameraCalibration, Rig
+from posecam.geometry.camera import Rig
 from posecam.geometry.triangulate import MIN_CONFIDENCE
-from posecam.multiview.associate import (MAX_PAIR_ANGLE, Association, associate, associate_by_consensus,
-                                         pair_cost_calibrated)
-from posecam.multiview.bundle import BundleOptions
-from posecam.multiview.calibrate import RigEstimate, estimate_cameras
-from posecam.multiview.fuse_people import FusedPerson, fuse_person
-from posecam.multiview.left_right import fix_swaps
-from posecam.multiview.observations import Observations, assumed_cameras, tracks_of
-from posecam.multiview.report import CameraReport, camera_reports
-from posecam.multiview.sync import (MAX_SPREAD, MIN_CORRELATION, MIN_MOTION, SyncResult, estimate_offsets,
-                                    motion_correlation, motion_offset, motion_signals)
+from posecam.heights import Heights
 from posecam.metric import stature
-from posecam.media import DEFAULT_FPS
+from posecam.multiview.associate import Association, associate_people
+from posecam.multiview.bundle import BundleOptions
+from posecam.multiview.calibrate import KeptCameras, cameras_from_people, cameras_without_swaps
+from posecam.multiview.fuse_people import FusedPerson, fuse_person
+from posecam.multiview.left_right import fix_people
+from posecam.multiview.observations import Observations, Take
+from posecam.multiview.report import CameraReport, camera_reports
+from posecam.multiview.sync import SyncResult, synchronise
 from posecam.results import Frame, Person, Recording
 from posecam.skeleton import skeleton_of
-
-
-
-# views of one scene move alike: the joint speeds of the people two views share correlate by
-# 0.46-0.80 on Pose2Sim's takes; unrelated real clips (OpenCV's vtest.avi against itself 40 s
-# later, or against a Pose2Sim view) by 0.17-0.30: walkers' speeds are periodic and alike
-MIN_SAME_MOTION = 0.38
 
 
 @dataclass
@@ -99,7 +89,9 @@ def check_lengths(names: list[str], lengths: list[int], opts: FuseOptions) -> st
             "(shifted by --offsets or --sync auto); are they one take, cut alike?")
 
 
-def _check(recordings: list[Recording], opts: FuseOptions) -> None:
+def check_take(recordings: list[Recording], opts: FuseOptions) -> Take:
+    """The recordings as one take's views (posecam.multiview.observations.Take), or InputError /
+    FusionError saying why they are not."""
     if len(recordings) < 2:
         raise InputError(f"fusion needs two views or more, got {len(recordings)}")
     if opts.method not in ("average", "triangulate"):
@@ -108,19 +100,20 @@ def _check(recordings: list[Recording], opts: FuseOptions) -> None:
         raise InputError("the views were predicted with different skeletons; predict them with the same --skeleton")
     if opts.offsets is not None and len(opts.offsets) != len(recordings):
         raise InputError(f"--offsets needs one value per view ({len(recordings)}), got {len(opts.offsets)}")
-    check_lengths(view_names(recordings), [len(r.frames) for r in recordings], opts)
+    names = view_names(recordings)
+    check_lengths(names, [len(r.frames) for r in recordings], opts)
     rates = [r.fps for r in recordings if r.fps]
     if rates and max(rates) > 1.01 * min(rates):
         raise InputError(f"the views have different frame rates ({', '.join(f'{f:g}' for f in rates)} fps)")
-    for name, r in zip(view_names(recordings), recordings):
+    for name, r in zip(names, recordings):
         if not any(f.people for f in r.frames):
             raise FusionError(f"no person found in view {name}")
-    for a, b in _twins(recordings):
-        names = view_names(recordings)
-        raise FusionError(f"views {names[a]} and {names[b]} hold the same poses (one recording given twice?): "
-                          "fusion needs different cameras")
         if r.intrinsics is None:
             raise InputError(f"view {name} has no intrinsics")
+    for a, b in _twins(recordings):
+        raise FusionError(f"views {names[a]} and {names[b]} hold the same poses (one recording given twice?): "
+                          "fusion needs different cameras")
+    return Take.of(names, recordings, opts.reference)
 
 
 def _twins(recordings: list[Recording], max_px: float = 0.5) -> list[tuple[int, int]]:
@@ -138,107 +131,6 @@ def _twins(recordings: list[Recording], max_px: float = 0.5) -> list[tuple[int, 
             if same and np.mean(same) > 0.8:
                 out.append((a, b))
     return out
-
-
-def _sync(rig: Rig, views: list[int], association: Association, recordings: list[Recording],
-          offsets: list[int], opts: FuseOptions) -> SyncResult:
-    """Offsets of the views in `views` (the rig's cameras), every associated person's joints."""
-    uv, conf = [], []
-    for v in views:
-        arrays = [p.view_arrays(v, len(recordings[v].frames)) for p in association.people if len(p.views) > 1]
-        uv.append(np.concatenate([a[0] for a in arrays], axis=1))
-        conf.append(np.concatenate([a[2] for a in arrays], axis=1))
-    result = estimate_offsets(rig.cameras, uv, conf, views.index(opts.reference), opts.max_offset,
-                              start=[offsets[v] for v in views])
-    full, confidence = list(offsets), [1.0] * len(recordings)
-    for i, v in enumerate(views):
-        full[v], confidence[v] = result.offsets[i], result.confidence[i]
-    return SyncResult(full, confidence, result.warnings)
-
-
-def _shared_motion(association: Association, recordings: list[Recording], v: int,
-                   opts: FuseOptions) -> tuple[np.ndarray, np.ndarray, float] | None:
-    """Motion signals (posecam.multiview.sync.motion_signals) of the people view v shares with
-    the reference, the reference's and v's side by side, and the smaller of their excursions
-    (mm); None when they share nobody."""
-    ref = opts.reference
-    shared = [p for p in association.people if ref in p.views and v in p.views]
-    if not shared:
-        return None
-    fps = recordings[ref].fps or DEFAULT_FPS
-    signals, excursion = [], []
-    for u in (ref, v):
-        parts = [motion_signals(*p.view_arrays(u, len(recordings[u].frames))[1:3], fps, opts.min_conf) for p in shared]
-        signals.append(np.concatenate([s for s, _ in parts], axis=1))
-        excursion.append(max(e for _, e in parts))
-    return signals[0], signals[1], min(excursion)
-
-
-def _motion_sync(association: Association, recordings: list[Recording], opts: FuseOptions) -> SyncResult:
-    """Offsets without a rig (posecam.multiview.sync.motion_offset): per view, the motion of
-    the people it shares with the reference; 0 with a warning where it cannot be pinned."""
-    ref = opts.reference
-    offsets, confidence, spread, warnings = [0.0] * len(recordings), [1.0] * len(recordings), \
-        [0.0] * len(recordings), []
-    names = view_names(recordings)
-    for v in range(len(recordings)):
-        if v == ref:
-            continue
-        shared = _shared_motion(association, recordings, v, opts)
-        if shared is None:
-            confidence[v], spread[v] = 0.0, np.inf
-            continue
-        m = motion_offset(shared[0], shared[1], opts.max_offset)
-        confidence[v], spread[v] = max(float(np.nan_to_num(m.correlation)), 0.0), m.spread
-        if shared[2] < MIN_MOTION:
-            warnings.append(f"{names[v]}: the people move too little to synchronise it (their joints move "
-                            f"{shared[2]:.0f} mm about the root); offset 0 kept. Give --offsets")
-        elif not m.correlation >= MIN_CORRELATION:
-            warnings.append(f"{names[v]}: its motion matches the reference's poorly (correlation "
-                            f"{np.nan_to_num(m.correlation):.2f}); offset 0 kept. Give --offsets")
-        elif not m.spread <= MAX_SPREAD:
-            warnings.append(f"{names[v]}: its motion pins the offset poorly (best {m.offset:+.1f} frames, "
-                            f"spread {m.spread:.1f}); offset 0 kept. Give --offsets")
-        elif abs(m.offset) >= opts.max_offset - 0.5:
-            warnings.append(f"{names[v]}: the best offset is at the search limit ({m.offset:+.1f}); offset 0 "
-                            "kept. Give --offsets or a larger --max-offset")
-        else:
-            offsets[v] = m.offset
-            continue
-        confidence[v] = 0.0
-    return SyncResult(offsets, confidence, warnings, spread)
-
-
-def motion_agreement(association: Association, recordings: list[Recording], offsets: list[float],
-                     opts: FuseOptions) -> dict[int, tuple[float, float]]:
-    """Per view: the correlation of its people's motion with the reference's at its offset, and
-    their excursion (mm). Views of one scene move alike; unrelated clips, whose people any rig
-    can be bent to fit, do not."""
-    out = {}
-    for v in range(len(recordings)):
-        shared = _shared_motion(association, recordings, v, opts) if v != opts.reference else None
-        if shared is not None:
-            out[v] = (motion_correlation(shared[0], shared[1], offsets[v]), shared[2])
-    return out
-
-
-def _observations(association: Association, recordings: list[Recording], offsets: list[int],
-                  views: list[int], reference: int) -> list[Observations]:
-    lengths = [len(r.frames) for r in recordings]
-    n = lengths[reference]
-    return [Observations.of(p, lengths, offsets, n).take(views) for p in association.people]
-
-
-def _fix_left_right(rig: Rig, people: list[Observations], joints: tuple[str, ...]) -> tuple[list[Observations], np.ndarray]:
-    flip = skeleton_of(joints).flip_indices
-    swaps = np.zeros(len(rig.cameras), int)
-    out = []
-    for obs in people:
-        if ((obs.conf.max(axis=-1) > 0).sum(axis=0) >= 3).any():        # three views: a swap can show
-            uv, xyz, conf, fixed = fix_swaps(rig.cameras, obs.uv, obs.xyz, obs.conf, flip)
-            obs, swaps = Observations(uv, xyz, conf, obs.score), swaps + fixed
-        out.append(obs)
-    return out, swaps
 
 
 def metric_scale(rig: Rig, people: list[Observations], joints: tuple[str, ...], heights: Heights,
@@ -281,75 +173,36 @@ def _to_recording(fused: list[FusedPerson], rig: Rig, ref_index: int, ref: Recor
                      rig.frame_of_reference)
 
 
-@dataclass
-class _RigStage:
-    """Where the rig stage leaves the views: who is who, the cameras, the offsets."""
-
-    association: Association
-    rig: Rig                    # the cameras of `views`
-    views: list[int]
-    offsets: list[int]
-    confidence: list[float]     # per input view
-    warnings: list[str]
-    spread: list[float] | None = None        # per input view, frames, where the sync gives one
-    camera_spreads: list | None = None       # per camera of `views` (estimated rigs)
+def given_cameras(take: Take, calibration: Rig) -> KeptCameras:
+    """The calibration's cameras matched to the views (Rig.match), every view kept."""
+    cams, note = calibration.match(take.names, [c.size for c in take.assumed])
+    return KeptCameras(Rig(cams, None), list(range(len(cams))), [note] if note else [])
 
 
-def _given_rig(recordings: list[Recording], tracks, names: list[str], offsets: list[int], opts: FuseOptions,
-               say: Callable[[str], None]) -> _RigStage:
-    """A calibration matched to the views (Rig.match); association by triangulation; sync."""
-    n = len(recordings[opts.reference].frames)
-    cams, note = opts.calibration.match(names, [(r.width, r.height) for r in recordings])
-    rig, views = Rig(cams, None), list(range(len(recordings)))
-    stage = _RigStage(associate(tracks, pair_cost_calibrated(cams, offsets, n, opts.min_conf), MAX_PAIR_ANGLE),
-                      rig, views, offsets, [1.0] * len(recordings), [note] if note else [])
-    if opts.sync:
-        say("synchronising")
-        sync = _sync(rig, views, stage.association, recordings, offsets, opts)
-        stage.offsets, stage.confidence, stage.warnings = sync.offsets, sync.confidence, stage.warnings + sync.warnings
-        stage.association = associate(tracks, pair_cost_calibrated(cams, sync.offsets, n, opts.min_conf),
-                                      MAX_PAIR_ANGLE)
-    return stage
+def to_metric(cameras: KeptCameras, people: list[Observations], take: Take, opts: FuseOptions) -> tuple[KeptCameras, str]:
+    """Estimated cameras at the people's given heights (`metric_scale`: one similarity about the
+    reference camera, reprojection unchanged), and what fixes the scale."""
+    factor, source = metric_scale(cameras.rig, people, take.joints, opts.heights, opts.min_conf)
+    if factor == 1.0:
+        return cameras, source
+    rig = Rig([replace(c, translation=c.translation * factor) for c in cameras.rig.cameras], cameras.rig.reference)
+    spreads = cameras.spreads and [replace(c, position_mm=c.position_mm * factor) for c in cameras.spreads]
+    return replace(cameras, rig=rig, spreads=spreads), source
 
 
-def _estimated_rig(recordings: list[Recording], tracks, assumed: list[CameraCalibration], offsets: list[int],
-                   opts: FuseOptions, say: Callable[[str], None]) -> _RigStage:
-    """Association by consensus hypotheses, the offsets from the motion (with --sync auto), then
-    the cameras (posecam.multiview.calibrate) at those offsets."""
-    ref = opts.reference
-    association = associate_by_consensus(tracks, assumed, [len(r.frames) for r in recordings], offsets, ref,
-                                         opts.min_conf)
+def _offsets(take: Take, association: Association, rig: Rig | None, start: list[float], opts: FuseOptions,
+             say: Callable[[str], None]) -> SyncResult:
+    """The views' offsets: estimated with `sync`, else the ones given (zeros by default)."""
+    if not opts.sync:
+        return SyncResult(start, [1.0] * len(start), [])
+    say("synchronising")
+    return synchronise(take, association.people, rig, start, opts.max_offset, opts.min_conf)
 
-    def estimate(offsets: list[int]) -> RigEstimate:
-        say("estimating the cameras")
-        people = _observations(association, recordings, offsets, list(range(len(recordings))), ref)
-        return estimate_cameras(assumed, people, recordings[ref].joints, ref, opts.min_conf, opts.bundle,
-                                opts.bundle_options)
 
-    confidence, spread, sync_warnings = [1.0] * len(recordings), None, []
-    if opts.sync:
-        say("synchronising")
-        sync = _motion_sync(association, recordings, opts)
-        offsets, confidence, spread, sync_warnings = sync.offsets, sync.confidence, sync.spread, sync.warnings
-    est = estimate(offsets)
-    while True:                          # views whose people do not move as the reference's: not one scene
-        agreement = motion_agreement(association, recordings, offsets, opts)
-        unrelated = [(agreement[v][0], v) for v in est.views if v in agreement
-                     and agreement[v][1] >= MIN_MOTION and not agreement[v][0] >= MIN_SAME_MOTION]
-        if not unrelated:
-            break
-        corr, v = min(unrelated)
-        line = (f"camera {assumed[v].name} dropped: its people do not move as the reference's do (motion "
-                f"correlation {np.nan_to_num(corr):.2f}): not the same scene, or not the same time?")
-        kept = [u for u in est.views if u != v]
-        if len(kept) < 2:
-            raise FusionError(line.replace(" dropped:", " cannot be fused:"))
-        est = estimate_cameras([assumed[u] for u in kept], [p.take(kept) for p in
-                               _observations(association, recordings, offsets, list(range(len(recordings))), ref)],
-                               recordings[ref].joints, kept.index(ref), opts.min_conf, opts.bundle, opts.bundle_options)
-        est.views, est.warnings = [kept[i] for i in est.views], [line] + est.warnings
-    return _RigStage(association, est.rig, est.views, offsets, confidence, est.warnings + sync_warnings, spread,
-                     est.spreads)
+def _estimated(take: Take, association: Association, sync: SyncResult, opts: FuseOptions,
+               say: Callable[[str], None]) -> KeptCameras:
+    say("estimating the cameras")
+    return cameras_from_people(take, association, sync, opts.min_conf, opts.bundle, opts.bundle_options)
 
 
 def fuse_recordings(recordings: list[Recording], options: FuseOptions | None = None,
@@ -361,47 +214,39 @@ def fuse_recordings(recordings: list[Recording], options: FuseOptions | None = N
 
 
 def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[str], None] | None) -> FusionResult:
-    _check(recordings, opts)
     say = progress or (lambda _msg: None)
-    names = view_names(recordings)
-    ref = opts.reference
-    offsets = list(opts.offsets) if opts.offsets is not None else [0] * len(recordings)
-    tracks = [tracks_of(r, v) for v, r in enumerate(recordings)]
-    assumed = assumed_cameras(names, recordings)
+    take = check_take(recordings, opts)
+    given = given_cameras(take, opts.calibration) if opts.calibration is not None else None
+    start = list(opts.offsets) if opts.offsets is not None else [0] * len(recordings)
+    rig = given.rig if given else None
 
     say("associating people across views")
-    if opts.calibration is not None:
-        stage = _given_rig(recordings, tracks, names, offsets, opts, say)
-    else:
-        stage = _estimated_rig(recordings, tracks, assumed, offsets, opts, say)
-    rig, views, offsets, warnings = stage.rig, stage.views, stage.offsets, stage.warnings
-    camera_spreads = stage.camera_spreads
+    association = associate_people(take, rig, start, opts.min_conf)
+    sync = _offsets(take, association, rig, start, opts, say)
+    if given and opts.sync:                  # through a rig, who is who depends on the offsets
+        association = associate_people(take, rig, sync.offsets, opts.min_conf)
+    cameras = given or _estimated(take, association, sync, opts, say)
+    warnings = cameras.warnings + sync.warnings
 
     say("checking left and right")
-    people = _observations(stage.association, recordings, offsets, views, ref)
-    people, swaps = _fix_left_right(rig, people, recordings[ref].joints)
-    if swaps.any() and opts.calibration is None:
+    people, swaps = fix_people(cameras.rig, take.observations(association.people, sync.offsets, cameras.views),
+                               take.joints)
+    if swaps.any() and not given:
         say("estimating the cameras without the swaps")
-        again = estimate_cameras([assumed[v] for v in views], people, recordings[ref].joints, views.index(ref),
-                                 opts.min_conf, opts.bundle, opts.bundle_options)
-        rig, warnings, camera_spreads = again.rig, warnings + again.warnings, again.spreads
-        people, swaps, views = [p.take(again.views) for p in people], swaps[again.views], \
-            [views[i] for i in again.views]
+        cameras, people, swaps = cameras_without_swaps(take, cameras, people, swaps, opts.min_conf, opts.bundle,
+                                                       opts.bundle_options)
+        warnings += cameras.warnings
+    cameras, scale_source = (given, "the calibration") if given else to_metric(cameras, people, take, opts)
+    if given and opts.heights:
+        warnings.append("the calibration fixes the metric scale; --height is not used")
 
-    scale_source = "the calibration"
-    if opts.calibration is None:
-        factor, scale_source = metric_scale(rig, people, recordings[ref].joints, opts.heights, opts.min_conf)
-        if factor != 1.0:                    # one similarity about the reference camera: reprojection unchanged
-            rig = Rig([replace(c, translation=c.translation * factor) for c in rig.cameras], rig.reference)
-            camera_spreads = camera_spreads and [replace(c, position_mm=c.position_mm * factor) for c in camera_spreads]
-    elif opts.heights:
-        warnings = warnings + ["the calibration fixes the metric scale; --height is not used"]
     say("fusing")
-    fused = [fuse_person(rig, [recordings[v].intrinsics for v in views], obs, opts.method, opts.min_conf)
+    rig, views = cameras.rig, cameras.views
+    fused = [fuse_person(rig, [take.assumed[v].intrinsics for v in views], obs, opts.method, opts.min_conf)
              for obs in people]
-    spread = stage.spread or [0.0] * len(recordings)
-    reports = camera_reports(rig, [offsets[v] for v in views], [stage.confidence[v] for v in views],
-                             [spread[v] for v in views], swaps, people, fused, opts.min_conf, camera_spreads)
-    recording = _to_recording(fused, rig, views.index(ref), recordings[ref])
+    spread = sync.spread or [0.0] * len(recordings)
+    reports = camera_reports(rig, [sync.offsets[v] for v in views], [sync.confidence[v] for v in views],
+                             [spread[v] for v in views], swaps, people, fused, opts.min_conf, cameras.spreads)
+    recording = _to_recording(fused, rig, views.index(take.reference), recordings[take.reference])
     recording.cameras = [r.to_dict() for r in reports]
-    return FusionResult(recording, rig, offsets, reports, views, list(dict.fromkeys(warnings)), scale_source)
+    return FusionResult(recording, rig, sync.offsets, reports, views, list(dict.fromkeys(warnings)), scale_source)

@@ -10,9 +10,11 @@ import warnings
 
 import numpy as np
 
-from posecam.geometry.camera import CameraCalibration
-from posecam.results import Recording
+from posecam.geometry.camera import CameraCalibration, Rig
 from posecam.geometry.triangulate import triangulate
+from posecam.multiview.observations import Observations
+from posecam.results import Recording
+from posecam.skeleton import skeleton_of
 
 SWAP_RATIO = 0.7        # swapped must reproject at most this fraction of the unswapped error
 
@@ -67,6 +69,20 @@ def fix_swaps(cams: list[CameraCalibration], uv: np.ndarray, xyz: np.ndarray, co
     v, f = np.nonzero(swaps)
     uv[v, f], xyz[v, f], conf[v, f] = uv[v, f][:, flip], xyz[v, f][:, flip], conf[v, f][:, flip]
     return uv, xyz, conf, swaps.sum(axis=1)
+
+
+def fix_people(rig: Rig, people: list[Observations], joints: tuple[str, ...]) -> tuple[list[Observations], np.ndarray]:
+    """The people (their views the rig's cameras) with the swaps `fix_swaps` finds undone, where
+    three views or more see them (with two a swap cannot show), and the (V,) frames fixed per view."""
+    flip = skeleton_of(joints).flip_indices
+    swaps = np.zeros(len(rig.cameras), int)
+    out = []
+    for obs in people:
+        if ((obs.conf.max(axis=-1) > 0).sum(axis=0) >= 3).any():
+            uv, xyz, conf, fixed = fix_swaps(rig.cameras, obs.uv, obs.xyz, obs.conf, flip)
+            obs, swaps = Observations(uv, xyz, conf, obs.score), swaps + fixed
+        out.append(obs)
+    return out, swaps
 
 
 def unswap(rec: Recording, frames: np.ndarray, person_id: int, flip: np.ndarray) -> Recording:

@@ -19,10 +19,28 @@ import numpy as np
 
 from posecam.geometry.camera import CameraCalibration
 from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
-from posecam.multiview.sync import shift
 from posecam.results import Recording
 
 MIN_TRACK_FRAMES = 8            # shorter tracks are left out (detector flicker)
+
+
+def shift(a: np.ndarray, offset: float, length: int, fill=np.nan) -> np.ndarray:
+    """Frames offset .. offset + length - 1 of `a` (F, ...), padded with `fill` outside; a
+    fractional offset interpolates linearly between the two frames around it (where both have
+    a value; `fill` 0 marks confidences, which take the smaller of the two)."""
+    out = np.full((length,) + a.shape[1:], fill, dtype=float)
+    i = np.arange(length)
+    lo = int(np.floor(offset))
+    frac = float(offset - lo)
+    j = i + lo
+    if frac < 1e-6:
+        ok = (j >= 0) & (j < len(a))
+        out[i[ok]] = a[j[ok]]
+        return out
+    ok = (j >= 0) & (j + 1 < len(a))
+    lo_v, hi_v = a[j[ok]].astype(float), a[j[ok] + 1].astype(float)
+    out[i[ok]] = np.minimum(lo_v, hi_v) if fill == 0.0 else (1 - frac) * lo_v + frac * hi_v
+    return out
 
 
 @dataclass
@@ -139,3 +157,27 @@ def tracks_of(rec: Recording, view: int, min_frames: int = MIN_TRACK_FRAMES) -> 
             uv[i], xyz[i], conf[i], score[i] = p.keypoints_2d, p.keypoints_3d, p.confidence, p.score
         tracks.append(ViewTrack(view, (pid,), uv, xyz, conf, score))
     return sorted(tracks, key=lambda t: -int(t.seen.sum()))
+
+
+@dataclass
+class Take:
+    """The views of one take, checked (posecam.multiview.fuse), as every stage reads them."""
+
+    names: list[str]                     # camera names: the input file stems, made unique
+    assumed: list[CameraCalibration]     # each view's camera as its monocular poses assumed it
+    tracks: list[list[ViewTrack]]        # each view's people (`tracks_of`)
+    lengths: list[int]                   # each view's frames
+    joints: tuple[str, ...]
+    reference: int                       # the view whose camera and frames the others are put in
+    fps: float | None                    # the reference's frame rate, where known
+
+    @classmethod
+    def of(cls, names: list[str], recordings: list[Recording], reference: int) -> "Take":
+        return cls(names, assumed_cameras(names, recordings), [tracks_of(r, v) for v, r in enumerate(recordings)],
+                   [len(r.frames) for r in recordings], recordings[reference].joints, reference,
+                   recordings[reference].fps)
+
+    def observations(self, people: list[PersonTracks], offsets: list[float], views: list[int]) -> list[Observations]:
+        """Each person in the `views`, at the offsets, in the reference's frames."""
+        n = self.lengths[self.reference]
+        return [Observations.of(p, self.lengths, offsets, n).take(views) for p in people]

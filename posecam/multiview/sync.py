@@ -25,27 +25,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from posecam.errors import FusionError
-from posecam.geometry.camera import CameraCalibration
+from posecam.geometry.camera import CameraCalibration, Rig
 from posecam.geometry.triangulate import reprojection_errors, triangulate
-
-
-def shift(a: np.ndarray, offset: float, length: int, fill=np.nan) -> np.ndarray:
-    """Frames offset .. offset + length - 1 of `a` (F, ...), padded with `fill` outside; a
-    fractional offset interpolates linearly between the two frames around it (where both have
-    a value; `fill` 0 marks confidences, which take the smaller of the two)."""
-    out = np.full((length,) + a.shape[1:], fill, dtype=float)
-    i = np.arange(length)
-    lo = int(np.floor(offset))
-    frac = float(offset - lo)
-    j = i + lo
-    if frac < 1e-6:
-        ok = (j >= 0) & (j < len(a))
-        out[i[ok]] = a[j[ok]]
-        return out
-    ok = (j >= 0) & (j + 1 < len(a))
-    lo_v, hi_v = a[j[ok]].astype(float), a[j[ok] + 1].astype(float)
-    out[i[ok]] = np.minimum(lo_v, hi_v) if fill == 0.0 else (1 - frac) * lo_v + frac * hi_v
-    return out
+from posecam.media import DEFAULT_FPS
+from posecam.multiview.observations import PersonTracks, Take, shift
 
 
 def rig_error(cams: list[CameraCalibration], uv: list[np.ndarray], conf: list[np.ndarray],
@@ -234,3 +217,97 @@ def motion_offset(ref: np.ndarray, other: np.ndarray, max_offset: float, seed: i
             peaks.append(_peak(near, c))
     spread = float(np.std(peaks)) if len(peaks) > 2 else np.inf
     return MotionOffset(round(best, 2), float(np.nanmax(corr)), spread)
+
+
+# ---- the stage: the views' offsets from the associated people ---------------------------------
+
+def synchronise(take: Take, people: list[PersonTracks], rig: Rig | None, start: list[float], max_offset: int,
+                min_conf: float) -> SyncResult:
+    """Every view's offset (module convention) from the people the association found: with a
+    rig (its cameras the take's views, in order), `estimate_offsets` on every person seen twice;
+    without, each view's motion against the reference's (`motion_offset`), 0 with a warning
+    where it cannot be pinned."""
+    if rig is not None:
+        return _rig_offsets(take, people, rig, start, max_offset)
+    return _motion_offsets(take, people, max_offset, min_conf)
+
+
+def _rig_offsets(take: Take, people: list[PersonTracks], rig: Rig, start: list[float], max_offset: int) -> SyncResult:
+    """`estimate_offsets` of the rig's cameras on every associated person's joints."""
+    views = list(range(len(rig.cameras)))
+    uv, conf = [], []
+    for v in views:
+        arrays = [p.view_arrays(v, take.lengths[v]) for p in people if len(p.views) > 1]
+        uv.append(np.concatenate([a[0] for a in arrays], axis=1))
+        conf.append(np.concatenate([a[2] for a in arrays], axis=1))
+    result = estimate_offsets(rig.cameras, uv, conf, views.index(take.reference), max_offset,
+                              start=[start[v] for v in views])
+    full, confidence = list(start), [1.0] * len(take.names)
+    for i, v in enumerate(views):
+        full[v], confidence[v] = result.offsets[i], result.confidence[i]
+    return SyncResult(full, confidence, result.warnings)
+
+
+def _shared_motion(take: Take, people: list[PersonTracks], v: int,
+                   min_conf: float) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """Motion signals (`motion_signals`) of the people view v shares with the reference, the
+    reference's and v's side by side, and the smaller of their excursions (mm); None when they
+    share nobody."""
+    ref = take.reference
+    shared = [p for p in people if ref in p.views and v in p.views]
+    if not shared:
+        return None
+    fps = take.fps or DEFAULT_FPS
+    signals, excursion = [], []
+    for u in (ref, v):
+        parts = [motion_signals(*p.view_arrays(u, take.lengths[u])[1:3], fps, min_conf) for p in shared]
+        signals.append(np.concatenate([s for s, _ in parts], axis=1))
+        excursion.append(max(e for _, e in parts))
+    return signals[0], signals[1], min(excursion)
+
+
+def _motion_offsets(take: Take, people: list[PersonTracks], max_offset: int, min_conf: float) -> SyncResult:
+    """Offsets without a rig (`motion_offset`): per view, the motion of the people it shares
+    with the reference; 0 with a warning where it cannot be pinned."""
+    ref, n_views = take.reference, len(take.names)
+    offsets, confidence, spread, warnings = [0.0] * n_views, [1.0] * n_views, [0.0] * n_views, []
+    for v in range(n_views):
+        if v == ref:
+            continue
+        shared = _shared_motion(take, people, v, min_conf)
+        if shared is None:
+            confidence[v], spread[v] = 0.0, np.inf
+            continue
+        m = motion_offset(shared[0], shared[1], max_offset)
+        confidence[v], spread[v] = max(float(np.nan_to_num(m.correlation)), 0.0), m.spread
+        name = take.names[v]
+        if shared[2] < MIN_MOTION:
+            warnings.append(f"{name}: the people move too little to synchronise it (their joints move "
+                            f"{shared[2]:.0f} mm about the root); offset 0 kept. Give --offsets")
+        elif not m.correlation >= MIN_CORRELATION:
+            warnings.append(f"{name}: its motion matches the reference's poorly (correlation "
+                            f"{np.nan_to_num(m.correlation):.2f}); offset 0 kept. Give --offsets")
+        elif not m.spread <= MAX_SPREAD:
+            warnings.append(f"{name}: its motion pins the offset poorly (best {m.offset:+.1f} frames, "
+                            f"spread {m.spread:.1f}); offset 0 kept. Give --offsets")
+        elif abs(m.offset) >= max_offset - 0.5:
+            warnings.append(f"{name}: the best offset is at the search limit ({m.offset:+.1f}); offset 0 "
+                            "kept. Give --offsets or a larger --max-offset")
+        else:
+            offsets[v] = m.offset
+            continue
+        confidence[v] = 0.0
+    return SyncResult(offsets, confidence, warnings, spread)
+
+
+def motion_agreement(take: Take, people: list[PersonTracks], offsets: list[float],
+                     min_conf: float) -> dict[int, tuple[float, float]]:
+    """Per view: the correlation of its people's motion with the reference's at its offset, and
+    their excursion (mm). Views of one scene move alike; unrelated clips, whose people any rig
+    can be bent to fit, do not."""
+    out = {}
+    for v in range(len(take.names)):
+        shared = _shared_motion(take, people, v, min_conf) if v != take.reference else None
+        if shared is not None:
+            out[v] = (motion_correlation(shared[0], shared[1], offsets[v]), shared[2])
+    return out
