@@ -6,12 +6,17 @@
     result.rig                  # the cameras (write with posecam.io.calibration.write_toml)
     result.warnings             # one line each: cameras dropped, offsets not found, ...
 
-The stages, in order (one module each): tracks and association across views
-(posecam.multiview.associate), sync (.sync), the rig (a given calibration matched to the views
-by Rig.match, or .calibrate: consensus, bundle adjustment and a quality gate), left/right
-(.left_right), fusion of each person (.fuse_people) and the camera report (.report).
-Without a calibration a rig fitted to unsynchronised views partly absorbs their lag, so the offsets come first, from each view's own motion (posecam.multiview.sync), and the rig is
-estimated at them (sub-frame: views interpolated between frames).
+The stages, one line each in `_fuse`, each from a typed input to a typed output, over the
+types of posecam.multiview.observations: the checked views (`check_take` -> Take), association
+across views (posecam.multiview.associate -> Association), sync (.sync -> SyncResult; through
+a given rig, the people are associated again at the offsets found), the rig (KeptCameras: a
+given calibration matched by Rig.match, or .calibrate: consensus, bundle adjustment and a
+quality gate), left/right (.left_right; estimated cameras are estimated again once the swaps
+are undone), the metric scale (`to_metric`), fusion of each person (.fuse_people) and the
+camera report (.report). Without a calibration a rig fitted to unsynchronised views partly
+absorbs their lag, so the offsets come first, from each view's own motion
+(posecam.multiview.sync), and the rig is estimated at them (sub-frame: views interpolated
+between frames).
 Frames: the reference camera's; see posecam.multiview.sync for the offset convention.
 """
 

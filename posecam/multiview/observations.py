@@ -7,8 +7,11 @@
                     reference camera's frames (offsets applied): what every stage after the
                     association works on (sync, the cameras, left/right, fusion, the report)
 
-The views' own cameras, as their monocular poses assumed them (name, image size, intrinsics,
-no pose), are posecam.geometry.camera.CameraCalibration (`assumed_cameras`).
+    Take            the checked views of one take as every stage reads them: names, the views'
+                    own cameras as their monocular poses assumed them (CameraCalibrations with
+                    no pose, `assumed_cameras`), tracks, lengths
+
+Offsets (`shift`): view c's frame i + o shows the reference's frame i (posecam.multiview.sync).
 """
 
 from __future__ import annotations
