@@ -96,6 +96,65 @@ def test_landmark_goldens_are_the_original_models_output(variant):
     assert np.abs(theirs - golden).max() <= PIXEL_MARGIN
 
 
+# MediaPipe's pose_detection graph (mediapipe/modules/pose_detection/pose_detection_cpu.pbtxt):
+# SsdAnchorsCalculator with strides 8, 16, 32, 32, 32, aspect ratio 1, fixed anchor size and an
+# interpolated scale (2 anchors per layer and cell; layers of one stride share their cells);
+# TensorsToDetections with raw box and keypoint coordinates in 224ths, sigmoid scores from 0.5;
+# weighted non-maximum suppression at IoU 0.3.
+BLAZEPOSE_LAYERS = ((8, 2), (16, 2), (32, 6))       # stride, anchors per cell
+BLAZEPOSE_SIZE, BLAZEPOSE_MIN_SCORE, BLAZEPOSE_NMS_IOU = 224, 0.5, 0.3
+
+
+def _iou(box: np.ndarray, boxes: np.ndarray) -> np.ndarray:
+    """IoU of one box (x0, y0, x1, y1) with each of `boxes` (N, 4)."""
+    lo, hi = np.maximum(box[:2], boxes[:, :2]), np.minimum(box[2:], boxes[:, 2:])
+    inter = np.prod(np.clip(hi - lo, 0, None), axis=1)
+    areas = np.prod(boxes[:, 2:] - boxes[:, :2], axis=1)
+    return inter / (np.prod(box[2:] - box[:2]) + areas - inter)
+
+
+def _cell_centres(stride: int, per_cell: int) -> np.ndarray:
+    """(cells * per_cell, 2) anchor centres x, y in [0, 1], row by row, x fastest."""
+    g = (np.arange(BLAZEPOSE_SIZE // stride) + 0.5) / (BLAZEPOSE_SIZE // stride)
+    return np.repeat(np.stack(np.meshgrid(g, g), axis=-1).reshape(-1, 2), per_cell, axis=0)
+
+
+def test_blazepose_detector_golden_is_the_original_models_output():
+    """The detector's golden box is the original TFLite model's: MediaPipe's pose_detection.tflite
+    run by LiteRT on the same letterboxed photo, decoded here as MediaPipe's graph decodes it
+    (anchors, boxes, sigmoid scores, weighted NMS), not by posecam's decoder."""
+    litert = pytest.importorskip("ai_edge_litert.interpreter", reason="install the test extra")
+    assets = pytest.importorskip("export.assets", reason="install the export extra")
+    golden = json.loads((GOLDEN / "detector_balance.json").read_text())
+    detector = load_detector("blazepose")
+    image = read_image(PHOTO)
+    crop, scale, pad = detector.letterbox(image)
+    interp = litert.Interpreter(model_path=str(assets.asset_path("pose_detection.tflite")))
+    interp.allocate_tensors()
+    interp.set_tensor(interp.get_input_details()[0]["index"],
+                      to_input_tensor(crop[None], detector.model.contract.input))
+    interp.invoke()
+    out = {d["name"]: interp.get_tensor(d["index"]) for d in interp.get_output_details()}
+    raw, logits = out["Identity"][0].astype(float), out["Identity_1"][0, :, 0].astype(float)
+    anchors = np.concatenate([_cell_centres(stride, n) for stride, n in BLAZEPOSE_LAYERS])
+    assert len(anchors) == len(raw) == 2254
+    scores = 1 / (1 + np.exp(-np.clip(logits, -100, 100)))
+    centre = raw[:, :2] / BLAZEPOSE_SIZE + anchors
+    half = raw[:, 2:4] / BLAZEPOSE_SIZE / 2
+    boxes = np.concatenate([centre - half, centre + half], axis=1)
+    order = [i for i in np.argsort(-scores) if scores[i] >= BLAZEPOSE_MIN_SCORE]
+    found = []
+    while order:
+        cluster = np.array(order)[_iou(boxes[order[0]], boxes[order]) > BLAZEPOSE_NMS_IOU]
+        w = scores[cluster] / scores[cluster].sum()
+        found.append((scores[order[0]], w @ boxes[cluster] * BLAZEPOSE_SIZE * scale - np.tile(pad, 2)))
+        order = [i for i in order if i not in cluster]
+    assert len(found) == len(golden["boxes"]) >= 1
+    for (score, box), want_box, want_score in zip(found, golden["boxes"], golden["scores"]):
+        assert abs(score - want_score) <= PRESENCE_MARGIN
+        assert np.abs(box - np.array(want_box)).max() <= PIXEL_MARGIN
+
+
 if __name__ == "__main__":
     GOLDEN.mkdir(parents=True, exist_ok=True)
     for case, run in CASES.items():

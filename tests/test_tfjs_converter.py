@@ -113,6 +113,37 @@ def test_movenet_multipose_matches_tfjs(movenet_outputs, case):
     np.testing.assert_allclose(ours, ref, rtol=0, atol=TOLERANCE)
 
 
+def test_movenet_golden_is_the_tfjs_models_output(node_modules, tmp_path):
+    """The MoveNet detector's golden (tests/data/golden/movenet_balance.json, what posecam's
+    detector finds in examples/balance.jpg) is the original TF.js graph's: run on the same
+    resized, padded photo and decoded here from MoveNet's output layout (per person 17 (y, x,
+    score), then ymin, xmin, ymax, xmax, score, all normalised to the input), not by posecam."""
+    from posecam.inference.detector import load_detector
+    from posecam.media import read_image
+
+    golden = json.loads((DATA / "golden" / "movenet_balance.json").read_text())
+    detector = load_detector("movenet")
+    canvas, to_image = detector.prepare(read_image(REPO / "examples" / "balance.jpg"))
+    graph, _ = build.tfjs_sources("movenet")
+    people = run_tfjs(node_modules, graph, {"balance": canvas[None].astype(np.int32)}, tmp_path)["balance"]["Identity"][0]
+    h, w = canvas.shape[:2]
+    found = []
+    for row in people[np.argsort(-people[:, 55])]:
+        box = row[[52, 51, 54, 53]] * [w, h, w, h] * to_image
+        if row[55] >= detector.min_score and all(_iou(box, b) <= 0.5 for _, b in found):
+            found.append((float(row[55]), box))
+    assert len(found) == len(golden["boxes"]) >= 1
+    for (score, box), want_box, want_score in zip(found, golden["boxes"], golden["scores"]):
+        assert abs(score - want_score) <= 0.02
+        assert np.abs(box - np.array(want_box)).max() <= 1.5           # px, the golden test's margins
+
+
+def _iou(a: np.ndarray, b: np.ndarray) -> float:
+    lo, hi = np.maximum(a[:2], b[:2]), np.minimum(a[2:], b[2:])
+    inter = float(np.prod(np.clip(hi - lo, 0, None)))
+    return inter / (np.prod(a[2:] - a[:2]) + np.prod(b[2:] - b[:2]) - inter)
+
+
 def test_movenet_rebuilds_the_bundled_file_exactly(tmp_path):
     rebuilt = build.build("movenet", tmp_path)
     assert rebuilt.read_bytes() == (build.MODELS_DIR / "movenet_multipose.onnx").read_bytes()
