@@ -2,6 +2,7 @@
 
     python bench/bench_people.py [--detector movenet|blazepose] [--redetect-every N]
                                  [--vtest PATH [--vtest-frames N] [--overlay OUT.mp4]]
+                                 [--before CHECKOUT [--runs 3]]
 
 1. Pose2Sim's two-person take (`Demo_MultiPerson`, 4 portrait cameras 1088x1920, 100 frames,
    the lab's Qualisys calibration), each camera run with the lab intrinsics. The reference
@@ -27,13 +28,21 @@
      clothes on the counted frames; they walk loops and come back);
    and an overlay video with ids to look at (--overlay).
 Frames per second are printed for each recording. Everything runs with posecam's defaults
-unless an option is given (the table says which).
+unless an option is given (the table says which). With --before CHECKOUT (a folder holding an
+older `posecam/`) the bench runs --runs times, each time the older code then this one, each in
+its own process, and prints both side by side: medians of the frames per second, the other
+figures of the last run (they do not change from run to run: it says so if they did).
 """
 
 from __future__ import annotations
 
 import argparse
 import itertools
+import json
+import os
+import statistics
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -80,10 +89,10 @@ def demo_path(relative: str) -> Path:
     return _extract("pose2sim", f"{DEMO}/{relative}")
 
 
-def read_frames(video: Path) -> list[np.ndarray]:
+def read_frames(video: Path, limit: int | None = None) -> list[np.ndarray]:
     from posecam.media import open_media   # posecam from PYTHONPATH: the code measured
 
-    return [rgb for _, _, rgb in open_media(video).frames()]
+    return [rgb for _, (_, _, rgb) in zip(range(limit or 10 ** 9), open_media(video).frames())]
 
 
 # ---------------------------------------------------------------- reference from the other views
@@ -239,7 +248,7 @@ def estimator(args, k=None):
     return PoseEstimator(EstimatorOptions(**{n: v for n, v in wanted.items() if n in known and v is not None}))
 
 
-def two_person(args) -> None:
+def two_person(args) -> dict:
     from posecam.io.calibration import read_qualisys
 
     videos = {c: demo_path(f"videos/{c}.mp4") for c in CAMERAS}
@@ -263,7 +272,7 @@ def two_person(args) -> None:
           f"across views, median reprojection {reproj:.1f} px")
     print(f"{options_text(args)}, lab intrinsics")
     print(f"{'camera':8s}{'visible':>8s}{'recall':>8s}{'root mm':>9s}{'median':>8s}{'id sw.':>7s}{'extra':>6s}{'fps':>6s}")
-    errors = []
+    errors, result = [], {}
     for cam in cams:
         est = estimator(args, cam.intrinsics)
         t0 = time.perf_counter()
@@ -273,7 +282,9 @@ def two_person(args) -> None:
         errors.append(s["root_mm"])
         print(f"{cam.name:8s}{s['visible']:8d}{s['recall']:8.3f}{s['root_mm']:9.0f}{s['median_mm']:8.0f}"
               f"{s['switches']:7d}{s['extra']:6d}{fps:6.1f}")
+        result[cam.name] = {"recall": round(s["recall"], 3), "switches": s["switches"], "fps": fps}
     print(f"{'all':8s}{'':8s}{'':8s}{np.nanmean(errors):9.0f}")
+    return result
 
 
 def vtest_found(frames_people: list, counts: dict) -> tuple[int, int]:
@@ -292,11 +303,11 @@ def vtest_found(frames_people: list, counts: dict) -> tuple[int, int]:
     return found, total
 
 
-def vtest(args) -> None:
+def vtest(args) -> dict:
     from posecam.viz.draw import draw_people
     from posecam.viz.sinks import VideoSink
 
-    frames = read_frames(Path(args.vtest))[:args.vtest_frames]
+    frames = read_frames(Path(args.vtest), args.vtest_frames)
     est = estimator(args)
     t0 = time.perf_counter()
     people, dropped = [], {}
@@ -318,6 +329,38 @@ def vtest(args) -> None:
           f"ids {ids} for {VTEST_DISTINCT} people = {ids / VTEST_DISTINCT:.2f}x (target <= 1.5x); "
           f"people per frame median {np.median(c):.0f}, mean {c.mean():.2f}, max {c.max()}; "
           f"dropped (person-frames) {dropped}; {fps:.1f} frames/s")
+    return {"found": f"{found}/{total}", "empty": int((c == 0).sum()), "ids": ids,
+            "per_frame": round(float(c.mean()), 2), "fps": fps}
+
+
+def before_after(args) -> None:
+    """This bench's figures for the code in --before and this checkout's, run alternately in
+    fresh processes (--runs times), side by side: fps medians, the other figures of the last run."""
+    child = [a for a in sys.argv[1:] if a not in ("--before", args.before, "--runs", str(args.runs))]
+    runs: dict[str, list[dict]] = {"before": [], "after": []}
+    for _ in range(args.runs):
+        for label, code in (("before", Path(args.before).resolve()), ("after", REPO)):
+            env = {**os.environ, "PYTHONPATH": os.pathsep.join(dict.fromkeys([str(code), str(REPO)]))}
+            out = subprocess.run([sys.executable, __file__, *child, "--json"], env=env, capture_output=True,
+                                 text=True, check=True).stdout
+            runs[label].append(json.loads(out.strip().splitlines()[-1]))
+    print(f"\nbefore ({args.before}) and after (this checkout), {args.runs} runs each, alternated, {options_text(args)}:")
+    print(f"{'':26s}{'before':>14s}{'after':>14s}")
+    last = runs["after"][-1]
+    for part, figures in last.items():
+        for key in figures if part == "vtest" else [(c, k) for c in figures for k in figures[c]]:
+            name = key if part == "vtest" else f"{key[0]} {key[1]}"
+
+            def value(r: dict, key=key):
+                return r[part][key] if part == "vtest" else r[part][key[0]][key[1]]
+            cells = []
+            for label in ("before", "after"):
+                values = [value(r) for r in runs[label]]
+                if name.endswith("fps"):
+                    cells.append(f"{statistics.median(values):.1f}")
+                else:
+                    cells.append(f"{values[-1]}" + ("" if all(v == values[-1] for v in values) else " (varied)"))
+            print(f"{part + ' ' + name:26s}{cells[0]:>14s}{cells[1]:>14s}")
 
 
 def options_text(args) -> str:
@@ -349,11 +392,20 @@ def main() -> None:
     ap.add_argument("--vtest", help="path to vtest.avi (opencv-doc)")
     ap.add_argument("--vtest-frames", type=int, default=795)
     ap.add_argument("--overlay", help="write vtest's overlay video here")
+    ap.add_argument("--before", help="a folder with an older posecam/ to run against this one (see above)")
+    ap.add_argument("--runs", type=int, default=3, help="with --before: runs of each, alternated")
+    ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)   # a child's figures, for --before
     a = ap.parse_args()
+    if a.before:
+        before_after(a)
+        return
+    figures = {}
     if not a.skip_take:
-        two_person(a)
+        figures["take"] = two_person(a)
     if a.vtest:
-        vtest(a)
+        figures["vtest"] = vtest(a)
+    if a.json:
+        print(json.dumps(figures))
 
 
 if __name__ == "__main__":

@@ -1,6 +1,7 @@
 """Benchmark `posecam predict` on the Pose2Sim demo, against MediaPipe's own pose solution.
 
     python bench/bench_predict.py [--runs 5] [--detector movenet|blazepose] [--vtest PATH/vtest.avi]
+                                  [--before CHECKOUT]
 
 1. Speed and memory: frames per second and peak resident memory of `posecam predict` on the
    100-frame 1080x1920 cam01 clip, and of MediaPipe 0.10.21's Python pose solution (same
@@ -13,12 +14,15 @@
 3. Frames per second of `posecam predict` on the two multi-person recordings: Pose2Sim's
    two-person take (cam03, 1088x1920) and, with --vtest, OpenCV's vtest.avi (768x576, 795
    frames of pedestrians); medians of the same runs.
+With --before CHECKOUT (a folder holding an older `posecam/`) each posecam run is followed by
+the same run of the older code, in the same alternation, and both are printed.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import statistics
 import subprocess
@@ -74,26 +78,33 @@ def ensure_mediapipe_venv() -> Path:
     return python
 
 
-def run_child(python: str, mode: str, *args: str) -> dict:
-    out = subprocess.run([python, __file__, "--child", mode, *args], capture_output=True, text=True, check=True)
+def run_child(python: str, mode: str, *args: str, code: Path | None = None) -> dict:
+    """A child process's figures; `code`: a checkout whose posecam/ it imports instead of this one."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(code), str(REPO)])} if code else None
+    out = subprocess.run([python, __file__, "--child", mode, *args], capture_output=True, text=True, check=True, env=env)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
-def speed(video: Path, runs: int, model: str, detector: str, others: dict[str, Path]) -> None:
+def speed(video: Path, runs: int, model: str, detector: str, others: dict[str, Path], before: Path | None = None) -> None:
     mp_python = str(ensure_mediapipe_venv())
-    results: dict[str, list[dict]] = {"posecam": [], "mediapipe": [], **{name: [] for name in others}}
+    codes = {"": None, " before": before} if before else {"": None}
+    clips = {"posecam": video, **others}
+    results: dict[str, list[dict]] = {"mediapipe": [], **{n + c: [] for n in clips for c in codes}}
     for _ in range(runs):
-        results["posecam"].append(run_child(sys.executable, "posecam", str(video), model, detector))
-        results["mediapipe"].append(run_child(mp_python, "mediapipe", str(video)))
-        for name, path in others.items():
-            results[name].append(run_child(sys.executable, "posecam", str(path), model, detector))
-    print(f"\nSpeed on {video.name} (1080x1920, 100 frames), {runs} runs each, medians:")
-    print(f"{'':34s}{'fps':>8s}{'s/run':>8s}{'peak MB':>9s}")
-    for name, label in (("posecam", f"posecam predict ({model}, {detector})"), ("mediapipe", "MediaPipe 0.10.21 (full)"),
-                        *((n, f"posecam on {n}") for n in others)):
+        for name, path in clips.items():
+            for tag, code in codes.items():
+                results[name + tag].append(run_child(sys.executable, "posecam", str(path), model, detector, code=code))
+            if name == "posecam":
+                results["mediapipe"].append(run_child(mp_python, "mediapipe", str(video)))
+    print(f"\nSpeed on {video.name} (1080x1920, 100 frames), {runs} runs each, medians"
+          + (f" (before: the posecam in {before})" if before else "") + ":")
+    print(f"{'':41s}{'fps':>8s}{'s/run':>8s}{'peak MB':>9s}")
+    rows = [(f"posecam{c}", f"posecam predict{c} ({model}, {detector})") for c in codes]
+    rows += [("mediapipe", "MediaPipe 0.10.21 (full)")] + [(n + c, f"posecam{c} on {n}") for n in others for c in codes]
+    for name, label in rows:
         rs = results[name]
         fps = statistics.median(r["frames"] / r["seconds"] for r in rs)
-        print(f"{label:34s}{fps:8.1f}{statistics.median(r['seconds'] for r in rs):8.2f}"
+        print(f"{label:41s}{fps:8.1f}{statistics.median(r['seconds'] for r in rs):8.2f}"
               f"{statistics.median(r['peak_mb'] for r in rs):9.0f}")
 
 
@@ -146,6 +157,7 @@ def main() -> None:
     ap.add_argument("--detector", default="movenet")
     ap.add_argument("--vtest", help="OpenCV's vtest.avi (apt-get download opencv-doc) for its frames/s")
     ap.add_argument("--no-accuracy", action="store_true")
+    ap.add_argument("--before", help="a folder with an older posecam/, timed in the same runs")
     ap.add_argument("--child", help=argparse.SUPPRESS)
     ap.add_argument("args", nargs="*", help=argparse.SUPPRESS)
     a = ap.parse_args()
@@ -161,7 +173,7 @@ def main() -> None:
     others = {"two-person cam03": pose2sim_demo_path("videos/cam03.mp4").parents[2] / "Demo_MultiPerson/videos/cam03.mp4"}
     if a.vtest:
         others["vtest.avi"] = Path(a.vtest)
-    speed(videos["cam01"], a.runs, a.model, a.detector, others)
+    speed(videos["cam01"], a.runs, a.model, a.detector, others, Path(a.before).resolve() if a.before else None)
     if not a.no_accuracy:
         accuracy(videos, pose2sim_demo_path("calibration/Calib.qca.txt"), a.model, a.detector)
 
