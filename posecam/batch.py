@@ -11,8 +11,12 @@ an interrupted run leaves only complete files and running it again does only wha
 
 from __future__ import annotations
 
+import atexit
 import os
+import secrets
 import signal
+import subprocess
+import threading
 import time
 from collections.abc import Callable, Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
@@ -20,10 +24,10 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from posecam.errors import InputError, OutputError, PosecamError, note_signal
+from posecam.errors import InputError, OutputError, PosecamError, last_signal, note_signal
 from posecam.estimate import EstimatorOptions, shared_estimator
 from posecam.filters import smooth_recording
-from posecam.io.atomic import OutputSet
+from posecam.io.atomic import OutputSet, remove_run_staging, tagged_staging
 from posecam.io.intrinsics import IntrinsicsOptions
 from posecam.io.poses import PoseWriter, write_poses
 from posecam.media import VIDEO_SUFFIXES
@@ -219,27 +223,89 @@ def _stop_workers(pool: ProcessPoolExecutor) -> None:
             process.join(1.0)
 
 
-def _call(work: Callable[[Task], str], task: Task) -> str:
-    return work(task)
+RAY_POLL = 0.1     # seconds between the driver's looks at its Ray tasks: a signal is acted on at once
+RAY_UNWIND = 1.0   # seconds cancelled Ray tasks have to stop (their `with` blocks remove what they staged)
+RAY_KILL = 0.5     # seconds to wait for the tasks still running after that to be killed
+
+
+def _call_on_ray(work: Callable[[Task], str], task: Task, tag: str) -> str:
+    with tagged_staging(tag):   # what it stages is the run's to remove, should the task be killed
+        return work(task)
 
 
 def _run_on_ray(tasks: list[Task], work: Callable[[Task], str], address: str) -> Iterator[str]:
+    """Each task as a Ray task. On Ctrl-C, SIGTERM or a failed task the tasks left are cancelled
+    (a running one stops with KeyboardInterrupt, writing nothing; queued ones never start), any
+    still running after RAY_UNWIND seconds is killed, and what the killed ones staged is removed."""
     try:
         import ray
     except ImportError:
         raise InputError(RAY_HINT) from None
+    ours = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
     ray.init(address=address or None, include_dashboard=False, log_to_driver=False,
              ignore_reinit_error=True, configure_logging=False)
-    remote = ray.remote(num_cpus=1)(_call)
-    pending = [remote.remote(work, t) for t in tasks]
+    if threading.current_thread() is threading.main_thread():   # ray.init puts in its own: SIGTERM
+        for signum, handler in ours.items():                    # would exit 15 after a stack dump
+            if handler is not None:
+                signal.signal(signum, handler)
+    tag = f"r{secrets.token_hex(4)}"
+    remote = ray.remote(num_cpus=1)(_call_on_ray)
+    pending = [remote.remote(work, t, tag) for t in tasks]
+    finished = False
     try:
         while pending:
-            done, pending = ray.wait(pending, num_returns=1)
-            try:
-                yield ray.get(done[0])
-            except ray.exceptions.RayTaskError as exc:
-                cause = exc.cause if isinstance(getattr(exc, "cause", None), PosecamError) else None
-                raise cause or PosecamError(f"a Ray task failed: {str(exc).splitlines()[0]}") from None
+            done, pending = ray.wait(pending, num_returns=1, timeout=RAY_POLL)
+            for ref in done:
+                try:
+                    yield ray.get(ref)
+                except ray.exceptions.RayTaskError as exc:
+                    cause = exc.cause if isinstance(getattr(exc, "cause", None), PosecamError) else None
+                    raise cause or PosecamError(f"a Ray task failed: {str(exc).splitlines()[0]}") from None
+        finished = True
     finally:
-        for ref in pending:
-            ray.cancel(ref, force=True)
+        if not finished:
+            held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})   # a second
+            try:                                                                    # Ctrl-C waits for this
+                _stop_ray_tasks(ray, pending)
+                for folder in {Path(t.output).parent for t in tasks}:
+                    remove_run_staging(folder, tag)
+                if last_signal() is not None:   # the process ends now: Ray with it, at once
+                    _shut_ray_down(ray)
+            finally:
+                signal.pthread_sigmask(signal.SIG_SETMASK, held)
+
+
+def _shut_ray_down(ray) -> None:
+    """`ray.shutdown()` now rather than at exit (where it waits 0.5 s first), less its slowest
+    second: the autoscaler monitor of a local instance answers SIGTERM after 1 s, when Ray
+    kills it, so it is killed first (the driver's disconnect and the raylet's clean-up stay).
+    When the signal reached the instance too (SIGTERM to the whole process group: some of its
+    processes have ended), its processes are only given RAY_KILL seconds to end by themselves;
+    the driver's disconnect from a raylet going down would wait 5 s."""
+    node = getattr(ray._private.worker, "_global_node", None)   # the local instance ray.init started
+    started = node.all_processes if node is not None else {}     # (none: a cluster's address given)
+    processes = [info.process for infos in started.values() for info in infos]
+    if any(p.poll() is not None for p in processes):
+        atexit.unregister(ray.shutdown)
+        deadline = time.monotonic() + RAY_KILL
+        for process in processes:
+            try:
+                process.wait(max(0.0, deadline - time.monotonic()))
+            except subprocess.TimeoutExpired:
+                process.kill()
+        return
+    for info in started.get("monitor", []):
+        info.process.kill()
+    ray.shutdown()
+
+
+def _stop_ray_tasks(ray, pending: list) -> None:
+    if not pending:
+        return
+    for ref in pending:
+        ray.cancel(ref)   # KeyboardInterrupt in the task
+    _, running = ray.wait(pending, num_returns=len(pending), timeout=RAY_UNWIND)
+    for ref in running:
+        ray.cancel(ref, force=True)
+    if running:
+        ray.wait(running, num_returns=len(running), timeout=RAY_KILL)

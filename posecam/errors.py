@@ -62,6 +62,11 @@ def note_signal(signum: int) -> None:
     _received.append(signum)
 
 
+def last_signal() -> int | None:
+    """The last Ctrl-C or SIGTERM this process received through the CLI's handler, if any."""
+    return _received[-1] if _received else None
+
+
 def raise_if_signalled() -> None:
     """Raise the Ctrl-C or SIGTERM this process received, if any (an OutputSet before it commits)."""
     if _received:

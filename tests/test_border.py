@@ -6,6 +6,7 @@ images, zip checkpoints, a million people) assert the peak memory too; slow ones
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
@@ -524,13 +525,27 @@ def test_a_variable_frame_rate_video_gets_its_real_times(tmp_path):
     assert max(abs(t - i / 30) for i, t in enumerate(times)) > 0.05   # what index / fps would be off
 
 
-# ---- signals: a --jobs run ends at once, writing nothing after the signal ---------------------
+# ---- signals: a --jobs or --ray run ends at once, writing nothing after the signal ------------
+
+def _ray_missing() -> bool:
+    try:
+        import ray  # noqa: F401
+    except ImportError:
+        return True
+    return False
+
+
+RAY = [pytest.mark.slow, pytest.mark.skipif(_ray_missing(), reason="Ray is not installed (pip install -e '.[ray]')")]
+
 
 @pytest.mark.parametrize("sig, code, word, group", [
     (signal.SIGINT, 130, "interrupted", True),     # Ctrl-C in a terminal: the whole process group
     (signal.SIGTERM, 143, "terminated", False),    # kill PID: the parent alone
 ])
-def test_a_signal_ends_a_jobs_run_within_2_s_writing_nothing_after_it(tmp_path, sig, code, word, group):
+@pytest.mark.parametrize("workers", [("--jobs", "2"), pytest.param(("--ray",), marks=RAY, id="ray")])
+def test_a_signal_ends_a_batch_run_within_2_s_writing_nothing_after_it(tmp_path, sig, code, word, group, workers):
+    """With --ray the local Ray instance starts first (seconds): the signal comes once the
+    first output is written, the next tasks under way, their staging folders in DIR."""
     inputs = []
     for i in range(8):
         inputs.append(tmp_path / f"v{i}.mp4")
@@ -538,7 +553,7 @@ def test_a_signal_ends_a_jobs_run_within_2_s_writing_nothing_after_it(tmp_path, 
     out = tmp_path / "out"
     out.mkdir()
     proc = subprocess.Popen([sys.executable, "-m", "posecam", "predict", *inputs, "--model", "lite", "--out-dir", out,
-                             "--jobs", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             *workers], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)
     deadline = time.time() + 300
     while time.time() < deadline and not any(p.suffix == ".json" for p in out.iterdir()):
@@ -555,6 +570,64 @@ def test_a_signal_ends_a_jobs_run_within_2_s_writing_nothing_after_it(tmp_path, 
     assert "Traceback" not in err and "Error" not in err, err
     assert took < 2.0, f"{took:.1f} s"
     assert {p.name for p in out.iterdir()} == written, "a file was written after the signal, or staging left"
+
+
+_STUCK_DRIVER = """
+import signal, sys, time
+from pathlib import Path
+from posecam.batch import Task, run_tasks
+from posecam.errors import on_signal
+from posecam.io.atomic import OutputSet
+
+def stuck(task):   # stages its output, then stays in a call that Ray's cancel cannot interrupt
+    with OutputSet([task.output]) as out:
+        out.path(task.output).write_text("partial")
+        time.sleep(120)
+    return task.output
+
+out = Path(sys.argv[1])
+signal.signal(signal.SIGINT, on_signal)
+try:
+    for _ in run_tasks([Task((), str(out / f"{i}.txt")) for i in range(2)], stuck, ray_address=""):
+        pass
+except KeyboardInterrupt:
+    print("interrupted")
+"""
+
+
+@pytest.mark.parametrize("_", [pytest.param(None, marks=RAY, id="ray")])
+def test_ray_tasks_that_a_cancel_cannot_stop_are_killed_and_their_staging_removed(tmp_path, _):
+    out = tmp_path / "out"
+    out.mkdir()
+    (tmp_path / "driver.py").write_text(_STUCK_DRIVER)
+    proc = subprocess.Popen([sys.executable, tmp_path / "driver.py", out], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.time() + 300
+    while time.time() < deadline and len([p for p in out.glob(".posecam-*/*.txt")]) < 2:
+        time.sleep(0.05)
+    assert len(list(out.glob(".posecam-*/*.txt"))) == 2, "the two tasks never staged their files"
+    os.killpg(proc.pid, signal.SIGINT)
+    stdout, err = proc.communicate(timeout=60)
+    assert stdout.strip() == "interrupted", (proc.returncode, stdout, err)
+    time.sleep(1.0)
+    assert list(out.iterdir()) == []
+
+
+def test_staging_under_a_run_tag_is_removed_by_that_run_only(tmp_path):
+    """What a batch run's tasks stage carries the run's tag, which `remove_run_staging` removes
+    (a task killed before its clean-up) and leaves another run's, or a plain command's, alone."""
+    from posecam.io.atomic import remove_run_staging, tagged_staging
+
+    def staged(name: str, tag: str | None = None) -> Path:
+        target = tmp_path / f"{name}.json"
+        outputs = OutputSet([target])
+        with tagged_staging(tag) if tag else contextlib.nullcontext():
+            return outputs.path(target).parent
+
+    mine, other, plain = staged("a", "r1a2b"), staged("b", "r3c4d"), staged("c")
+    assert mine.name.startswith(f".posecam-{os.getpid()}-r1a2b-") and plain.name.startswith(f".posecam-{os.getpid()}-")
+    remove_run_staging(tmp_path, "r1a2b")
+    assert not mine.exists() and other.is_dir() and plain.is_dir()
 
 
 @pytest.mark.slow

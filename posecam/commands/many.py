@@ -3,6 +3,7 @@ take (fuse), finished ones skipped, one progress bar over all of them."""
 
 from __future__ import annotations
 
+from contextlib import closing
 from functools import partial
 from pathlib import Path
 
@@ -21,9 +22,10 @@ def _run(tasks: list, total: int, work, out_dir: str, jobs: int, ray_address: st
         click.echo(f"posecam: {skipped} of {total} {what} already done in {out_dir}, skipped", err=True)
     with progress_bar() as progress:
         bar = progress.add_task(f"{total} {what}", total=total, completed=skipped)
-        for output in run_tasks(tasks, work, jobs, ray_address):
-            progress.advance(bar)
-            progress.console.print(f"wrote {output}", highlight=False)
+        with closing(run_tasks(tasks, work, jobs, ray_address)) as outputs:   # a Ctrl-C here stops the
+            for output in outputs:                                            # workers at once too
+                progress.advance(bar)
+                progress.console.print(f"wrote {output}", highlight=False)
     left_out = f", {unreadable} unreadable left out" if unreadable else ""
     click.echo(f"posecam: {len(tasks)} written, {skipped} skipped{left_out}, in {Path(out_dir)}", err=True)
 

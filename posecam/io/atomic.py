@@ -13,8 +13,10 @@
 Temporary names start `.posecam-<pid>-`, are short and ASCII and keep the target's extension
 (writers such as OpenCV's pick the format from it), so a 255-byte target name works and OpenCV
 never sees a name it cannot encode. Ones whose process is gone (a run killed with SIGKILL) are
-removed by the next run writing in that folder. Every OSError while writing becomes an
-`OutputError` (exit code 4) naming the target.
+removed by the next run writing in that folder. A task of a batch run stages under its run's
+tag as well (`tagged_staging`), so that the run removes what a task it had to kill left
+(`remove_run_staging`). Every OSError while writing becomes an `OutputError` (exit code 4)
+naming the target.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from posecam.media import VIDEO_SUFFIXES, readable_video
 
 _MAX_SUFFIX = 16   # longer "extensions" are not kept in temporary names
 _STALE = re.compile(r"^\.posecam-(\d+)-")
+_run_tag = ""   # inside `tagged_staging`: the batch run whose task this process is running
 
 
 def _folder(target: Path) -> Path:
@@ -47,7 +50,19 @@ def _suffix(target: Path) -> str:
 
 
 def _prefix() -> str:
-    return f".posecam-{os.getpid()}-"
+    return f".posecam-{os.getpid()}-{_run_tag}"
+
+
+@contextmanager
+def tagged_staging(tag: str) -> Iterator[None]:
+    """Inside the block, temporary names carry the batch run's `tag` (short, ASCII letters and
+    digits) after the pid: `.posecam-<pid>-<tag>-...`."""
+    global _run_tag
+    _run_tag = f"{tag}-"
+    try:
+        yield
+    finally:
+        _run_tag = ""
 
 
 def _umask() -> int:
@@ -81,17 +96,36 @@ def remove_stale(folder: str | os.PathLike) -> None:
         match = _STALE.match(entry.name)
         if not match or _alive(int(match.group(1))):
             continue
-        path = Path(folder) / entry.name
-        try:
-            if entry.is_dir(follow_symlinks=False):
-                shutil.rmtree(path)
-            else:
-                path.unlink()
-        except OSError as exc:
-            warn(f"{printable(path)} is left over from an interrupted posecam run and cannot be removed "
-                 f"({_describe(exc)}); remove it")
-            continue
-        warn(f"removed {printable(path)}, left over from an interrupted posecam run")
+        if _remove(Path(folder) / entry.name, entry):
+            warn(f"removed {printable(Path(folder) / entry.name)}, left over from an interrupted posecam run")
+
+
+def remove_run_staging(folder: str | os.PathLike, tag: str) -> None:
+    """Remove what the tasks of batch run `tag` staged in `folder` (once they have all ended:
+    a task killed before its clean-up leaves its staging folder)."""
+    own = re.compile(rf"^\.posecam-\d+-{re.escape(tag)}-")
+    try:
+        entries = [e for e in os.scandir(folder) if own.match(e.name)]
+    except OSError:
+        return
+    for entry in entries:
+        _remove(Path(folder) / entry.name, entry)
+
+
+def _remove(path: Path, entry: os.DirEntry) -> bool:
+    """Remove a temporary file or staging folder; False, with a warning, if it cannot be."""
+    try:
+        if entry.is_dir(follow_symlinks=False):
+            shutil.rmtree(path)
+        else:
+            path.unlink()
+    except FileNotFoundError:    # its own process removed it meanwhile
+        return False
+    except OSError as exc:
+        warn(f"{printable(path)} is left over from an interrupted posecam run and cannot be removed "
+             f"({_describe(exc)}); remove it")
+        return False
+    return True
 
 
 def same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
