@@ -17,7 +17,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field, replace
-from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -152,9 +151,12 @@ class PoseEstimator:
         _check_image(image_rgb)
         h, w = image_rgb.shape[:2]
         detections = None
-        if tracker.needs_detection(w, h):   # while nobody is followed, people in any orientation are searched for
-            search = self.detector if tracker.active() else partial(detect_any_turn, self.detector)
-            detections = search(image_rgb, max(tracker.person_px() or MIN_PERSON_PX, MIN_PERSON_PX))
+        if tracker.needs_detection(w, h):
+            person_px = max(tracker.person_px() or MIN_PERSON_PX, MIN_PERSON_PX)
+            if tracker.active():   # the whole image and the tiles the tracker asks for
+                detections = self.detector(image_rgb, tiles=tracker.tiles_to_search(self.detector.tiles(w, h, person_px)))
+            else:                  # nobody followed: every tile, and people in any orientation
+                detections = detect_any_turn(self.detector, image_rgb, person_px)
         tracks = tracker.begin_frame(detections)
         if not tracks:
             return Frame(0, 0.0, [], dropped=list(tracker.refused))

@@ -11,8 +11,9 @@ comes from its previous pose.
 
 The tracker also says when to run the detector: every frame while nobody is followed or
 someone was just lost, every few frames while people may be missing (young tracks, people at
-the image's edges, a crowd), otherwise every `redetect_every` frames; and how small the people
-it has seen are, which sets how finely the detector searches the image.
+the image's edges, a crowd), otherwise every `redetect_every` frames, and on a run that only
+two people's overlap asks for, where (the tiles holding them); and how small the people it has
+seen are, which sets how finely the detector searches the image.
 """
 
 from __future__ import annotations
@@ -113,6 +114,12 @@ class BoxKalman:
         return np.array([cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2])
 
 
+def _inside(tracks: list[Track], tile: tuple[int, int, int, int]) -> np.ndarray:
+    """(N,) mask of the tracks whose box centre lies in `tile` (x0, y0, x1, y1)."""
+    centres = np.array([(t.box[:2] + t.box[2:]) / 2 for t in tracks]).reshape(-1, 2)
+    return ((centres >= tile[:2]) & (centres < tile[2:])).all(axis=1)
+
+
 def _xywh(box: np.ndarray) -> np.ndarray:
     return np.array([(box[0] + box[2]) / 2, (box[1] + box[3]) / 2, box[2] - box[0], box[3] - box[1]], float)
 
@@ -127,7 +134,7 @@ class Track:
     hits: int = 1                              # detections matched
     lost: int = 0                              # frames since last seen
     shown: int = 0                             # frames reported
-    unseen: int = 0                            # detector runs in a row that missed this person
+    unseen: int = 0                            # detector runs in a row that searched where this person is and missed them
     detection: Detection | None = field(default=None, repr=False)   # this frame's, if any
 
     @property
@@ -163,6 +170,8 @@ class Tracker:
         self._dropped = False
         self.refused: list[Dropped] = []     # this frame's confident detections over max_people
         self._smallest: float | None = None  # height (px) of the smallest confirmed person so far
+        self._near: list[Track] = []         # the people whose overlap alone asks for this detector run
+        self._searching: list[tuple[int, int, int, int]] | None = None   # this run's tiles (None: everywhere)
 
     def needs_detection(self, width: int, height: int) -> bool:
         """Detect on the first frame, while nobody is followed, as soon as someone followed was
@@ -170,20 +179,33 @@ class Tracker:
         last pose may slide onto the neighbour); every `search_every` frames while people may be
         missing (a track not yet confirmed, someone walking at the image's edge: entering or
         leaving, a crowd); else every `redetect_every` frames (someone standing at the edge is
-        neither)."""
+        neither). A run that only the overlap asks for searches only where those people are
+        (see `tiles_to_search`)."""
         o, active = self.options, self.active()
+        self._near = []
         if not active or self._dropped:
             return True
         boxes = np.array([t.box for t in active])
-        iou = box_iou(boxes, boxes)
-        if (iou[np.triu_indices(len(active), 1)] > 0).any():
-            return True
         margin = o.edge * np.array([width, height])
         at_edge = ((boxes[:, :2] < margin) | (boxes[:, 2:] > [width, height] - margin)).any(axis=1)
         speed = np.array([np.hypot(*t.kalman.x[4:6]) / max(t.kalman.x[3], 1.0) for t in active])
         missing = ((at_edge & (speed > o.walking)).any()
                    or any(t.hits < o.confirm_hits for t in active) or len(active) >= o.crowd)
-        return self._since_detection >= (min(o.search_every, o.redetect_every) if missing else o.redetect_every)
+        if self._since_detection >= (min(o.search_every, o.redetect_every) if missing else o.redetect_every):
+            return True
+        iou = np.triu(box_iou(boxes, boxes), 1)
+        self._near = [t for t, near in zip(active, (iou > 0).any(axis=0) | (iou > 0).any(axis=1)) if near]
+        return bool(self._near)
+
+    def tiles_to_search(self, tiles: list[tuple[int, int, int, int]]) -> list[tuple[int, int, int, int]]:
+        """Which of the detector's `tiles` (x0, y0, x1, y1) it searches on this run besides the
+        whole image: on a run that only two people's overlap asks for, the tiles holding their
+        centres, and then only the people whose centre lies in those tiles count as missed if
+        not found (see `begin_frame`); else all of them."""
+        if not self._near or not tiles:
+            return tiles
+        self._searching = [tile for tile in tiles if _inside(self._near, tile).any()]
+        return self._searching
 
     def person_px(self) -> float | None:
         """The height (px) of the smallest person confirmed so far in this video (None: nobody yet)."""
@@ -215,11 +237,15 @@ class Tracker:
         left = self._match(pool, high, o.match_cost)
         pool = [t for t in pool if t.detection is None]
         self._match(pool, low, o.low_match_cost)
-        for t in self.tracks:
+        searched = np.full(len(self.tracks), self._searching is None)
+        for tile in self._searching or []:
+            searched |= _inside(self.tracks, tile)
+        self._searching = None
+        for t, looked in zip(self.tracks, searched):
             if t.detection is not None:
                 t.unseen = 0
-            elif t.lost == 0 and t.shown and t.unseen < o.coast:
-                t.unseen += 1    # the detector missed someone the pose model still follows
+            elif t.lost == 0 and t.shown and (t.unseen < o.coast or not looked):
+                t.unseen += int(looked)    # the detector missed someone the pose model still follows
             else:
                 t.lost += 1
         self.tracks = [t for t in self.tracks if t.lost <= o.max_lost]

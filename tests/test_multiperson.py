@@ -217,3 +217,25 @@ def test_someone_the_detector_misses_stays_with_the_pose_model():
         assert len(followed) == (1 if run < 2 else 0), run      # posed from its last crop, twice
         tracker.end_frame(tracks, [True] * len(tracks), [None] * len(tracks), [None] * len(tracks),
                           [t.roi for t in tracks])
+
+
+def test_a_run_for_an_overlap_alone_searches_where_those_people_are():
+    tiles = [(0, 0, 600, 450), (400, 0, 1000, 450), (0, 350, 600, 800), (400, 350, 1000, 800)]
+    tracker = Tracker()
+    pair = [_det([100, 100, 180, 300]), _det([150, 110, 230, 310])]     # overlapping, top left
+    apart = _det([800, 500, 880, 700])                                  # alone, bottom right
+    asked = _follow(tracker, pair + [apart], 9)
+    assert asked == list(range(9))                              # the overlap asks on every frame
+    assert tracker.needs_detection(1000, 800)
+    assert tracker.tiles_to_search(tiles) == [tiles[0]]         # ... for the tile holding the pair
+    tracks = tracker.begin_frame(pair)                          # the tile finds the pair only
+    assert {t.detection is None for t in tracks} == {False, True}
+    (alone,) = [t for t in tracks if t.detection is None]
+    assert alone.unseen == 0 and alone.lost == 0                # not searched there: not missed either
+    for _ in range(tracker.options.search_every):               # frames the pose model alone follows
+        tracker.end_frame(tracks, [True] * 3, [None] * 3, [None] * 3, [t.roi for t in tracks])
+        tracks = tracker.begin_frame(None)
+    assert tracker.needs_detection(1000, 800)                   # a crowd's scheduled run: every tile
+    assert tracker.tiles_to_search(tiles) == tiles
+    tracks = tracker.begin_frame(pair)                          # searched everywhere, missed
+    assert alone.unseen == 1 and alone in tracks

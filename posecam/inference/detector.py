@@ -89,8 +89,13 @@ class BlazePoseDetector:
         crop = cv2.warpAffine(image_rgb, m, (self.size, self.size), flags=cv2.INTER_AREA if side > self.size else cv2.INTER_LINEAR)
         return crop, side / self.size, pad
 
-    def __call__(self, image_rgb: np.ndarray, person_px: float | None = None) -> list[Detection]:
-        """People in the image, most confident first (one run: `person_px` is not used)."""
+    def tiles(self, width: int, height: int, person_px: float | None) -> list[tuple[int, int, int, int]]:
+        """No tiles: the image is searched whole, in one run."""
+        return []
+
+    def __call__(self, image_rgb: np.ndarray, person_px: float | None = None,
+                 tiles: list[tuple[int, int, int, int]] | None = None) -> list[Detection]:
+        """People in the image, most confident first (one run: `person_px` and `tiles` are not used)."""
         crop, scale, pad = self.letterbox(image_rgb)
         out = self.model.run({self.model.contract.input.name: to_input_tensor(crop[None], self.model.contract.input)})
         a = len(self.anchors)
@@ -176,14 +181,15 @@ class MoveNetDetector:
         return [(x0, y0, x0 + tw, y0 + th) for x0 in np.linspace(0, width - tw, nx).round().astype(int)
                 for y0 in np.linspace(0, height - th, ny).round().astype(int)]
 
-    def __call__(self, image_rgb: np.ndarray, person_px: float | None = None) -> list[Detection]:
+    def __call__(self, image_rgb: np.ndarray, person_px: float | None = None,
+                 tiles: list[tuple[int, int, int, int]] | None = None) -> list[Detection]:
         """People in the image, most confident first: one run on the whole image, and one on
-        each tile that shows people `person_px` tall at FOUND_PX (see `tiles`). A person cut by
-        a tile's inner edge is left to the tile or the whole image that holds them, and the
-        detections of one person are merged."""
+        each of `tiles` (None: every tile that shows people `person_px` tall at FOUND_PX, see
+        `tiles`). A person cut by a tile's inner edge is left to the tile or the whole image
+        that holds them, and the detections of one person are merged."""
         h, w = image_rgb.shape[:2]
         found = self._detect(image_rgb, np.zeros(2))
-        for x0, y0, x1, y1 in self.tiles(w, h, person_px):
+        for x0, y0, x1, y1 in self.tiles(w, h, person_px) if tiles is None else tiles:
             inner = np.array([x0 > 0, y0 > 0, x1 < w, y1 < h])   # tile edges inside the image
             edge = 0.01 * max(x1 - x0, y1 - y0)
             for d in self._detect(image_rgb[y0:y1, x0:x1], np.array([x0, y0], float)):
