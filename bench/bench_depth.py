@@ -1,6 +1,6 @@
 """Benchmark posecam's monocular metric depth (posecam.metric) on both Pose2Sim takes and vtest.avi.
 
-    python bench/bench_depth.py [--cache .cache/bench_depth]
+    python bench/bench_depth.py [--cache .cache/bench_depth] [--before DIR]
 
 Each camera of both takes (4 portrait cameras, 100 frames, 60 fps) is predicted once with the
 default pipeline and the lab's intrinsics (cached as posecam JSON, unsmoothed), then:
@@ -38,6 +38,11 @@ LINK_MM = 400.0             # a person's pelvis moves less than this between syn
 PELVIS, HEAD, ANKLES = 0, 10, (3, 6)       # posecam's 17 joints
 LEGS = ((1, 2, 3), (4, 5, 6))              # hip, knee, ankle per side
 THORAX = 8
+# vtest.avi is View_001 of PETS 2009 (S2.L1: 768x576, 795 frames); the dataset's Tsai calibration of
+# that view (View_001.xml: focal 5.5549183034 mm, dpx 5.1273271277e-3 mm, dpy 4.65e-3 mm, sx
+# 1.0937855397) gives fx = focal sx / dpx and fy = focal / dpy in pixels
+VTEST_FX, VTEST_FY = 5.5549183034 * 1.0937855397 / 5.1273271277e-3, 5.5549183034 / 4.65e-3
+MIN_TRACK_FRAMES = 20       # a track's frames with its stature measured, for the pose model's size
 EAR_OF_STATURE = 0.936      # the ears' height over the stature, upright (Drillis & Contini 1966, in Winter, fig. 4.1)
 
 
@@ -312,8 +317,10 @@ def lens_bench(cache: Path) -> None:
                 print(line + f"refused: {fit.reason}")
     rec = read_poses(cache / "vtest_default.json")[0]
     fit, k = lens_of(rec)
-    print(f"  vtest.avi: no lab value; default lens {k.fx:.0f} px; people: "
-          + (f"{fit.focal:.0f} +- {fit.sd:.0f} px" if fit and fit.focal else f"refused: {fit.reason if fit else 'nobody upright'}"))
+    print(f"  vtest.avi: PETS 2009's calibration fx {VTEST_FX:.0f} px (fy {VTEST_FY:.0f}), default lens {k.fx:.0f} px "
+          f"({100 * (k.fx / VTEST_FX - 1):+.0f} %); people: "
+          + (f"{fit.focal:.0f} +- {fit.sd:.0f} px ({100 * (fit.focal / VTEST_FX - 1):+.1f} %)" if fit and fit.focal
+             else f"refused: {fit.reason if fit else 'nobody upright'}"))
 
 
 def speed(runs: int = 5) -> None:
@@ -335,6 +342,32 @@ def speed(runs: int = 5) -> None:
     print(f"\n== predict speed, {video.name} (100 frames, smoothing on), median of {runs}")
     for label, fps in times.items():
         print(f"  {label:32s}{np.median(fps):7.1f} frames/s")
+
+
+def speed_against(before: Path, runs: int = 5) -> None:
+    """`posecam predict` (the CLI, defaults: no intrinsics, the metric stage, smoothing) on the
+    single take's cam01 with this checkout's posecam and with `before`'s, alternated in one run;
+    medians of the whole command's wall time (start-up included)."""
+    import os
+    import subprocess
+    import sys
+    import tempfile
+
+    video = REPO / "examples" / "demo" / "single" / "cam01.mp4"
+    codes = {"before": before.resolve(), "after": REPO}
+    times: dict[str, list] = {label: [] for label in codes}
+    with tempfile.TemporaryDirectory() as tmp:
+        for r in range(runs):
+            for label in (("before", "after") if r % 2 else ("after", "before")):
+                env = {**os.environ, "PYTHONPATH": str(codes[label])}
+                t = time.perf_counter()
+                subprocess.run([sys.executable, "-m", "posecam", "predict", str(video), "-o", f"{tmp}/{label}.json"],
+                               env=env, check=True, capture_output=True)
+                times[label].append(time.perf_counter() - t)
+    print(f"\n== posecam predict {video.name} (100 frames, defaults), this checkout against {before}, median of {runs} alternated")
+    for label, t in times.items():
+        print(f"  {label:8s}{np.median(t):6.2f} s ({100 / np.median(t):5.1f} frames/s, start-up included)")
+    print(f"  after / before: {np.median(times['after']) / np.median(times['before']):.3f}")
 
 
 def vtest_bench(cache: Path) -> None:
@@ -365,16 +398,56 @@ def vtest_bench(cache: Path) -> None:
               f"5-95 % {np.percentile(hs, 5):.2f}-{np.percentile(hs, 95):.2f}, n={len(hs)}")
 
 
+def model_size_bench(cache: Path) -> None:
+    """The pose model's one size (posecam.metric.MODEL_STATURE): each vtest.avi track's median
+    stature (tracks measured in MIN_TRACK_FRAMES frames and more), their median and spread, per
+    model, against the value posecam uses; and the lab's 1.72 m adult, one track per view."""
+    from posecam import EstimatorOptions, PoseEstimator, read_poses, write_poses
+    from posecam.metric import MODEL_STATURE, stature
+
+    print("\n== the pose model's size: each track's median stature (its skeleton's bone chain), vtest.avi")
+    for model, name in (("full", "vtest_default.json"), ("lite", "vtest_lite.json")):
+        path = cache / name
+        if not path.exists():
+            write_poses(path, [PoseEstimator(EstimatorOptions(model=model)).predict_file("/work/data/vtest.avi")])
+        rec = read_poses(path)[0]
+        per: dict[int, list] = {}
+        for f in rec.frames:
+            for p in f.people:
+                per.setdefault(p.id, []).append(float(stature(p.keypoints_3d, p.confidence, rec.joints)))
+        tracks = np.array([np.nanmedian(h) for h in per.values() if np.isfinite(h).sum() >= MIN_TRACK_FRAMES])
+        mid = np.median(tracks)
+        print(f"  {rec.model}: {len(tracks)} tracks, median {mid / 1000:.3f} m, spread (1.4826 MAD) "
+              f"{100 * 1.4826 * np.median(np.abs(tracks - mid)) / mid:.1f} %, 5-95 % {np.percentile(tracks, 5) / 1000:.2f}-"
+              f"{np.percentile(tracks, 95) / 1000:.2f} m; posecam.metric uses {MODEL_STATURE.get(rec.model, float('nan')):.3f} m")
+    views = []
+    for take in ("single", "multi"):
+        cams = lab_cameras(take)
+        recs = predictions(take, cams, cache)
+        ref = reference(lab_people(cams, recs, take))
+        for c, rec in enumerate(recs):
+            h = [float(stature(p.keypoints_3d, p.confidence, rec.joints)) for f in rec.frames for p in f.people
+                 if ref.get((c, f.index, p.id), (None, ""))[1] == "adult"]
+            views.append(np.nanmedian(h))
+    print("  the lab's 1.72 m adult, full model, one track per view (single take cam01-04, two people cam01-04): "
+          + ", ".join(f"{h / 1000:.2f}" for h in views) + " m")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--cache", type=Path, default=REPO / ".cache" / "bench_depth")
+    ap.add_argument("--before", type=Path, help="a checkout of the posecam to time predict against "
+                                                "(git archive COMMIT posecam | tar -x -C DIR)")
     a = ap.parse_args()
     a.cache.mkdir(parents=True, exist_ok=True)
     for take in ("single", "multi"):
         take_bench(take, a.cache)
     vtest_bench(a.cache)
+    model_size_bench(a.cache)
     lens_bench(a.cache)
     speed()
+    if a.before:
+        speed_against(a.before)
 
 
 if __name__ == "__main__":

@@ -60,7 +60,7 @@ LENS_SAMPLES = 64               # per track: upright frames kept for the lens
 # track is shorter are the ones placed too near): with nothing else to scale them, tracks are
 # brought to the model's size. bench/bench_depth.py measures it again (m; models not listed keep
 # their tracks' own sizes).
-MODEL_STATURE = {"blazepose-full": 1.678, "blazepose-lite": 1.659}
+MODEL_STATURE = {"blazepose-full": 1.678, "blazepose-lite": 1.647}
 LENS_DISAGREES = 2.0            # standard uncertainties between the default lens and the people's for a warning
 
 # name -> (legs: (hip, knee, ankle) per side, pelvis, thorax, head) as joint-index tuples to average
@@ -228,7 +228,8 @@ class MetricStage:
         if self._k is None:
             self._check_lens()
         if self.floor_refused and self._tracks and self._frames_seen > 1:
-            self.notes.append(f"no floor: {self.floor_refused}; each person keeps their track's own scale")
+            size = "everyone has the pose model's size" if self._model_mm else "each person keeps their track's own scale"
+            self.notes.append(f"no floor: {self.floor_refused}; {size}")
         return out
 
     def _lens_fit(self) -> LensFit | None:

@@ -144,11 +144,14 @@ def _line(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def vertical_vanishing_point(heads: np.ndarray, feet: np.ndarray) -> np.ndarray:
     """The point all head-to-feet lines of upright people meet at (homogeneous, unit): the
-    least-squares null vector of the lines, reweighted twice against outliers."""
+    least-squares null vector of the lines, each weighted by its length (the pixels' noise tilts
+    a short line more: a line's distance from a far point grows as its angle's error), reweighted
+    twice against outliers."""
     lines = _line(heads, feet)
+    length = np.linalg.norm(heads - feet, axis=1)
     w = np.ones(len(lines))
     for _ in range(3):
-        a = lines * w[:, None]
+        a = lines * (w * length)[:, None]
         v = np.linalg.eigh(a.T @ a)[1][:, 0]         # the null vector: least eigenvalue
         r = np.abs(lines @ v)
         w = 1.0 / np.maximum(r / (np.median(r) + 1e-12), 1.0)
@@ -168,8 +171,10 @@ def _focal(heads, feet, pairs, principal) -> float | None:
     ok = np.abs(h[:, 2]) > 1e-9
     x = h[ok, :2] / h[ok, 2:3] - principal
     f2 = -(x @ vp)
-    f2 = f2[f2 > 0]
-    return float(np.sqrt(np.median(f2))) if len(f2) >= MIN_HORIZON else None
+    if len(f2) < MIN_HORIZON:
+        return None
+    middle = np.median(f2)          # over all points: the noisy ones fall on both sides of f^2
+    return float(np.sqrt(middle)) if middle > 0 else None
 
 
 def focal_from_people(heads: np.ndarray, feet: np.ndarray, tracks: np.ndarray, principal: np.ndarray,
