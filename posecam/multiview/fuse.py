@@ -206,6 +206,7 @@ def _offsets(take: Take, association: Association, rig: Rig | None, start: list[
 
 def _estimated(take: Take, association: Association, sync: SyncResult, opts: FuseOptions,
                say: Callable[[str], None]) -> KeptCameras:
+    """The cameras without a calibration (posecam.multiview.calibrate.cameras_from_people)."""
     say("estimating the cameras")
     return cameras_from_people(take, association, sync, opts.min_conf, opts.bundle, opts.bundle_options)
 
