@@ -32,6 +32,7 @@ REPO = Path(__file__).resolve().parent.parent
 RUNNER = Path(__file__).parent / "tfjs_runner"
 PREFIX = REPO / ".cache" / "tfjs_runner"
 TOLERANCE = 1e-4
+GOLDEN_PHOTO = REPO / "examples" / "balance.jpg"
 
 
 @pytest.fixture(scope="module")
@@ -94,9 +95,14 @@ def real_images() -> dict[str, np.ndarray]:
 @pytest.fixture(scope="module")
 def movenet_outputs(node_modules, tmp_path_factory):
     """(ONNX, TF.js) outputs of MoveNet MultiPose on the real images at 256 on the long side,
-    and on one of them at 384 (the input size is free: any multiples of 32)."""
+    on one of them at 384 (the input size is free: any multiples of 32), and on the golden
+    photo as posecam's detector prepares it ("golden": examples/balance.jpg)."""
+    from posecam.inference.detector import load_detector
+    from posecam.media import read_image
+
     inputs = {f"{name}_256": letterbox(rgb, 256) for name, rgb in real_images().items()}
     inputs["basketball2_384"] = letterbox(real_images()["basketball2"], 384)
+    inputs["golden"] = load_detector("movenet").prepare(read_image(GOLDEN_PHOTO))[0]
     graph, _ = build.tfjs_sources("movenet")
     ref = run_tfjs(node_modules, graph, {k: x[None].astype(np.int32) for k, x in inputs.items()},
                    tmp_path_factory.mktemp("tfjs"))
@@ -113,7 +119,7 @@ def test_movenet_multipose_matches_tfjs(movenet_outputs, case):
     np.testing.assert_allclose(ours, ref, rtol=0, atol=TOLERANCE)
 
 
-def test_movenet_golden_is_the_tfjs_models_output(node_modules, tmp_path):
+def test_movenet_golden_is_the_tfjs_models_output(movenet_outputs):
     """The MoveNet detector's golden (tests/data/golden/movenet_balance.json, what posecam's
     detector finds in examples/balance.jpg) is the original TF.js graph's: run on the same
     resized, padded photo and decoded here from MoveNet's output layout (per person 17 (y, x,
@@ -123,9 +129,8 @@ def test_movenet_golden_is_the_tfjs_models_output(node_modules, tmp_path):
 
     golden = json.loads((DATA / "golden" / "movenet_balance.json").read_text())
     detector = load_detector("movenet")
-    canvas, to_image = detector.prepare(read_image(REPO / "examples" / "balance.jpg"))
-    graph, _ = build.tfjs_sources("movenet")
-    people = run_tfjs(node_modules, graph, {"balance": canvas[None].astype(np.int32)}, tmp_path)["balance"]["Identity"][0]
+    canvas, to_image = detector.prepare(read_image(GOLDEN_PHOTO))
+    people = movenet_outputs["golden"][1][0]
     h, w = canvas.shape[:2]
     found = []
     for row in people[np.argsort(-people[:, 55])]:
