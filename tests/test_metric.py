@@ -232,6 +232,7 @@ def test_predict_records_the_given_height(tmp_path):
     (p,) = json.loads(out.read_text())["inputs"][0]["frames"][0]["people"]
     (q,) = json.loads(plain.read_text())["inputs"][0]["frames"][0]["people"]
     assert (p["height"], p["height_source"], q["height_source"]) == (1.70, "given", "model")
+    assert q["height"] == pytest.approx(MODEL_STATURE["blazepose-full"], abs=0.001)     # the model's one size
     ratio = 1.70 / q["height"]
     assert p["root"][2] == pytest.approx(q["root"][2] * ratio, rel=0.002)       # scaled about the camera centre
     assert np.allclose(p["keypoints_2d"], q["keypoints_2d"])
