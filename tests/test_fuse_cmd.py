@@ -106,6 +106,19 @@ def test_twin_views_are_refused(tmp_path):
     assert len(r.stderr.strip().splitlines()) == 1
 
 
+def test_a_view_without_intrinsics_is_refused_in_one_line(tmp_path):
+    """A pose file may hold no intrinsics ("intrinsics": null); fusion needs them to rebuild its
+    poses, so it refuses that view by name (before: a traceback, AttributeError, exit 1)."""
+    _, paths = _inputs(tmp_path, 20)
+    doc = json.loads(paths[1].read_text())
+    doc["inputs"][0]["intrinsics"] = None
+    paths[1].write_text(json.dumps(doc))
+    out = tmp_path / "x.json"
+    r = run_posecam("fuse", *paths, "-o", out)
+    assert r.returncode == 2 and r.stderr.strip() == "posecam: error: view right has no intrinsics", r.stderr
+    assert not out.exists()
+
+
 def test_estimated_rig_reports_spreads_in_json_and_toml_and_takes_heights(tmp_path):
     cams, paths = _inputs(tmp_path, 60)
     out, toml = tmp_path / "fused.json", tmp_path / "rig.toml"
