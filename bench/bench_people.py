@@ -2,7 +2,7 @@
 
     python bench/bench_people.py [--detector movenet|blazepose] [--redetect-every N]
                                  [--vtest PATH [--vtest-frames N] [--overlay OUT.mp4]]
-                                 [--before CHECKOUT [--runs 3]]
+                                 [--before CHECKOUT [--runs 3]] [--appearance on|off]
 
 1. Pose2Sim's two-person take (`Demo_MultiPerson`, 4 portrait cameras 1088x1920, 100 frames,
    the lab's Qualisys calibration), each camera run with the lab intrinsics. The reference
@@ -15,6 +15,7 @@
      image height of the projected reference pelvis, Hungarian), over visible reference people;
    - root error: mean 3D distance (mm, camera frame) of posecam's root to the reference pelvis;
    - id switches: changes of the posecam id matched to the same reference person;
+   - ids: distinct posecam ids over the camera's recording (2 people walk in the take);
    - extra: posecam people matched to nobody.
    The videos are not frame-synchronised: the offsets (frames vs cam01) are checked here, from
    the reprojection error of the cross-view association for each candidate offset.
@@ -28,7 +29,9 @@
      clothes on the counted frames; they walk loops and come back);
    and an overlay video with ids to look at (--overlay).
 Frames per second are printed for each recording. Everything runs with posecam's defaults
-unless an option is given (the table says which). With --before CHECKOUT (a folder holding an
+unless an option is given (the table says which). The milliseconds a frame spent in the
+appearance embedder (the tracker's re-identification by looks) are printed too; `--appearance
+off` gives ids from motion alone (the tracker before the embedder). With --before CHECKOUT (a folder holding an
 older `posecam/`) the bench runs --runs times, each time the older code then this one, each in
 its own process, and prints both side by side: medians of the frames per second, the other
 figures of the last run (they do not change from run to run: it says so if they did).
@@ -230,12 +233,13 @@ def score_camera(cam, rec_frames, reference, start: int, height: int) -> dict:
                     last_id[rid] = people[j].id
         extra += len(people) - len(used)
     return {"visible": visible, "recall": matched / max(visible, 1), "root_mm": float(np.mean(errors)) if errors else np.nan,
-            "median_mm": float(np.median(errors)) if errors else np.nan, "switches": switches, "extra": extra}
+            "median_mm": float(np.median(errors)) if errors else np.nan, "switches": switches, "extra": extra,
+            "ids": len({p.id for f in rec_frames for p in f.people})}
 
 
 def estimator(args, k=None):
     """The estimator as configured; options an older posecam lacks (PYTHONPATH=its checkout, to
-    measure before/after) are left out."""
+    measure before/after) are left out. Its embedder, if any, is timed (`embedder_ms`)."""
     from dataclasses import fields
 
     from posecam import EstimatorOptions, IntrinsicsOptions, PoseEstimator
@@ -243,9 +247,32 @@ def estimator(args, k=None):
     intr = IntrinsicsOptions(k.fx, k.fy, k.cx, k.cy) if k else IntrinsicsOptions()
     wanted = dict(model=args.model, detector=args.detector, max_people=args.max_people,
                   redetect_every=args.redetect_every, detector_size=args.detector_size,
-                  min_detection_score=args.min_detection_score, intrinsics=intr)
+                  min_detection_score=args.min_detection_score, intrinsics=intr,
+                  appearance={"on": None, "off": False}[args.appearance])
     known = {f.name for f in fields(EstimatorOptions)}
-    return PoseEstimator(EstimatorOptions(**{n: v for n, v in wanted.items() if n in known and v is not None}))
+    est = PoseEstimator(EstimatorOptions(**{n: v for n, v in wanted.items() if n in known and v is not None}))
+    if getattr(est, "embedder", None) is not None:
+        est.embedder = _Timed(est.embedder)
+    return est
+
+
+class _Timed:
+    """An embedder that adds up the time spent in it."""
+
+    def __init__(self, embedder):
+        self.embedder, self.seconds = embedder, 0.0
+
+    def __call__(self, image_rgb, boxes):
+        t0 = time.perf_counter()
+        out = self.embedder(image_rgb, boxes)
+        self.seconds += time.perf_counter() - t0
+        return out
+
+
+def embedder_ms(est, frames: int) -> float:
+    """Milliseconds a frame spent in the estimator's embedder (0: none, as before it existed)."""
+    timed = getattr(est, "embedder", None)
+    return round(1000 * timed.seconds / max(frames, 1), 2) if isinstance(timed, _Timed) else 0.0
 
 
 def two_person(args) -> dict:
@@ -271,7 +298,8 @@ def two_person(args) -> dict:
     print(f"\nTwo-person take, {n} synchronised frames; reference: {np.mean(counts):.2f} people/frame found "
           f"across views, median reprojection {reproj:.1f} px")
     print(f"{options_text(args)}, lab intrinsics")
-    print(f"{'camera':8s}{'visible':>8s}{'recall':>8s}{'root mm':>9s}{'median':>8s}{'id sw.':>7s}{'extra':>6s}{'fps':>6s}")
+    print(f"{'camera':8s}{'visible':>8s}{'recall':>8s}{'root mm':>9s}{'median':>8s}{'id sw.':>7s}{'extra':>6s}{'fps':>6s}"
+          f"{'embed ms':>9s}")
     errors, result = [], {}
     for cam in cams:
         est = estimator(args, cam.intrinsics)
@@ -280,9 +308,11 @@ def two_person(args) -> dict:
         fps = len(rec_frames) / (time.perf_counter() - t0)
         s = score_camera(cam, rec_frames, reference, start[cam.name], sizes[cam.name][1])
         errors.append(s["root_mm"])
+        ms = embedder_ms(est, len(rec_frames))
         print(f"{cam.name:8s}{s['visible']:8d}{s['recall']:8.3f}{s['root_mm']:9.0f}{s['median_mm']:8.0f}"
-              f"{s['switches']:7d}{s['extra']:6d}{fps:6.1f}")
-        result[cam.name] = {"recall": round(s["recall"], 3), "switches": s["switches"], "fps": fps}
+              f"{s['switches']:7d}{s['extra']:6d}{fps:6.1f}{ms:9.1f}")
+        result[cam.name] = {"recall": round(s["recall"], 3), "switches": s["switches"], "ids": s["ids"], "fps": fps,
+                            "embed_ms": ms}
     print(f"{'all':8s}{'':8s}{'':8s}{np.nanmean(errors):9.0f}")
     return result
 
@@ -328,9 +358,10 @@ def vtest(args) -> dict:
           f"hand-counted people (target >= 0.90); frames with nobody {int((c == 0).sum())} (target 0); "
           f"ids {ids} for {VTEST_DISTINCT} people = {ids / VTEST_DISTINCT:.2f}x (target <= 1.5x); "
           f"people per frame median {np.median(c):.0f}, mean {c.mean():.2f}, max {c.max()}; "
-          f"dropped (person-frames) {dropped}; {fps:.1f} frames/s")
+          f"dropped (person-frames) {dropped}; {fps:.1f} frames/s, {embedder_ms(est, len(c)):.1f} ms a frame "
+          f"in the embedder")
     return {"found": f"{found}/{total}", "empty": int((c == 0).sum()), "ids": ids,
-            "per_frame": round(float(c.mean()), 2), "fps": fps}
+            "per_frame": round(float(c.mean()), 2), "fps": fps, "embed_ms": embedder_ms(est, len(c))}
 
 
 def before_after(args) -> None:
@@ -366,6 +397,8 @@ def before_after(args) -> None:
 def options_text(args) -> str:
     given = {n: getattr(args, n) for n in ("detector", "detector_size", "max_people", "redetect_every",
                                            "min_detection_score", "model") if getattr(args, n) is not None}
+    if args.appearance != "on":
+        given["appearance"] = args.appearance
     return "options " + ", ".join(f"{n}={v}" for n, v in given.items()) if given else "defaults"
 
 
@@ -394,6 +427,8 @@ def main() -> None:
     ap.add_argument("--overlay", help="write vtest's overlay video here")
     ap.add_argument("--before", help="a folder with an older posecam/ to run against this one (see above)")
     ap.add_argument("--runs", type=int, default=3, help="with --before: runs of each, alternated")
+    ap.add_argument("--appearance", choices=("on", "off"), default="on",
+                    help="re-identify people by their looks (on: the default) or ids from motion alone (off)")
     ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)   # a child's figures, for --before
     a = ap.parse_args()
     if a.before:

@@ -29,6 +29,7 @@ from posecam.geometry.camera import Intrinsics
 from posecam.geometry.lift import solve_root_translation
 from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.inference.detector import Detection, detect_any_turn, load_detector
+from posecam.inference.embedder import load_embedder
 from posecam.inference.pose_model import PoseCandidate, make_pose_model
 from posecam.inference.roi import Roi
 from posecam.inference.session import load_model
@@ -52,6 +53,7 @@ class EstimatorOptions:
     min_detection_score: float | None = None  # detector score a person needs to be looked at (None: the detector's default)
     min_presence: float = 0.5           # drop a person whose pose model presence falls below
     redetect_every: int = 15            # frames between detector runs while nobody may be missing
+    appearance: bool = True             # re-identify people by their looks (the bundled embedder); False: ids from motion alone
     threads: int | None = None
     device: str = "cpu"                 # "cpu" or "cuda" (onnxruntime-gpu's CUDA provider)
 
@@ -114,9 +116,11 @@ class PoseEstimator:
         self.detector = load_detector(opts.detector, opts.threads, opts.min_detection_score, opts.detector_size,
                                       opts.device)
         self.min_detection_score = self.detector.start_score
+        self.embedder = load_embedder(threads=opts.threads, device=opts.device) if opts.appearance else None
         pose = load_model(opts.model, opts.threads, device=opts.device)
-        if pose.contract.kind == "detector":
-            raise ModelError(f"{pose.path} is a detector, not a pose model")
+        if pose.contract.kind in ("detector", "embedder"):
+            raise ModelError(f"{pose.path} is {'a detector' if pose.contract.kind == 'detector' else 'an appearance embedder'}, "
+                             "not a pose model")
         self.pose_model = make_pose_model(pose)
         self.model_name = pose.contract.name
         self.joints = self._output_joints()
@@ -157,7 +161,7 @@ class PoseEstimator:
                 detections = self.detector(image_rgb, tiles=tracker.tiles_to_search(self.detector.tiles(w, h, person_px)))
             else:                  # nobody followed: every tile, and people in any orientation
                 detections = detect_any_turn(self.detector, image_rgb, person_px)
-        tracks = tracker.begin_frame(detections)
+        tracks = tracker.begin_frame(detections, image_rgb)
         if not tracks:
             return Frame(0, 0.0, [], dropped=list(tracker.refused))
         candidates = self.pose_model(image_rgb, [t.roi for t in tracks], k)
@@ -225,7 +229,8 @@ class PoseEstimator:
 
     def _tracker(self) -> Tracker:
         o, d = self.options, self.detector
-        return Tracker(TrackerOptions(o.max_people, o.redetect_every, high_score=d.start_score, low_score=d.min_score))
+        return Tracker(TrackerOptions(o.max_people, o.redetect_every, high_score=d.start_score, low_score=d.min_score),
+                       self.embedder)
 
     def _intrinsics(self, image_rgb: np.ndarray, k: Intrinsics | None) -> Intrinsics:
         h, w = image_rgb.shape[:2]   # given intrinsics are checked as the CLI checks them

@@ -5,9 +5,20 @@ keypoints and the ROI where the pose model looks next. On a detector frame the t
 matched to the detections in two stages (ByteTrack): first the confident detections, then the
 weak ones against the tracks left over, each by the Hungarian method on a cost that mixes box
 overlap (IoU) and keypoint similarity (OKS). Hysteresis: only a confident detection starts a
-track, a weak one keeps it alive, and an unmatched track survives `max_lost` frames before it is
-dropped, so ids outlast crossings and short occlusions. Between detector frames each track's ROI
-comes from its previous pose.
+track, a weak one keeps it alive, and an unmatched track can be matched by its motion for
+`max_lost` frames. Between detector frames each track's ROI comes from its previous pose.
+
+Appearance (with an embedder, posecam.inference.embedder): each track keeps a small gallery of
+appearance vectors of its person, taken from crops that overlap nobody else's box (at its
+birth, then at most every `refresh_every` frames). Where the motion match is ambiguous (a track
+near two detections, two tracks near one: people crossing), the cost also weighs the cosine
+distance of the detections' looks to the tracks' galleries; and a confident detection that no
+track's motion takes is first compared with the people lost in the last `reid_frames` frames
+(those lost for more than `motion_frames` frames are matched by their looks only):
+one whose gallery it resembles (cosine distance under `reid_distance`, a similar height) gets
+their id back, instead of a new one, if close enough to where they were seen
+last for the time they were away. Embeddings are computed only on detector frames, only for
+these detections.
 
 The tracker also says when to run the detector: every frame while nobody is followed or
 someone was just lost, every few frames while people may be missing (young tracks, people at
@@ -24,6 +35,7 @@ import numpy as np
 
 from posecam.geometry.boxes import box_iou
 from posecam.inference.detector import MIN_KEYPOINT_SCORE, Detection, oks
+from posecam.inference.embedder import AppearanceEmbedder
 from posecam.inference.roi import Roi
 from posecam.results import Dropped
 
@@ -65,6 +77,29 @@ def min_cost_assignment(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         rows, cols = cols, rows
     order = np.argsort(rows)
     return rows[order], cols[order]
+
+
+def unambiguous_pairs(cost: np.ndarray, max_cost: float, margin: float) -> list[tuple[int, int]]:
+    """Rows and columns of a (N, M) cost matrix paired cheapest first, each pair under
+    `max_cost` and cheaper by at least `margin` than every other pair left in its row and its
+    column: a pair that another row or column nearly matches as well is left unpaired (for
+    looks: a new id rather than someone else's)."""
+    cost = np.array(cost, dtype=float)
+    pairs = []
+    while np.isfinite(cost).any():
+        i, j = np.unravel_index(np.argmin(cost), cost.shape)
+        best = cost[i, j]
+        if best >= max_cost:
+            break
+        near_row, near_col = cost[i] < best + margin, cost[:, j] < best + margin
+        if near_row.sum() > 1 or near_col.sum() > 1:   # ambiguous: none of these is paired
+            cost[i, near_row] = np.inf
+            cost[near_col, j] = np.inf
+            continue
+        pairs.append((int(i), int(j)))
+        cost[i, :] = np.inf
+        cost[:, j] = np.inf
+    return pairs
 
 
 def foreign_joints(points: np.ndarray, conf: np.ndarray, own: Detection, others: list[Detection]) -> np.ndarray:
@@ -136,6 +171,14 @@ class Track:
     shown: int = 0                             # frames reported
     unseen: int = 0                            # detector runs in a row that searched where this person is and missed them
     detection: Detection | None = field(default=None, repr=False)   # this frame's, if any
+    gallery: list[np.ndarray] = field(default_factory=list, repr=False)   # unit appearance vectors, newest last
+    looked: int = -1                           # frame of the newest one (-1: none)
+
+    def appearance_distance(self, features: np.ndarray) -> np.ndarray:
+        """(N,) smallest cosine distance of N appearance vectors to this track's gallery (inf: empty)."""
+        if not self.gallery:
+            return np.full(len(features), np.inf)
+        return 1.0 - (features @ np.stack(self.gallery).T).max(axis=1)
 
     @property
     def box(self) -> np.ndarray:
@@ -157,18 +200,32 @@ class TrackerOptions:
     coast: int = 4                  # detector runs in a row that may miss someone the pose model still follows
     match_cost: float = 0.8         # 1 - similarity above which no match (first stage)
     low_match_cost: float = 0.5     # ... second stage (weak detections)
+    reid_frames: int = 150          # frames a lost person is remembered, to be recognised by appearance
+    motion_frames: int = 3          # frames a lost person with known looks is still matched by motion
+    reid_distance: float = 0.3      # cosine distance of looks under which a lost person is recognised
+    reid_height: float = 1.6        # ... if their heights differ by less than this factor
+    reid_speed: float = 0.1         # ... and they are no farther than (1 + this * frames lost) of their heights
+    reid_margin: float = 0.05       # ... and nobody else is within this distance of the same match
+    appearance_weight: float = 0.5  # share of the looks in an ambiguous motion match's cost
+    gallery: int = 8                # appearance vectors kept per track
+    refresh_every: int = 10         # frames between a matched track's new appearance vectors
 
 
 class Tracker:
     """Ids, motion and ROIs of the people followed in one video."""
 
-    def __init__(self, options: TrackerOptions | None = None):
+    def __init__(self, options: TrackerOptions | None = None, embedder: AppearanceEmbedder | None = None):
         self.options = options or TrackerOptions()
+        self.embedder = embedder             # None: ids from motion alone
         self.tracks: list[Track] = []
+        self._frame = -1
+        self._image: np.ndarray | None = None
+        self._features: dict[int, np.ndarray] = {}   # this frame's appearance vectors, by id(detection)
         self._next_id = 0
         self._since_detection = 0
         self._dropped = False
         self.refused: list[Dropped] = []     # this frame's confident detections over max_people
+        self.recognised: list[tuple[int, int, float]] = []   # this frame's (id, frames lost, distance) given back by looks
         self._smallest: float | None = None  # height (px) of the smallest confirmed person so far
         self._near: list[Track] = []         # the people whose overlap alone asks for this detector run
         self._searching: list[tuple[int, int, int, int]] | None = None   # this run's tiles (None: everywhere)
@@ -214,26 +271,30 @@ class Tracker:
     def active(self) -> list[Track]:
         return [t for t in self.tracks if t.lost == 0]
 
-    def begin_frame(self, detections: list[Detection] | None) -> list[Track]:
-        """Move every track on and, on a detector frame, match the detections; returns the
-        tracks the pose model must run on now (each with its ROI, and its detection if any):
-        those matched, those born, and those the detector missed while the pose model still
-        follows them (for up to `coast` detector runs in a row)."""
+    def begin_frame(self, detections: list[Detection] | None, image_rgb: np.ndarray | None = None) -> list[Track]:
+        """Move every track on and, on a detector frame, match the detections (`image_rgb`, the
+        frame, gives their looks to the embedder); returns the tracks the pose model must run
+        on now (each with its ROI, and its detection if any): those matched, those recognised,
+        those born, and those the detector missed while the pose model still follows them (for
+        up to `coast` detector runs in a row)."""
+        o = self.options
+        self._frame += 1
         for t in self.tracks:
-            t.kalman.predict()
+            if t.lost <= o.max_lost:   # a person lost longer is looked for by appearance only
+                t.kalman.predict()
             t.detection = None
-        self.refused = []
+        self.refused, self.recognised = [], []
         if detections is None:
             for t in self.tracks:
                 t.lost += t.lost > 0
-            self.tracks = [t for t in self.tracks if t.lost <= self.options.max_lost]
+            self.tracks = [t for t in self.tracks if t.lost <= self._remembered(t)]
             self._since_detection += 1
             return self.active()
         self._since_detection, self._dropped = 1, False
-        o = self.options
+        self._image, self._features = (image_rgb if self.embedder is not None else None), {}
         high = [d for d in detections if d.score >= o.high_score]
         low = [d for d in detections if o.low_score <= d.score < o.high_score]
-        pool = list(self.tracks)
+        pool = [t for t in self.tracks if t.lost <= o.max_lost and not self._by_looks(t)]
         left = self._match(pool, high, o.match_cost)
         pool = [t for t in pool if t.detection is None]
         self._match(pool, low, o.low_match_cost)
@@ -248,7 +309,8 @@ class Tracker:
                 t.unseen += int(looked)    # the detector missed someone the pose model still follows
             else:
                 t.lost += 1
-        self.tracks = [t for t in self.tracks if t.lost <= o.max_lost]
+        self.tracks = [t for t in self.tracks if t.lost <= self._remembered(t)]
+        left = self._recognise(left)
         # births, the tallest (nearest) first, while there is room: the people in front get the first ids
         for d in sorted(left, key=lambda d: d.box[1] - d.box[3]):
             if len(self.active()) >= o.max_people:
@@ -256,11 +318,34 @@ class Tracker:
                 continue
             self.tracks.append(Track(self._next_id, d.roi, BoxKalman(d.box), d.keypoints, d.keypoint_scores, detection=d))
             self._next_id += 1
+        self._refresh_looks(detections)
+        self._image, self._features = None, {}
         return self.active()
 
+    def _by_looks(self, track: Track) -> bool:
+        """Whether a track is matched by its looks rather than its motion: someone lost more than
+        `motion_frames` frames whose gallery is known (their motion model has lost them)."""
+        return self._image is not None and bool(track.gallery) and track.lost > self.options.motion_frames
+
+    def _remembered(self, track: Track) -> int:
+        """Frames an unseen track is kept: `reid_frames` if its looks are known, else `max_lost`."""
+        o = self.options
+        return max(o.reid_frames, o.max_lost) if self.embedder is not None and track.gallery else o.max_lost
+
+    def _looks(self, detections: list[Detection]) -> np.ndarray:
+        """(N, D) appearance vectors of detections in this frame, each computed once."""
+        todo = [d for d in detections if id(d) not in self._features]
+        if todo:
+            for d, f in zip(todo, self.embedder(self._image, np.array([d.box for d in todo]))):
+                self._features[id(d)] = f
+        return np.array([self._features[id(d)] for d in detections])
+
     def _match(self, tracks: list[Track], detections: list[Detection], max_cost: float) -> list[Detection]:
-        """Hungarian matching on 1 - max(IoU, OKS); matched tracks take their detection. Returns
-        the detections left unmatched."""
+        """Hungarian matching on 1 - max(IoU, OKS), gated at `max_cost`; where the match is
+        ambiguous (a track within the gate of two detections, a detection within that of two
+        tracks) and the looks are known, the cost of those pairs mixes in the cosine distance of
+        the detection's looks to the track's gallery. Matched tracks take their detection.
+        Returns the detections left unmatched."""
         if not tracks or not detections:
             return list(detections)
         boxes = np.array([d.box for d in detections])
@@ -270,17 +355,91 @@ class Tracker:
             for j, d in enumerate(detections):
                 if len(d.keypoints) == len(t.keypoints) and sim[i, j] > 0:
                     sim[i, j] = max(sim[i, j], oks(t.keypoints, t.keypoint_scores, d.keypoints, d.keypoint_scores, area))
-        rows, cols = min_cost_assignment(1.0 - sim)
+        motion = 1.0 - sim
+        cost = self._with_looks(tracks, detections, motion, max_cost)
+        rows, cols = min_cost_assignment(cost)
         used = set()
         for i, j in zip(rows, cols):
-            if 1.0 - sim[i, j] <= max_cost:
-                t, d = tracks[i], detections[j]
-                t.detection, t.roi, t.lost = d, d.roi, 0
-                t.hits += 1
-                t.kalman.update(d.box)
-                t.keypoints, t.keypoint_scores = d.keypoints, d.keypoint_scores
+            if motion[i, j] <= max_cost:
+                self._take(tracks[i], detections[j])
                 used.add(j)
         return [d for j, d in enumerate(detections) if j not in used]
+
+    def _with_looks(self, tracks: list[Track], detections: list[Detection], motion: np.ndarray,
+                    max_cost: float) -> np.ndarray:
+        """The matching cost: `motion`, except for the ambiguous pairs of tracks with a gallery,
+        (1 - w) * motion + w * appearance distance (w: `appearance_weight`)."""
+        gated = motion <= max_cost
+        ambiguous = gated & ((gated.sum(axis=1, keepdims=True) > 1) | (gated.sum(axis=0, keepdims=True) > 1))
+        ambiguous &= np.array([bool(t.gallery) for t in tracks])[:, None]
+        if self._image is None or not ambiguous.any():
+            return motion
+        cols = np.flatnonzero(ambiguous.any(axis=0))
+        looks = self._looks([detections[j] for j in cols])
+        cost, w = motion.copy(), self.options.appearance_weight
+        for i in np.flatnonzero(ambiguous.any(axis=1)):
+            d = np.minimum(tracks[i].appearance_distance(looks), 1.0)
+            sel = ambiguous[i, cols]
+            cost[i, cols[sel]] = (1 - w) * motion[i, cols[sel]] + w * d[sel]
+        return cost
+
+    @staticmethod
+    def _take(t: Track, d: Detection) -> None:
+        t.detection, t.roi, t.lost = d, d.roi, 0
+        t.hits += 1
+        t.kalman.update(d.box)
+        t.keypoints, t.keypoint_scores = d.keypoints, d.keypoint_scores
+
+    def _recognise(self, detections: list[Detection]) -> list[Detection]:
+        """Confident detections no motion took, against the people lost (unseen, remembered, with
+        a gallery): a person whose looks one resembles (cosine distance under `reid_distance`,
+        heights within `reid_height` of each other, no farther from where they were last than
+        they could walk: `reid_speed`), clearly more than anyone else's (`unambiguous_pairs`),
+        takes it with their id, their motion started afresh there. Returns the detections left to start new tracks."""
+        o = self.options
+        lost = [t for t in self.tracks if t.detection is None and t.lost > 0 and t.gallery]
+        if self._image is None or not lost or not detections:
+            return detections
+        looks = self._looks(detections)
+        cost = np.stack([t.appearance_distance(looks) for t in lost])
+        heights = np.array([d.box[3] - d.box[1] for d in detections])
+        was = np.array([t.kalman.x[3] for t in lost])
+        ratio = np.maximum(heights[None] / np.maximum(was[:, None], 1.0), was[:, None] / np.maximum(heights[None], 1.0))
+        cost[ratio > o.reid_height] = np.inf
+        # nobody walks faster than about a tenth of their height a frame (a body height a second at 10 fps)
+        centres = np.array([(d.box[:2] + d.box[2:]) / 2 for d in detections])
+        away = np.linalg.norm(centres[None] - np.array([t.kalman.x[:2] for t in lost])[:, None], axis=-1)
+        cost[away > was[:, None] * (1.0 + o.reid_speed * np.array([t.lost for t in lost]))[:, None]] = np.inf
+        used = set()
+        for i, j in unambiguous_pairs(cost, o.reid_distance, o.reid_margin):
+            t, d = lost[i], detections[j]
+            self.recognised.append((t.id, t.lost, float(cost[i, j])))
+            t.kalman = BoxKalman(d.box)
+            t.unseen = 0
+            self._take(t, d)
+            used.add(j)
+        return [d for j, d in enumerate(detections) if j not in used]
+
+    def _refresh_looks(self, detections: list[Detection]) -> None:
+        """Add to the galleries of the tracks matched on this frame whose newest vector is
+        `refresh_every` frames old (or missing), from their detection's crop when it overlaps
+        no other detection's box (a crop with a neighbour in it would describe two people)."""
+        if self._image is None:
+            return
+        o = self.options
+        due = [t for t in self.tracks if t.detection is not None
+               and (t.looked < 0 or self._frame - t.looked >= o.refresh_every)]
+        boxes = np.array([d.box for d in detections])
+        clean = []
+        for t in due:
+            overlap = box_iou(t.detection.box[None], boxes)[0]
+            if (overlap > 0).sum() <= 1:   # itself only
+                clean.append(t)
+        if not clean:
+            return
+        for t, f in zip(clean, self._looks([t.detection for t in clean])):
+            t.gallery = (t.gallery + [f])[-o.gallery:]
+            t.looked = self._frame
 
     def end_frame(self, tracks: list[Track], found: list[bool], keypoints: list[np.ndarray | None],
                   keypoint_scores: list[np.ndarray | None], next_rois: list[Roi]) -> list[int]:

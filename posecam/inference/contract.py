@@ -5,6 +5,7 @@ Every model is recognised from its `metadata_props`, never from its file name. K
 - ``posecam.contract``  "1"
 - ``posecam.kind``      "detector" | "landmarks" (metric root-relative pose + 2D, BlazePose)
                          | "root_depth" (the paper's ResNet-U: u, v, relative depth, z_a)
+                         | "embedder" (a person crop's appearance vector, for the tracker)
 - ``posecam.name``      a short model name, e.g. "blazepose-full"
 - ``posecam.joints``    JSON list of the joint names the model outputs, in output order
 - ``posecam.input``     JSON {"name", "layout": "NHWC"|"NCHW", "size": [h, w],
@@ -23,6 +24,8 @@ Every model is recognised from its `metadata_props`, never from its file name. K
     root_depth: "uv" [N, J, 2] crop pixels, "depth" [N, J] mm relative to the root,
                 "z_root" [N, 1] mm, "confidence" [N, J] in [0, 1]; a second input
                 ``posecam.box_input`` [N, 4] takes the box (cx/W, cy/H, w/W, h/H)
+    embedder:   "embedding" [N, D] unit vectors, one per crop of a person's box stretched to
+                the input size (no joints)
 - root_depth only: ``posecam.train_focal`` focal length (px) of the training camera and
   ``posecam.train_image_width`` its image width (px). z_a is rescaled by
   (f / W) / (f_train / W_train), which is f / f_train for images of the training width.
@@ -41,8 +44,9 @@ CONTRACT_VERSION = "1"
 # ("heavy" on request, not committed). How each is run comes from its file's metadata.
 POSE_MODELS = {"lite": "blazepose_lite.onnx", "full": "blazepose_full.onnx", "heavy": "blazepose_heavy.onnx"}
 DETECTORS = {"movenet": "movenet_multipose.onnx", "blazepose": "blazepose_detector.onnx"}
+EMBEDDERS = {"mobilenetv2": "appearance_mobilenetv2.onnx"}
 ON_REQUEST = ("heavy",)
-KINDS = ("detector", "landmarks", "root_depth")
+KINDS = ("detector", "landmarks", "root_depth", "embedder")
 DECODERS = {  # detector decoders and the outputs each needs
     "blazepose_ssd": ("boxes", "scores"),
     "movenet_multipose": ("people",),
@@ -50,6 +54,7 @@ DECODERS = {  # detector decoders and the outputs each needs
 REQUIRED_OUTPUTS = {
     "landmarks": ("landmarks", "presence", "world"),
     "root_depth": ("uv", "depth", "z_root", "confidence"),
+    "embedder": ("embedding",),
 }
 
 
@@ -125,7 +130,7 @@ class ModelContract:
             raise ModelError(f"{source}: {kind} model lacks outputs for {', '.join(missing)}")
         if spec.layout not in ("NHWC", "NCHW"):
             raise ModelError(f"{source}: input layout must be NHWC or NCHW, got {spec.layout!r}")
-        if (kind != "detector" or decoder == "movenet_multipose") and not joints:
+        if (kind in ("landmarks", "root_depth") or decoder == "movenet_multipose") and not joints:
             raise ModelError(f"{source}: {kind} model does not list its joints")
         if kind == "root_depth" and (train_focal is None or train_width is None or "posecam.box_input" not in meta):
             raise ModelError(f"{source}: root_depth model needs posecam.train_focal, "

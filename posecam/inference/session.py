@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import onnxruntime as ort
 
-from posecam.inference.contract import DETECTORS, ON_REQUEST, POSE_MODELS, InputSpec, ModelContract
+from posecam.inference.contract import DETECTORS, EMBEDDERS, ON_REQUEST, POSE_MODELS, InputSpec, ModelContract
 from posecam.errors import InputError, ModelError
 
 MODELS_DIR = Path(__file__).resolve().parents[1] / "models"
@@ -20,9 +20,10 @@ REBUILD_HINT = "pip install -e '.[export,test]' && python -m export.convert.buil
 
 
 def resolve_model(name_or_path: str, kind: str | None = None) -> Path:
-    """A bundled model's name (a pose model, or with kind "detector" a detector; see
-    contract.POSE_MODELS, DETECTORS) or a path to an .onnx file -> an existing file."""
-    bundled = DETECTORS if kind == "detector" else POSE_MODELS
+    """A bundled model's name (a pose model, with kind "detector" a detector, with kind
+    "embedder" an appearance embedder; see contract.POSE_MODELS, DETECTORS, EMBEDDERS) or a path
+    to an .onnx file -> an existing file."""
+    bundled = {"detector": DETECTORS, "embedder": EMBEDDERS}.get(kind or "", POSE_MODELS)
     if name_or_path in bundled:
         path = MODELS_DIR / bundled[name_or_path]
         if not path.is_file():
