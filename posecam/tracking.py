@@ -14,7 +14,7 @@ birth, then at most every `refresh_every` frames). Where the motion match is amb
 near two detections, two tracks near one: people crossing), the cost also weighs the cosine
 distance of the detections' looks to the tracks' galleries; and a confident detection that no
 track's motion takes is first compared with the people lost in the last `reid_frames` frames
-(those lost for more than `motion_frames` frames are matched by their looks only):
+(a motion match of someone lost is refused if the looks differ by more than `unlike`):
 one whose gallery it resembles (cosine distance under `reid_distance`, a similar height) gets
 their id back, instead of a new one, if close enough to where they were seen
 last for the time they were away. Embeddings are computed only on detector frames, only for
@@ -200,8 +200,8 @@ class TrackerOptions:
     coast: int = 4                  # detector runs in a row that may miss someone the pose model still follows
     match_cost: float = 0.8         # 1 - similarity above which no match (first stage)
     low_match_cost: float = 0.5     # ... second stage (weak detections)
-    reid_frames: int = 150          # frames a lost person is remembered, to be recognised by appearance
-    motion_frames: int = 3          # frames a lost person with known looks is still matched by motion
+    reid_frames: int = 60           # frames a lost person is remembered, to be recognised by appearance
+    unlike: float = 0.4             # cosine distance of looks over which a lost person's motion match is refused
     reid_distance: float = 0.3      # cosine distance of looks under which a lost person is recognised
     reid_height: float = 1.6        # ... if their heights differ by less than this factor
     reid_speed: float = 0.1         # ... and they are no farther than (1 + this * frames lost) of their heights
@@ -225,7 +225,6 @@ class Tracker:
         self._since_detection = 0
         self._dropped = False
         self.refused: list[Dropped] = []     # this frame's confident detections over max_people
-        self.recognised: list[tuple[int, int, float]] = []   # this frame's (id, frames lost, distance) given back by looks
         self._smallest: float | None = None  # height (px) of the smallest confirmed person so far
         self._near: list[Track] = []         # the people whose overlap alone asks for this detector run
         self._searching: list[tuple[int, int, int, int]] | None = None   # this run's tiles (None: everywhere)
@@ -283,7 +282,7 @@ class Tracker:
             if t.lost <= o.max_lost:   # a person lost longer is looked for by appearance only
                 t.kalman.predict()
             t.detection = None
-        self.refused, self.recognised = [], []
+        self.refused = []
         if detections is None:
             for t in self.tracks:
                 t.lost += t.lost > 0
@@ -294,7 +293,7 @@ class Tracker:
         self._image, self._features = (image_rgb if self.embedder is not None else None), {}
         high = [d for d in detections if d.score >= o.high_score]
         low = [d for d in detections if o.low_score <= d.score < o.high_score]
-        pool = [t for t in self.tracks if t.lost <= o.max_lost and not self._by_looks(t)]
+        pool = [t for t in self.tracks if t.lost <= o.max_lost]
         left = self._match(pool, high, o.match_cost)
         pool = [t for t in pool if t.detection is None]
         self._match(pool, low, o.low_match_cost)
@@ -321,11 +320,6 @@ class Tracker:
         self._refresh_looks(detections)
         self._image, self._features = None, {}
         return self.active()
-
-    def _by_looks(self, track: Track) -> bool:
-        """Whether a track is matched by its looks rather than its motion: someone lost more than
-        `motion_frames` frames whose gallery is known (their motion model has lost them)."""
-        return self._image is not None and bool(track.gallery) and track.lost > self.options.motion_frames
 
     def _remembered(self, track: Track) -> int:
         """Frames an unseen track is kept: `reid_frames` if its looks are known, else `max_lost`."""
@@ -357,30 +351,36 @@ class Tracker:
                     sim[i, j] = max(sim[i, j], oks(t.keypoints, t.keypoint_scores, d.keypoints, d.keypoint_scores, area))
         motion = 1.0 - sim
         cost = self._with_looks(tracks, detections, motion, max_cost)
-        rows, cols = min_cost_assignment(cost)
+        rows, cols = min_cost_assignment(np.minimum(cost, 1e6))
         used = set()
         for i, j in zip(rows, cols):
-            if motion[i, j] <= max_cost:
+            if motion[i, j] <= max_cost and np.isfinite(cost[i, j]):
                 self._take(tracks[i], detections[j])
                 used.add(j)
         return [d for j, d in enumerate(detections) if j not in used]
 
     def _with_looks(self, tracks: list[Track], detections: list[Detection], motion: np.ndarray,
                     max_cost: float) -> np.ndarray:
-        """The matching cost: `motion`, except for the ambiguous pairs of tracks with a gallery,
-        (1 - w) * motion + w * appearance distance (w: `appearance_weight`)."""
+        """The matching cost: `motion`, except for the pairs within the motion gate of a track
+        with a gallery that is lost or ambiguous: (1 - w) * motion + w * appearance distance
+        (w: `appearance_weight`), and out of the gate (inf) for a lost one whose looks differ
+        by more than `unlike`."""
+        o = self.options
         gated = motion <= max_cost
-        ambiguous = gated & ((gated.sum(axis=1, keepdims=True) > 1) | (gated.sum(axis=0, keepdims=True) > 1))
-        ambiguous &= np.array([bool(t.gallery) for t in tracks])[:, None]
-        if self._image is None or not ambiguous.any():
+        lost = np.array([t.lost > 0 for t in tracks])[:, None]
+        looked = gated & (lost | (gated.sum(axis=1, keepdims=True) > 1) | (gated.sum(axis=0, keepdims=True) > 1))
+        looked &= np.array([bool(t.gallery) for t in tracks])[:, None]
+        if self._image is None or not looked.any():
             return motion
-        cols = np.flatnonzero(ambiguous.any(axis=0))
+        cols = np.flatnonzero(looked.any(axis=0))
         looks = self._looks([detections[j] for j in cols])
-        cost, w = motion.copy(), self.options.appearance_weight
-        for i in np.flatnonzero(ambiguous.any(axis=1)):
+        cost, w = motion.copy(), o.appearance_weight
+        for i in np.flatnonzero(looked.any(axis=1)):
             d = np.minimum(tracks[i].appearance_distance(looks), 1.0)
-            sel = ambiguous[i, cols]
+            sel = looked[i, cols]
             cost[i, cols[sel]] = (1 - w) * motion[i, cols[sel]] + w * d[sel]
+            if tracks[i].lost > 0:
+                cost[i, cols[sel & (d > o.unlike)]] = np.inf
         return cost
 
     @staticmethod
@@ -413,7 +413,6 @@ class Tracker:
         used = set()
         for i, j in unambiguous_pairs(cost, o.reid_distance, o.reid_margin):
             t, d = lost[i], detections[j]
-            self.recognised.append((t.id, t.lost, float(cost[i, j])))
             t.kalman = BoxKalman(d.box)
             t.unseen = 0
             self._take(t, d)
