@@ -227,10 +227,11 @@ class PoseEstimator:
         agrees = oks(c.keypoints_2d[idx], c.confidence[idx], own.keypoints, own.keypoint_scores, area) >= 0.5
         return c, None if c.score >= min_presence or agrees else "presence"
 
-    def _tracker(self) -> Tracker:
+    def _tracker(self, video: bool = True) -> Tracker:
+        """A tracker for one input; the looks are only for a video's frames (one image has no one to recognise)."""
         o, d = self.options, self.detector
         return Tracker(TrackerOptions(o.max_people, o.redetect_every, high_score=d.start_score, low_score=d.min_score),
-                       self.embedder)
+                       self.embedder if video else None)
 
     def _intrinsics(self, image_rgb: np.ndarray, k: Intrinsics | None) -> Intrinsics:
         h, w = image_rgb.shape[:2]   # given intrinsics are checked as the CLI checks them
@@ -238,7 +239,7 @@ class PoseEstimator:
 
     def predict_image(self, image_rgb: np.ndarray, intrinsics: Intrinsics | None = None) -> Frame:
         """Poses of every person in one RGB uint8 image; nothing is kept between calls."""
-        return self._step(image_rgb, self._intrinsics(image_rgb, intrinsics), self._tracker())
+        return self._step(image_rgb, self._intrinsics(image_rgb, intrinsics), self._tracker(video=False))
 
     def track(self, frames_rgb: Iterable[np.ndarray], intrinsics: Intrinsics | None = None) -> Iterator[Frame]:
         """Poses for the frames of one video, people followed with stable ids. The tracks live
@@ -270,7 +271,7 @@ class PoseEstimator:
         def frames() -> Iterator[tuple[Frame, np.ndarray]]:
             tracker = self._tracker()
             for index, time, rgb in media.frames():
-                frame = self._step(rgb, k, tracker if media.kind != "image" else self._tracker())
+                frame = self._step(rgb, k, tracker if media.kind != "image" else self._tracker(video=False))
                 frame.index, frame.time = index, time
                 yield frame, rgb
 
