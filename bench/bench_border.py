@@ -8,11 +8,13 @@
 2. Bombs: peak memory and exit code of `posecam` on a 30000 x 30000 TIFF, a 20000 x 20000 JPEG
    (small files whose headers claim that much), a pose JSON with a million people in one frame,
    and (with torch) a 2 MB checkpoint that inflates to 2 GiB. Budget: 1 GB each.
-3. `predict --out-dir --jobs 2` on 5 clips: seconds from Ctrl-C (to the process group) or
-   SIGTERM (to posecam) to the end, and the files written after the signal; medians.
+3. `predict --out-dir` on 8 clips with `--jobs 2` and (with Ray) `--ray` on a local instance:
+   exit code, seconds from Ctrl-C (to the process group) or SIGTERM (to posecam) to the end, the
+   files written after the signal and the staging folders left (1 s later); medians.
 
     python bench/bench_border.py
-    python bench/bench_border.py --source /tmp/before     # the pose read of another checkout too
+    python bench/bench_border.py --source /tmp/before     # another checkout's pose read and stops too
+    python bench/bench_border.py --only signals
 """
 
 from __future__ import annotations
@@ -121,48 +123,78 @@ def bench_bombs(tmp: Path) -> None:
         print(f"   {name:36s} exit {code}  {peak:5.0f} MB  {seconds:4.1f} s  {line}")
 
 
-def bench_signals(tmp: Path) -> None:
+def _stop_once(out: Path, inputs: list[Path], workers: list[str], sig: int, group: bool,
+               source: Path) -> tuple[int, float, int, int]:
+    """One `predict --out-dir` run signalled once its first file is written: (exit code, seconds
+    from the signal to the end, files written after it, staging folders left)."""
+    shutil.rmtree(out, ignore_errors=True)
+    out.mkdir()
+    proc = subprocess.Popen([sys.executable, "-m", "posecam", "predict", *map(str, inputs), "--model", "lite",
+                             "--out-dir", str(out), *workers], env={**os.environ, "PYTHONPATH": str(source)},
+                            cwd=source, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,   # -m: cwd first
+                            start_new_session=True)
+    while not any(p.suffix == ".json" for p in out.iterdir()):
+        if proc.poll() is not None:
+            raise SystemExit(f"predict {' '.join(workers)} ended (exit {proc.returncode}) before writing a file")
+        time.sleep(0.02)
+    time.sleep(0.3)
+    before = {p.name for p in out.iterdir() if p.suffix == ".json"}
+    start = time.perf_counter()
+    os.killpg(proc.pid, sig) if group else proc.send_signal(sig)
+    proc.wait()
+    took = time.perf_counter() - start
+    time.sleep(1.0)
+    names = {p.name for p in out.iterdir()}
+    return proc.returncode, took, len({n for n in names if n.endswith(".json")} - before), \
+        sum(n.startswith(".posecam-") for n in names)
+
+
+def bench_signals(tmp: Path, before: Path | None) -> None:
     clip = REPO / "tests" / "data" / "balance_cam01_30f.mp4"
     inputs = []
-    for i in range(5):
+    for i in range(8):
         inputs.append(tmp / f"v{i}.mp4")
         shutil.copy(clip, inputs[-1])
-    print(f"3. predict --out-dir --jobs 2 on 5 clips, signal once the first file is written; median of {RUNS}")
+    try:
+        import ray  # noqa: F401
+        pools = [("--jobs 2", ["--jobs", "2"]), ("--ray", ["--ray"])]   # --ray: a local instance
+    except ImportError:
+        pools = [("--jobs 2", ["--jobs", "2"])]
+        print("   (no Ray: --ray is left out)")
+    sources = [("this checkout", REPO)] + ([(str(before), before)] if before else [])
+    print(f"3. predict --out-dir on 8 clips, signal once the first file is written; median of {RUNS}")
     for sig, group in ((signal.SIGINT, True), (signal.SIGTERM, False)):
-        took, late = [], []
-        for _ in range(RUNS):
-            out = tmp / "out"
-            shutil.rmtree(out, ignore_errors=True)
-            out.mkdir()
-            proc = subprocess.Popen([sys.executable, "-m", "posecam", "predict", *map(str, inputs), "--model", "lite",
-                                     "--out-dir", str(out), "--jobs", "2"], env={**os.environ, "PYTHONPATH": str(REPO)},
-                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
-            while not any(p.suffix == ".json" for p in out.iterdir()):
-                time.sleep(0.02)
-            time.sleep(0.3)
-            before = {p.name for p in out.iterdir() if p.suffix == ".json"}
-            start = time.perf_counter()
-            os.killpg(proc.pid, sig) if group else proc.send_signal(sig)
-            proc.wait()
-            took.append(time.perf_counter() - start)
-            time.sleep(1.0)
-            late.append(len({p.name for p in out.iterdir() if p.suffix == ".json"} - before))
         name = "Ctrl-C (process group)" if group else "SIGTERM (posecam only)"
-        print(f"   {name:24s} ends in {statistics.median(took):.2f} s; files written after it: {max(late)}")
+        for pool, workers in pools:
+            runs = {source: [] for _, source in sources}
+            for _ in range(RUNS):   # the checkouts alternated: the same load for both
+                for source in runs:
+                    runs[source].append(_stop_once(tmp / "out", inputs, workers, sig, group, source))
+            for source_name, source in sources:
+                codes = "/".join(sorted({str(r[0]) for r in runs[source]}))
+                print(f"   {name:24s} {pool:8s} {source_name:16s} exit {codes:7s} ends in "
+                      f"{statistics.median(r[1] for r in runs[source]):5.2f} s; files written after it: "
+                      f"{max(r[2] for r in runs[source])}; staging folders left: {max(r[3] for r in runs[source])}")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--source", type=Path, help="another checkout, for the pose read before/after")
+    parser.add_argument("--source", type=Path, help="another checkout, for the pose read and the stops before/after")
+    parser.add_argument("--only", choices=("read", "bombs", "signals"), help="run one part only")
     parser.add_argument("--make", type=Path, help=argparse.SUPPRESS)   # the child that writes the files
     args = parser.parse_args()
     if args.make:
         return make_files(args.make)
     with tempfile.TemporaryDirectory() as tmp:
-        subprocess.run([sys.executable, __file__, "--make", tmp], check=True, env={**os.environ, "PYTHONPATH": str(REPO)})
-        bench_read(Path(tmp), args.source)
-        bench_bombs(Path(tmp))
-        bench_signals(Path(tmp))
+        if args.only != "signals":
+            subprocess.run([sys.executable, __file__, "--make", tmp], check=True,
+                           env={**os.environ, "PYTHONPATH": str(REPO)})
+        if args.only in (None, "read"):
+            bench_read(Path(tmp), args.source)
+        if args.only in (None, "bombs"):
+            bench_bombs(Path(tmp))
+        if args.only in (None, "signals"):
+            bench_signals(Path(tmp), args.source)
 
 
 if __name__ == "__main__":

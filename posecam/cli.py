@@ -60,7 +60,10 @@ def _interrupted(exc: BaseException) -> None:
     # the signal noted, where a library turned the Terminated into a plain KeyboardInterrupt (Ray's wait)
     terminated = isinstance(_interrupt_in_chain(exc), Terminated) or last_signal() == signal.SIGTERM
     click.echo("posecam: terminated" if terminated else "posecam: interrupted", err=True)
-    _end_now(143 if terminated else 130)
+    code = 143 if terminated else 130
+    if last_signal() is None:   # a KeyboardInterrupt raised in this process, not a signal to it
+        sys.exit(code)
+    _end_now(code)
 
 
 def _end_now(code: int) -> None:
