@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING
 from posecam.errors import InputError, OutputError, PosecamError, last_signal, note_signal
 from posecam.estimate import EstimatorOptions, shared_estimator
 from posecam.filters import smooth_recording
-from posecam.io.atomic import OutputSet, remove_run_staging, tagged_staging
+from posecam.io.atomic import OutputSet, check_output, remove_run_staging, tagged_staging
 from posecam.io.intrinsics import IntrinsicsOptions
 from posecam.io.poses import PoseWriter, write_poses
 from posecam.media import VIDEO_SUFFIXES
@@ -57,9 +57,7 @@ def _plan(names: list[str], inputs: list[tuple[str, ...]], out_dir: str | os.Pat
         if name in seen:
             raise InputError(f"two inputs would both write {name}{suffix}; give them different names")
         seen.add(name)
-        target = folder / f"{name}{suffix}"
-        if target.is_dir() or (target.exists() and not target.is_file()):
-            raise OutputError(f"cannot write {target}: it is an existing folder (or not a regular file)")
+        target = check_output(folder / f"{name}{suffix}", views)   # a folder there, a name too long: exit 4
         if not target.exists():   # written atomically, so an existing output is complete
             tasks.append(Task(views, str(target)))
     return tasks

@@ -37,6 +37,15 @@ def test_jobs_need_an_output_folder(tmp_path):
     assert r.returncode == 4 and "does not exist" in r.stderr
 
 
+@pytest.mark.parametrize("command", ["predict", "fuse"])
+def test_jobs_and_ray_together_are_refused_before_any_work(tmp_path, command):
+    inputs = INPUTS if command == "predict" else [tmp_path]
+    r = run_posecam(command, *inputs, "--out-dir", tmp_path, "--jobs", "2", "--ray")
+    assert r.returncode == 2 and r.stderr.strip() == "posecam: error: --jobs runs local worker processes, --ray " \
+        "Ray tasks: give one of them", r.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.skipif(shutil.which("ray") is None, reason="Ray is not installed (pip install -e '.[ray]')")
 def test_ray_runs_one_task_per_input_on_a_local_instance(tmp_path):
     r = run_posecam("predict", *INPUTS, "--out-dir", tmp_path, "--format", "csv", "--ray")

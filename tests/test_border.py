@@ -135,6 +135,17 @@ def test_a_name_too_long_is_exit_4(tmp_path, name, flag):
 # stdout is an output: a full one is exit 4 and nothing is written; a closed pipe ends quietly
 # with the files written, as Unix tools do.
 
+def test_an_out_dir_output_name_too_long_is_exit_4(tmp_path):
+    """A 255-byte input name gives a 256-byte output name in --out-dir (.jpg -> .json)."""
+    image = tmp_path / ("x" * 251 + ".jpg")
+    shutil.copy(DATA / "messi5.jpg", image)
+    out = tmp_path / "out"
+    out.mkdir()
+    r = run_posecam("predict", image, "--model", "lite", "--out-dir", out)
+    check_promise(r, 4, "File name too long")
+    assert list(out.iterdir()) == []
+
+
 def test_a_full_stdout_is_exit_4_and_writes_no_file(tmp_path):
     with open("/dev/full", "w") as full:
         r = subprocess.run([sys.executable, "-m", "posecam", "predict", DATA / "messi5.jpg", "--model", "lite",

@@ -30,9 +30,11 @@ def _run(tasks: list, total: int, work, out_dir: str, jobs: int, ray_address: st
     click.echo(f"posecam: {len(tasks)} written, {skipped} skipped{left_out}, in {Path(out_dir)}", err=True)
 
 
-def _need_out_dir(out_dir: str | None) -> None:
+def _check_batch(out_dir: str | None, jobs: int, ray_address: str | None) -> None:
     if out_dir is None:
         raise InputError("--jobs and --ray write one file per input: give the folder with --out-dir")
+    if jobs > 1 and ray_address is not None:
+        raise InputError("--jobs runs local worker processes, --ray Ray tasks: give one of them")
 
 
 def predict_many(inputs: list[str], options, intrinsics, out_dir: str | None, suffix: str, jobs: int,
@@ -40,7 +42,7 @@ def predict_many(inputs: list[str], options, intrinsics, out_dir: str | None, su
     """Predict every input into DIR/<input name><suffix> (`unreadable`: photos left out, for the summary)."""
     from posecam.batch import plan_predictions, predict_task, threads_per_worker
 
-    _need_out_dir(out_dir)
+    _check_batch(out_dir, jobs, ray_address)
     tasks = plan_predictions(inputs, out_dir, suffix)
     options = threads_per_worker(options, jobs) if jobs > 1 else options
     _run(tasks, len(inputs), partial(predict_task, options=options, intrinsics=intrinsics, smooth=smooth, metric=metric), out_dir,
@@ -52,7 +54,7 @@ def fuse_many(takes: list[str], options, estimator, intrinsics, calibration: str
     """Fuse every take folder into DIR/<take name><suffix>."""
     from posecam.batch import fuse_task, plan_fusions, threads_per_worker
 
-    _need_out_dir(out_dir)
+    _check_batch(out_dir, jobs, ray_address)
     tasks = plan_fusions(takes, out_dir, suffix)
     estimator = threads_per_worker(estimator, jobs) if jobs > 1 else estimator
     work = partial(fuse_task, options=options, estimator=estimator, intrinsics=intrinsics, calibration=calibration,
