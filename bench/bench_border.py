@@ -9,8 +9,9 @@
    (small files whose headers claim that much), a pose JSON with a million people in one frame,
    and (with torch) a 2 MB checkpoint that inflates to 2 GiB. Budget: 1 GB each.
 3. `predict --out-dir` on 8 clips with `--jobs 2` and (with Ray) `--ray` on a local instance:
-   exit code, seconds from Ctrl-C (to the process group) or SIGTERM (to posecam) to the end, the
-   files written after the signal and the staging folders left (1 s later); medians.
+   exit code, seconds from Ctrl-C (to the process group) or SIGTERM (to posecam, or to its
+   process group) to the end, the files written after the signal and the staging folders left
+   (1 s later); medians.
 
     python bench/bench_border.py
     python bench/bench_border.py --source /tmp/before     # another checkout's pose read and stops too
@@ -163,8 +164,9 @@ def bench_signals(tmp: Path, before: Path | None) -> None:
         print("   (no Ray: --ray is left out)")
     sources = [("this checkout", REPO)] + ([(str(before), before)] if before else [])
     print(f"3. predict --out-dir on 8 clips, signal once the first file is written; median of {RUNS}")
-    for sig, group in ((signal.SIGINT, True), (signal.SIGTERM, False)):
-        name = "Ctrl-C (process group)" if group else "SIGTERM (posecam only)"
+    for name, sig, group in (("Ctrl-C (process group)", signal.SIGINT, True),
+                             ("SIGTERM (posecam only)", signal.SIGTERM, False),
+                             ("SIGTERM (process group)", signal.SIGTERM, True)):   # systemd stopping a unit
         for pool, workers in pools:
             runs = {source: [] for _, source in sources}
             for _ in range(RUNS):   # the checkouts alternated: the same load for both
@@ -172,7 +174,7 @@ def bench_signals(tmp: Path, before: Path | None) -> None:
                     runs[source].append(_stop_once(tmp / "out", inputs, workers, sig, group, source))
             for source_name, source in sources:
                 codes = "/".join(sorted({str(r[0]) for r in runs[source]}))
-                print(f"   {name:24s} {pool:8s} {source_name:16s} exit {codes:7s} ends in "
+                print(f"   {name:25s} {pool:8s} {source_name:16s} exit {codes:7s} ends in "
                       f"{statistics.median(r[1] for r in runs[source]):5.2f} s; files written after it: "
                       f"{max(r[2] for r in runs[source])}; staging folders left: {max(r[3] for r in runs[source])}")
 
