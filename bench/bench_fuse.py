@@ -304,6 +304,8 @@ def worker(take: str, cache: Path, offsets: list[float], out: Path) -> None:
                           "fx": [c.intrinsics.fx for c in cams], "offsets_kept": [res.offsets[v] for v in res.views],
                           "warnings": res.warnings, "pelvis": pelvis,
                           **({"scale": res.scale_source} if hasattr(res, "scale_source") else {}),
+                          "spreads": [[r.spread.rotation_deg, r.spread.focal_pct, r.spread.position_mm]
+                                      if getattr(r, "spread", None) is not None else None for r in res.cameras],
                           "reports": [{k: (v if not isinstance(v, np.ndarray) else v.tolist())
                                        for k, v in vars(r).items() if isinstance(v, (int, float, str, list, tuple))}
                                       for r in res.cameras]}
@@ -408,6 +410,14 @@ def show(label: str, runs: dict[str, dict], truth: Truth) -> None:
               f"({', '.join(f'{k} {v:+.1f}' for k, v in s['focal'].items())}); centre median {s['centre_median']:.0f} mm; "
               f"pelvis median {s['pelvis_median']:.0f} mm ({s['pelvises']}); offsets {r['offsets_kept']} "
               f"(max error {s['offset_max']:.2f} frame)" + (f"; scale: {r['scale']}" if "scale" in r else ""))
+        if any(r.get("spreads") or []):
+            # one standard deviation per camera against its error: rotation against cam01's (the
+            # pair cam01-camNN), the focal length's, the centre's
+            rows = [f"{n} ±{sp[0]:.2f} deg ({s['rot'].get(f'{names0}-{n}', 0.0):.1f}), "
+                    f"±{sp[1]:.1f} % ({s['focal'][n]:+.1f}), ±{sp[2]:.0f} mm ({s['centre'][n]:.0f})"
+                    for n, sp, names0 in zip(r["cameras_names"], r["spreads"], [r["cameras_names"][0]] * 9)
+                    if sp is not None and n != r["cameras_names"][0]]
+            print(f"           spreads (error): {'; '.join(rows)}")
         for w in r["warnings"]:
             print(f"           warning: {w}")
 

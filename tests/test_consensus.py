@@ -178,3 +178,24 @@ def test_heights_set_the_metric_scale():
 
     assert abs(height(tall) / 2000 - 1) < 0.02, height(tall)
     assert abs(spread(tall) / spread(plain) - 2000 / height(plain)) < 0.02
+
+
+def test_camera_spread_counts_a_joint_bias_of_the_detector(estimated):
+    """A detector's error for one joint in one view is the same in every frame (a bias): the
+    spreads are cluster-robust (posecam.multiview.bundle.camera_covariance), so they grow with
+    such a bias (plain Gauss-Newton ones would shrink with the frames as if it averaged out) and
+    stay of the size of the error it causes."""
+    cams, plain = estimated
+    recs = monocular_views(cams, skeleton_motion(150))
+    bias = np.random.default_rng(7).normal(0.0, 8.0, (len(recs), len(recs[0].joints), 2))   # px
+    for r, b in zip(recs, bias):
+        for f in r.frames:
+            for p in f.people:
+                p.keypoints_2d = p.keypoints_2d + b
+    biased = fuse_recordings(recs, FuseOptions(bundle_options=BundleOptions(max_frames=150)))
+    errors = [relative_rotation_error_deg(cams[0].rotation, true.rotation, np.eye(3), est.rotation)
+              for true, est in zip(cams[1:], biased.rig.cameras[1:])]
+    spreads = [rep.spread.rotation_deg for rep in biased.cameras[1:]]
+    for a, b in zip(plain.cameras[1:], biased.cameras[1:]):
+        assert b.spread.rotation_deg > 1.5 * a.spread.rotation_deg, (a.name, a.spread, b.spread)
+    assert np.median(errors) < 4 * np.median(spreads), (errors, spreads)
