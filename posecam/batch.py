@@ -24,7 +24,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from posecam.errors import InputError, OutputError, PosecamError, last_signal, note_signal
+from posecam.errors import InputError, OutputError, PosecamError, Terminated, last_signal, note_signal
 from posecam.estimate import EstimatorOptions, shared_estimator
 from posecam.filters import smooth_recording
 from posecam.io.atomic import OutputSet, check_output, remove_run_staging, tagged_staging
@@ -240,13 +240,7 @@ def _run_on_ray(tasks: list[Task], work: Callable[[Task], str], address: str) ->
         import ray
     except ImportError:
         raise InputError(RAY_HINT) from None
-    ours = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
-    ray.init(address=address or None, include_dashboard=False, log_to_driver=False,
-             ignore_reinit_error=True, configure_logging=False)
-    if threading.current_thread() is threading.main_thread():   # ray.init puts in its own: SIGTERM
-        for signum, handler in ours.items():                    # would exit 15 after a stack dump
-            if handler is not None:
-                signal.signal(signum, handler)
+    _start_ray(ray, address)
     tag = f"r{secrets.token_hex(4)}"
     remote = ray.remote(num_cpus=1)(_call_on_ray)
     pending = [remote.remote(work, t, tag) for t in tasks]
@@ -272,6 +266,30 @@ def _run_on_ray(tasks: list[Task], work: Callable[[Task], str], address: str) ->
                     _shut_ray_down(ray)
             finally:
                 signal.pthread_sigmask(signal.SIG_SETMASK, held)
+
+
+def _start_ray(ray, address: str) -> None:
+    """ray.init, keeping this process's signal handlers: Ray puts in its own for SIGTERM (exit
+    15, after a stack dump once it is up). A signal while Ray starts stops what it started."""
+    ours = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        ray.init(address=address or None, include_dashboard=False, log_to_driver=False,
+                 ignore_reinit_error=True, configure_logging=False)
+    except SystemExit as exc:   # Ray's SIGTERM handler: sys.exit(15)
+        if exc.code != signal.SIGTERM:
+            raise
+        note_signal(signal.SIGTERM)
+        _shut_ray_down(ray)
+        raise Terminated from None
+    except KeyboardInterrupt:
+        if last_signal() is not None:
+            _shut_ray_down(ray)
+        raise
+    finally:
+        if threading.current_thread() is threading.main_thread():
+            for signum, handler in ours.items():
+                if handler is not None:
+                    signal.signal(signum, handler)
 
 
 def _shut_ray_down(ray) -> None:

@@ -567,6 +567,21 @@ def test_sigterm_to_the_process_group_ends_a_ray_run_within_2_s(tmp_path, _):
     _signal_a_batch_run(tmp_path, ("--ray",), signal.SIGTERM, 143, "terminated", True)
 
 
+@pytest.mark.parametrize("sig, code, word", [pytest.param(signal.SIGTERM, 143, "terminated", marks=RAY, id="ray-term"),
+                                             pytest.param(signal.SIGINT, 130, "interrupted", marks=RAY, id="ray-int")])
+def test_a_signal_while_ray_starts_is_the_documented_code(tmp_path, sig, code, word):
+    """Ray's start-up takes seconds and puts in its own SIGTERM handler (sys.exit(15))."""
+    proc = _start(["predict", DATA / "messi5.jpg", "--model", "lite", "--out-dir", tmp_path, "--ray"])
+    children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children")
+    deadline = time.time() + 120
+    while time.time() < deadline and proc.poll() is None and not children.read_text().split():
+        time.sleep(0.02)   # Ray's first process (its GCS) started: ray.init is under way
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == code and err.strip().splitlines()[-1] == f"posecam: {word}", (proc.returncode, err)
+    assert "Traceback" not in err and list(tmp_path.iterdir()) == []
+
+
 def _signal_a_batch_run(tmp_path, workers, sig, code, word, group):
     inputs = []
     for i in range(8):
