@@ -339,6 +339,7 @@ def vtest(args) -> dict:
 
     frames = read_frames(Path(args.vtest), args.vtest_frames)
     est = estimator(args)
+    work = {"detector": count_runs(est.detector.model), "pose": count_runs(est.pose_model.model)}
     t0 = time.perf_counter()
     people, dropped = [], {}
     sink = VideoSink(args.overlay, 10.0, frames[0].shape[1], frames[0].shape[0]) if args.overlay else None
@@ -359,9 +360,30 @@ def vtest(args) -> dict:
           f"ids {ids} for {VTEST_DISTINCT} people = {ids / VTEST_DISTINCT:.2f}x (target <= 1.5x); "
           f"people per frame median {np.median(c):.0f}, mean {c.mean():.2f}, max {c.max()}; "
           f"dropped (person-frames) {dropped}; {fps:.1f} frames/s, {embedder_ms(est, len(c)):.1f} ms a frame "
-          f"in the embedder")
+          f"in the embedder; per frame: "
+          + ", ".join(f"{n} {w['images'] / len(c):.2f} images in {w['runs'] / len(c):.2f} runs, {w['seconds'] / len(c) * 1000:.0f} ms"
+                      for n, w in work.items()))
     return {"found": f"{found}/{total}", "empty": int((c == 0).sum()), "ids": ids,
-            "per_frame": round(float(c.mean()), 2), "fps": fps, "embed_ms": embedder_ms(est, len(c))}
+            "per_frame": round(float(c.mean()), 2), "fps": fps, "embed_ms": embedder_ms(est, len(c)),
+            **{f"{n} images/frame": round(w["images"] / len(c), 2) for n, w in work.items()},
+            **{f"{n} ms/frame": w["seconds"] / len(c) * 1000 for n, w in work.items()}}
+
+
+def count_runs(model) -> dict:
+    """Counts a posecam Model's runs, the images they took and their time, as they happen
+    (the bench's own timer around `Model.run`; the code measured is not changed)."""
+    work = {"runs": 0, "images": 0, "seconds": 0.0}
+    run = model.run
+
+    def counted(feeds):
+        start = time.perf_counter()
+        out = run(feeds)
+        work["runs"] += 1
+        work["images"] += len(next(iter(feeds.values())))
+        work["seconds"] += time.perf_counter() - start
+        return out
+    model.run = counted
+    return work
 
 
 def before_after(args) -> None:
@@ -387,7 +409,7 @@ def before_after(args) -> None:
             cells = []
             for label in ("before", "after"):
                 values = [value(r) for r in runs[label]]
-                if name.endswith("fps"):
+                if name.endswith(("fps", "ms/frame", "_ms")):   # timings: medians
                     cells.append(f"{statistics.median(values):.1f}")
                 else:
                     cells.append(f"{values[-1]}" + ("" if all(v == values[-1] for v in values) else " (varied)"))
