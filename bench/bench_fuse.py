@@ -15,7 +15,8 @@ undistortion and a plain DLT:
 Each run of `fuse_recordings` (from the cached pose JSON) is scored against it: per camera
 pair the angle between estimated and lab relative rotation, per camera the focal length error
 and the camera centre error (cam01's frame, mm), the offsets against the truth, and every fused
-pelvis's distance to the nearest true pelvis of its frame (median, mm).
+pelvis's distance to the nearest true pelvis of its frame (median, mm); and per estimated
+camera its spreads (one standard deviation of rotation, focal length, centre) beside its errors.
 
 Before / after in one run: `--before DIR` runs the same fuses with another checkout's posecam
 (`git archive <commit> posecam | tar -x -C DIR`) in a subprocess and scores them the same way.
