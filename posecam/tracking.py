@@ -364,7 +364,8 @@ class Tracker:
         """The matching cost: `motion`, except for the pairs within the motion gate of a track
         with a gallery that is lost or ambiguous: (1 - w) * motion + w * appearance distance
         (w: `appearance_weight`), and out of the gate (inf) for a lost one whose looks differ
-        by more than `unlike`."""
+        by more than `unlike`. The pairs out of the motion gate then cost 1 more than motion,
+        above every mixed cost (<= 1), so that no mixed pair loses to one the gate refuses."""
         o = self.options
         gated = motion <= max_cost
         lost = np.array([t.lost > 0 for t in tracks])[:, None]
@@ -381,6 +382,7 @@ class Tracker:
             cost[i, cols[sel]] = (1 - w) * motion[i, cols[sel]] + w * d[sel]
             if tracks[i].lost > 0:
                 cost[i, cols[sel & (d > o.unlike)]] = np.inf
+        cost[~gated] += 1.0
         return cost
 
     @staticmethod
