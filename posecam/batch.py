@@ -27,7 +27,8 @@ from typing import TYPE_CHECKING
 from posecam.errors import InputError, OutputError, PosecamError, Terminated, last_signal, note_signal
 from posecam.estimate import EstimatorOptions, shared_estimator
 from posecam.filters import smooth_recording
-from posecam.io.atomic import OutputSet, check_output, remove_run_staging, tagged_staging
+from posecam.io.atomic import (OutputSet, StagedOutputs, check_output, deferred_commit, remove_run_staging,
+                               tagged_staging)
 from posecam.io.intrinsics import IntrinsicsOptions
 from posecam.io.poses import PoseWriter, write_poses
 from posecam.media import VIDEO_SUFFIXES
@@ -111,7 +112,8 @@ def fuse_task(task: Task, options: FuseOptions, estimator: EstimatorOptions | No
     recordings = load_views(list(task.inputs), intrinsics=intrinsics, calibration=calibration, rig=options.calibration,
                             fuse=options, estimator=shared_estimator(estimator or EstimatorOptions()) if views else None)
     fused = fuse_recordings(recordings, options).recording
-    write_poses(task.output, [smooth_recording(fused) if smooth else fused])
+    with OutputSet([task.output], task.inputs) as staged:
+        write_poses(staged.path(task.output), [smooth_recording(fused) if smooth else fused])
     return task.output
 
 
@@ -166,13 +168,17 @@ def _start_worker() -> None:
         signal.signal(signum, _stop_worker)
 
 
-def _guarded(work: Callable[[Task], str], task: Task) -> str:
+def _guarded(work: Callable[[Task], str], task: Task, tag: str) -> tuple[str, list[StagedOutputs]]:
+    """`work` on `task` in a worker process, its outputs verified and left staged (under the
+    run's tag) for the run's own process to commit."""
     global _busy
     if _stopping:
         raise KeyboardInterrupt
     _busy = True
     try:
-        return work(task)
+        with tagged_staging(tag), deferred_commit() as staged:
+            output = work(task)
+        return output, staged
     except KeyboardInterrupt:
         if _stopping:   # the task's `with` blocks have removed what it staged: nothing to report
             os._exit(130)
@@ -184,21 +190,28 @@ def _guarded(work: Callable[[Task], str], task: Task) -> str:
 def _run_in_processes(tasks: list[Task], work: Callable[[Task], str], jobs: int) -> Iterator[str]:
     """Each task in one of `jobs` worker processes. On Ctrl-C, SIGTERM or a failed task the
     workers are stopped at once: each gets SIGTERM (its task stops, writing nothing; queued
-    tasks never start), and any still alive after STOP_WAIT seconds is killed."""
+    tasks never start), any still alive after STOP_WAIT seconds is killed, and what the workers
+    staged is removed. Their outputs are committed here, so none appears after a signal."""
     pool = ProcessPoolExecutor(max_workers=min(jobs, len(tasks)), initializer=_start_worker)
+    tag = f"j{secrets.token_hex(4)}"
     finished = False
     try:
-        pending = {pool.submit(_guarded, work, t) for t in tasks}
+        pending = {pool.submit(_guarded, work, t, tag) for t in tasks}
         while pending:
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             for future in done:
-                yield future.result()
+                output, staged = future.result()
+                for outputs in staged:
+                    outputs.commit()
+                yield output
         finished = True
     finally:
         if finished:
             pool.shutdown(wait=True)
         else:
             _stop_workers(pool)
+            for folder in {Path(t.output).parent for t in tasks}:
+                remove_run_staging(folder, tag)
 
 
 STOP_WAIT = 1.5   # seconds a worker has to stop after SIGTERM before it is killed
@@ -227,9 +240,12 @@ RAY_UNWIND = 1.0   # seconds cancelled Ray tasks have to stop (their `with` bloc
 RAY_KILL = 0.5     # seconds to wait for the tasks still running after that to be killed
 
 
-def _call_on_ray(work: Callable[[Task], str], task: Task, tag: str) -> str:
-    with tagged_staging(tag):   # what it stages is the run's to remove, should the task be killed
-        return work(task)
+def _call_on_ray(work: Callable[[Task], str], task: Task, tag: str) -> tuple[str, list[StagedOutputs]]:
+    """`work` on `task`, its outputs verified and left staged for the driver to commit; what it
+    stages carries the run's tag, for the run to remove should the task be killed."""
+    with tagged_staging(tag), deferred_commit() as staged:
+        output = work(task)
+    return output, staged
 
 
 def _run_on_ray(tasks: list[Task], work: Callable[[Task], str], address: str) -> Iterator[str]:
@@ -250,10 +266,13 @@ def _run_on_ray(tasks: list[Task], work: Callable[[Task], str], address: str) ->
             done, pending = ray.wait(pending, num_returns=1, timeout=RAY_POLL)
             for ref in done:
                 try:
-                    yield ray.get(ref)
+                    output, staged = ray.get(ref)
                 except ray.exceptions.RayTaskError as exc:
                     cause = exc.cause if isinstance(getattr(exc, "cause", None), PosecamError) else None
                     raise cause or PosecamError(f"a Ray task failed: {str(exc).splitlines()[0]}") from None
+                for outputs in staged:   # here, not in the task: nothing is committed after a signal
+                    outputs.commit()
+                yield output
         finished = True
     finally:
         if not finished:

@@ -667,6 +667,33 @@ def test_staging_under_a_run_tag_is_removed_by_that_run_only(tmp_path):
     assert not mine.exists() and other.is_dir() and plain.is_dir()
 
 
+def test_a_batch_worker_hands_its_verified_outputs_to_the_run_which_commits_them_unless_signalled(tmp_path, monkeypatch):
+    """Inside `deferred_commit` (a --jobs or --ray task) a finished OutputSet renames nothing:
+    the run's own process commits it, and after a signal it commits nothing and leaves no
+    staging, however late the worker heard of the signal."""
+    from posecam import errors
+    from posecam.io.atomic import deferred_commit
+
+    def finished(name: str):
+        target = tmp_path / f"{name}.json"
+        with deferred_commit() as staged:
+            with OutputSet([target]) as outputs:
+                outputs.path(target).write_text("{}")
+        assert not target.exists() and len(staged) == 1 and staged[0].folders[0].is_dir()
+        return target, staged[0]
+
+    target, staged = finished("a")
+    staged.commit()
+    assert target.read_text() == "{}" and not staged.folders[0].exists()
+
+    target, staged = finished("b")
+    monkeypatch.setattr(errors, "_received", [signal.SIGINT])
+    with pytest.raises(KeyboardInterrupt):
+        staged.commit()
+    assert not target.exists() and not staged.folders[0].exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json"]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("after", [0.0, 1.5, 3.0])
 def test_ctrl_c_during_export_quantize_leaves_nothing(tmp_path, after):

@@ -15,8 +15,10 @@ Temporary names start `.posecam-<pid>-`, are short and ASCII and keep the target
 never sees a name it cannot encode. Ones whose process is gone (a run killed with SIGKILL) are
 removed by the next run writing in that folder. A task of a batch run stages under its run's
 tag as well (`tagged_staging`), so that the run removes what a task it had to kill left
-(`remove_run_staging`). Every OSError while writing becomes an `OutputError` (exit code 4)
-naming the target.
+(`remove_run_staging`), and its worker verifies but does not rename (`deferred_commit`): it
+hands the `StagedOutputs` to the run's own process, which commits them only while no signal
+came, so nothing appears after a Ctrl-C however late the worker hears of it. Every OSError
+while writing becomes an `OutputError` (exit code 4) naming the target.
 """
 
 from __future__ import annotations
@@ -29,6 +31,7 @@ import signal
 import tempfile
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 from types import TracebackType
 
@@ -38,6 +41,7 @@ from posecam.media import VIDEO_SUFFIXES, readable_video
 _MAX_SUFFIX = 16   # longer "extensions" are not kept in temporary names
 _STALE = re.compile(r"^\.posecam-(\d+)-")
 _run_tag = ""   # inside `tagged_staging`: the batch run whose task this process is running
+_deferred: list[StagedOutputs] | None = None   # inside `deferred_commit`: output sets left to commit
 
 
 def _folder(target: Path) -> Path:
@@ -63,6 +67,18 @@ def tagged_staging(tag: str) -> Iterator[None]:
         yield
     finally:
         _run_tag = ""
+
+
+@contextmanager
+def deferred_commit() -> Iterator[list[StagedOutputs]]:
+    """Inside the block, an `OutputSet` that succeeds is verified and left staged, not renamed:
+    it is appended to the list yielded, for the process that owns the run to `commit`."""
+    global _deferred
+    _deferred = []
+    try:
+        yield _deferred
+    finally:
+        _deferred = None
 
 
 def _umask() -> int:
@@ -330,10 +346,16 @@ class OutputSet:
 
     def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
+        committed_elsewhere = False
         try:
             if kind is None or issubclass(kind, ReaderLeft):
                 # a closed stdout (`| head`) is the reader leaving, not a failed output
-                self._commit_all()
+                staged = self._verified()
+                if _deferred is not None:
+                    _deferred.append(staged)
+                    committed_elsewhere = True
+                else:
+                    staged.commit()
             elif issubclass(kind, PosecamError):   # name the user's file, not its temporary one
                 message = str(exc)
                 for target, tmp in self._staged.items():
@@ -345,25 +367,48 @@ class OutputSet:
                 if target is not None:
                     raise OutputError(f"cannot write {target}: {_describe(exc)}") from None
         finally:
-            for stage in self._folders.values():
-                shutil.rmtree(stage, ignore_errors=True)
+            if not committed_elsewhere:
+                for stage in self._folders.values():
+                    shutil.rmtree(stage, ignore_errors=True)
 
-    def _commit_all(self) -> None:
+    def _verified(self) -> StagedOutputs:
         raise_if_signalled()   # a Ctrl-C that a library swallowed still stops the commit
         missing = [t for t in self.targets if t not in self._staged]
         if missing:
             raise OutputError(f"internal: no output was written for {missing[0]}")
-        staged = list(self._staged.items())
-        for target, tmp in staged:          # every file complete and flushed ...
+        for target, tmp in self._staged.items():   # every file complete and flushed
             try:
                 _verify(tmp, target)
             except OSError as exc:
                 raise OutputError(f"cannot write {target}: {_describe(exc)}") from None
-        for target, _ in staged:            # ... every target still writable now ...
-            check_output(target, self.inputs)
+        return StagedOutputs(list(self._staged.items()), self.inputs, list(self._folders.values()))
+
+
+@dataclass
+class StagedOutputs:
+    """An `OutputSet`'s verified files, still in their staging folders: (target, staged) pairs."""
+    files: list[tuple[Path, Path]]
+    inputs: list[str | os.PathLike]
+    folders: list[Path]
+
+    def commit(self) -> None:
+        """Every target checked again, then all renamed or none; the staging folders go."""
+        try:
+            raise_if_signalled()
+            for target, _ in self.files:
+                check_output(target, self.inputs)
+            self._rename_all()
+        finally:
+            self.discard()
+
+    def discard(self) -> None:
+        for stage in self.folders:
+            shutil.rmtree(stage, ignore_errors=True)
+
+    def _rename_all(self) -> None:
         done: list[tuple[Path, Path | None]] = []
-        try:                                # ... then all renamed, or none
-            for target, tmp in staged:
+        try:
+            for target, tmp in self.files:
                 backup = self._backup(target, tmp)
                 done.append((target, backup))
                 _publish(tmp, target)
