@@ -6,11 +6,18 @@ and multi (an adult of 1.72 m and a child given as 1.21 m, whom the lab triangul
 The yardstick is written here, outside the code under test, from the lab's Qualisys calibration
 (Calib.qca.txt) and the 2D keypoints of the cached predictions, with nothing but OpenCV's
 undistortion and a plain DLT:
-- truth offsets, sub-frame: each view's person tracks linearly interpolated at offsets in steps
-  of 0.1 frame; "pairwise": per view, the offset against cam01 whose two-view DLT (best pair of
-  people per frame) reprojects with the smallest median error; "combination": every combination
-  of the three offsets within +-6 frames, then quarter frames around the best, all four views
-  triangulated together (a cam01 person with the best-matching person of each view);
+- truth offsets, sub-frame: each view's person tracks low-passed (6 Hz: linear interpolation of
+  raw tracks lowers their noise at half frames and draws the minimum there) and linearly
+  interpolated at offsets in steps of 0.1 frame, the median reprojection error scanned 1.5
+  frames either way of the best whole frame and a least-squares parabola fitted within a frame
+  of the scan's minimum (its vertex is the offset, its curvature how sharply it is pinned);
+  "pairwise": per view, the offset against cam01 whose two-view DLT (best pair of people per
+  frame) reprojects with the smallest median error; "all views together" (`combination`): every
+  combination of the three whole-frame offsets within +-6 frames, then coordinate descent, each
+  view's scan (the others kept) to its parabola's vertex, all four views triangulated together
+  (a cam01 person with the best-matching person of each view); each offset's spread is the
+  standard deviation of its vertex over 200 block-bootstrap resamples of the frames (blocks of
+  10 frames);
 - truth poses: every cam01 person, with the best-matching person of each other view at the
   combination offsets, triangulated by DLT through the lab rig (the pelvis, in lab mm).
 Each run of `fuse_recordings` (from the cached pose JSON) is scored against it: per camera
@@ -141,25 +148,88 @@ def pair_error(cams, a, b) -> np.ndarray:
     return np.where(good, med, np.nan)
 
 
+SMOOTH_HZ = 6.0          # the tracks' low-pass before interpolation (see `smoothed`)
+FINE = 1.5               # frames either way of the whole-frame best: the fine scan (steps of 0.1)
+PARABOLA = 1.0           # frames either way of the fine scan's minimum: the parabola's points
+BOOTSTRAP = 200          # resamples of blocks of frames for the truth's spread
+BLOCK = 10               # frames per block
+
+
+def smoothed(track: tuple[np.ndarray, np.ndarray], fps: float = 60.0) -> tuple[np.ndarray, np.ndarray]:
+    """The track low-passed in time (Butterworth at SMOOTH_HZ, forwards and back), each joint's
+    gaps bridged inside the span it is seen and left unseen outside it. Linear interpolation
+    halves a view's frame-to-frame noise at half a frame, so the reprojection error of raw
+    tracks dips at every half frame and its minimum is drawn there; on low-passed tracks the
+    noise left is smooth over several frames and interpolation no longer lowers it."""
+    from scipy.signal import butter, filtfilt
+
+    uv, conf = track
+    b, a = butter(2, SMOOTH_HZ / (fps / 2))
+    out = uv.copy()
+    idx = np.arange(len(uv))
+    for j in range(uv.shape[1]):
+        ok = (conf[:, j] >= 0.5) & np.isfinite(uv[:, j]).all(axis=-1)
+        if ok.sum() < 15:
+            continue
+        span = (idx >= idx[ok][0]) & (idx <= idx[ok][-1])
+        filled = np.stack([np.interp(idx[span], idx[ok], uv[ok, j, d]) for d in range(2)], axis=1)
+        out[span, j] = filtfilt(b, a, filled, axis=0, padlen=min(9, span.sum() - 1))
+    return out, conf
+
+
+def parabola_min(grid: np.ndarray, cost: np.ndarray) -> tuple[float, float]:
+    """The minimum of a cost scanned on `grid`: a least-squares parabola through the points
+    within PARABOLA of the scan's minimum; (its vertex, its curvature d2cost/do2). Where the
+    parabola opens downwards or its vertex falls outside those points: the scan's minimum, nan."""
+    k = int(np.nanargmin(cost))
+    near = (np.abs(grid - grid[k]) <= PARABOLA + 1e-9) & np.isfinite(cost)
+    if near.sum() >= 5:
+        c2, c1, _ = np.polyfit(grid[near] - grid[k], cost[near], 2)
+        vertex = grid[k] - c1 / (2 * c2) if c2 > 0 else np.nan
+        if c2 > 0 and abs(vertex - grid[k]) <= PARABOLA:
+            return float(vertex), float(2 * c2)
+    return float(grid[k]), np.nan
+
+
+def median_cost(err: np.ndarray, frames: np.ndarray | None = None, min_count: int = 200) -> float:
+    """Median of (F, M) per-frame errors (NaN: unused) over all frames or the resampled ones."""
+    e = err if frames is None else err[frames]
+    e = e[np.isfinite(e)]
+    return float(np.median(e)) if e.size > min_count else np.inf
+
+
+def resamples(n: int, seed: int = 0) -> list[np.ndarray]:
+    """BOOTSTRAP resamples of blocks of BLOCK frames (the errors of neighbouring frames are alike)."""
+    rng = np.random.default_rng(seed)
+    return [np.concatenate([np.arange(s, min(s + BLOCK, n)) for s in rng.integers(0, n - BLOCK, n // BLOCK)])
+            for _ in range(BOOTSTRAP)]
+
+
 class Truth:
     """Truth offsets and pelvises of one take (module docstring)."""
+
+    VERSION = 2                  # of truth.json: sub-frame scans with spreads
 
     def __init__(self, take: str, cache: Path) -> None:
         cams = lab_rig(take)
         docs = [json.loads((cache / take / f"{n}.json").read_text()) for n in NAMES]
         sizes = [(d["inputs"][0]["width"], d["inputs"][0]["height"]) for d in docs]
         self.cams = cams
-        self.views = [tracks(cache / take / f"{n}.json", c, s) for n, c, s in zip(NAMES, cams, sizes)]
+        self.raw = [tracks(cache / take / f"{n}.json", c, s) for n, c, s in zip(NAMES, cams, sizes)]
+        self.views = [{pid: smoothed(t) for pid, t in v.items()} for v in self.raw]
         self.n = len(docs[0]["inputs"][0]["frames"])
         self._matches: dict = {}
         stored = cache / take / "truth.json"
-        if stored.exists():
-            doc = json.loads(stored.read_text())
-            self.pairwise, self.combination = doc["pairwise"], doc["combination"]
-        else:
-            self.pairwise = [0.0] + [self._pairwise(v) for v in range(1, 4)]
-            self.combination = self._combination()
-            stored.write_text(json.dumps({"pairwise": self.pairwise, "combination": self.combination}))
+        doc = json.loads(stored.read_text()) if stored.exists() else {}
+        if doc.get("version") != self.VERSION:
+            pairwise = [self._pairwise(v) for v in range(1, 4)]
+            joint = self._joint()
+            doc = {"version": self.VERSION, "pairwise": [0.0] + [p[0] for p in pairwise],
+                   "pairwise_spread": [0.0] + [p[1] for p in pairwise],
+                   "pairwise_curvature": [0.0] + [p[2] for p in pairwise], **joint}
+            stored.write_text(json.dumps(doc))
+        self.pairwise, self.combination = doc["pairwise"], doc["combination"]
+        self.doc = doc
         self.pelvis = self._pelvis(self.combination)           # (F, P, 3) lab mm, NaN where missing
 
     def _pair_cost(self, v: int, offset: float) -> np.ndarray:
@@ -170,25 +240,33 @@ class Truth:
         with np.errstate(all="ignore"):
             return np.nanmin(np.stack(costs), axis=0)
 
-    def _pairwise(self, v: int) -> float:
-        def cost(o):
-            c = self._pair_cost(v, o)
-            return np.nanmedian(c) if np.isfinite(c).sum() > 30 else np.inf
+    def _pairwise(self, v: int) -> tuple[float, float, float]:
+        """View v against cam01 alone: the whole-frame best, then the fine scan and its parabola;
+        (offset, bootstrap spread, curvature in px / frame^2)."""
+        def cost(o, frames=None):
+            return median_cost(self._pair_cost(v, o)[:, None], frames, 30)
 
         coarse = min(range(-PAIR_RANGE, PAIR_RANGE + 1), key=cost)
-        return float(min(np.round(np.arange(coarse - 1, coarse + 1.01, 0.1), 2), key=cost))
+        grid = np.round(np.arange(coarse - FINE, coarse + FINE + 0.01, 0.1), 2)
+        per_frame = [self._pair_cost(v, o)[:, None] for o in grid]
+        best, curvature = parabola_min(grid, np.array([median_cost(e, None, 30) for e in per_frame]))
+        boot = [parabola_min(grid, np.array([median_cost(e, f, 30) for e in per_frame]))[0]
+                for f in resamples(self.n)]
+        return round(best, 2), float(np.std(boot)), curvature
 
-    def _match(self, v: int, offset: float) -> tuple[np.ndarray, np.ndarray]:
-        """Per cam01 person, view v's best-matching person at `offset`: (P, F, J, 2), (P, F, J)."""
-        key = (v, round(offset, 3))
+    def _match(self, v: int, offset: float, smooth: bool) -> tuple[np.ndarray, np.ndarray]:
+        """Per cam01 person, view v's best-matching person at `offset`: (P, F, J, 2), (P, F, J);
+        of the low-passed tracks (the scans) or the raw ones (the poses)."""
+        key = (v, round(offset, 3), smooth)
+        views = self.views if smooth else self.raw
         if key not in self._matches:
             uv, conf = [], []
-            for a in self.views[0].values():
+            for a in views[0].values():
                 ref = at(a, 0, self.n)
                 if v == 0:
                     uv.append(ref[0]), conf.append(ref[1])
                     continue
-                cands = [at(b, offset, self.n) for b in self.views[v].values()]
+                cands = [at(b, offset, self.n) for b in views[v].values()]
                 errs = np.stack([pair_error([self.cams[0], self.cams[v]], ref, c) for c in cands])   # (Q, F)
                 errs = np.where(np.isfinite(errs), errs, np.inf)
                 best = np.argmin(errs, axis=0)
@@ -198,27 +276,56 @@ class Truth:
             self._matches[key] = (np.stack(uv), np.stack(conf))
         return self._matches[key]
 
-    def _matched(self, offsets) -> tuple[np.ndarray, np.ndarray]:
+    def _matched(self, offsets, smooth: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """(V, P, F, J, 2), (V, P, F, J): every cam01 person with its match in each view."""
-        parts = [self._match(v, o) for v, o in enumerate(offsets)]
+        parts = [self._match(v, o, smooth) for v, o in enumerate(offsets)]
         return np.stack([p[0] for p in parts]), np.stack([p[1] for p in parts])
 
-    def _all_views_error(self, offsets) -> float:
+    def _all_views_frames(self, offsets) -> np.ndarray:
+        """(F, M) reprojection errors (px) of all four views triangulated together, per cam01 frame."""
         uv, conf = self._matched(offsets)
         _, e = dlt(self.cams, uv.reshape(4, -1, 2), (conf.reshape(4, -1) >= 0.5).astype(float))
-        e = e[np.isfinite(e)]
-        return float(np.median(e)) if e.size > 200 else np.inf
+        v, p, f, j = conf.shape
+        return e.reshape(v, p, f, j).transpose(2, 0, 1, 3).reshape(f, -1)
 
-    def _combination(self) -> list[float]:
+    def _all_views_error(self, offsets) -> float:
+        return median_cost(self._all_views_frames(offsets))
+
+    def _profile(self, offsets: list[float], v: int) -> tuple[np.ndarray, list[np.ndarray]]:
+        """View v's fine scan about its offset, the others kept: the grid and its per-frame errors."""
+        grid = np.round(np.arange(round(offsets[v]) - FINE, round(offsets[v]) + FINE + 0.01, 0.1), 2)
+        return grid, [self._all_views_frames(offsets[:v] + [float(o)] + offsets[v + 1:]) for o in grid]
+
+    def _joint(self) -> dict:
+        """All four views together: every combination of whole-frame offsets within COMBO_RANGE,
+        then coordinate descent, each view's fine scan (the others kept) to its parabola's vertex,
+        until no view moves by 0.05 frame; then each view's spread over block-bootstrap
+        resamples of the frames (its scan redone, the others at the truth) and its curvature."""
         grid = range(-COMBO_RANGE, COMBO_RANGE + 1)
-        best = min(itertools.product(grid, grid, grid), key=lambda c: self._all_views_error((0.0, *c)))
-        fine = [np.arange(o - 0.75, o + 0.76, 0.25) for o in best]           # then quarter frames around it
-        best = min(itertools.product(*fine), key=lambda c: self._all_views_error((0.0, *c)))
-        return [0.0, *map(float, best)]
+        whole = min(itertools.product(grid, grid, grid), key=lambda c: self._all_views_error((0.0, *c)))
+        offsets = [0.0, *map(float, whole)]
+        for _ in range(4):
+            moved = 0.0
+            for v in range(1, 4):
+                g, per_frame = self._profile(offsets, v)
+                best = round(parabola_min(g, np.array([median_cost(e) for e in per_frame]))[0], 2)
+                moved, offsets[v] = max(moved, abs(best - offsets[v])), best
+            if moved < 0.05:
+                break
+        spread, curvature, rise = [0.0], [0.0], [0.0]
+        for v in range(1, 4):
+            g, per_frame = self._profile(offsets, v)
+            cost = np.array([median_cost(e) for e in per_frame])
+            curvature.append(parabola_min(g, cost)[1])
+            rise.append(float(np.nanmax(cost) - np.nanmin(cost)))
+            boot = [parabola_min(g, np.array([median_cost(e, f) for e in per_frame]))[0] for f in resamples(self.n)]
+            spread.append(float(np.std(boot)))
+        return {"combination": offsets, "whole_frames": [0.0, *map(float, whole)], "spread": spread,
+                "curvature": curvature, "rise": rise}
 
     def _pelvis(self, offsets) -> np.ndarray:
         out = []
-        uv, conf = self._matched(offsets)
+        uv, conf = self._matched(offsets, smooth=False)
         for p in range(uv.shape[1]):
             pts, _ = dlt(self.cams, uv[:, p, :, 0], (conf[:, p, :, 0] >= 0.5).astype(float))   # joint 0: pelvis
             out.append(pts)
@@ -294,7 +401,7 @@ def worker(take: str, cache: Path, offsets: list[float], out: Path) -> None:
         if cfg.get("sync"):
             kw["sync"] = True
         if cfg.get("offsets") == "truth":
-            kw["offsets"] = [round(o) for o in offsets]
+            kw["offsets"] = list(offsets)
         t0 = time.perf_counter()
         try:
             res = fuse_recordings(recs, FuseOptions(**kw))
@@ -443,7 +550,7 @@ def from_lab(truth: Truth, take: str) -> dict:
         k = c["K"]
         cams.append(CameraCalibration(name, c["size"], Intrinsics(k[0, 0], k[1, 1], k[0, 2], k[1, 2]), r,
                                       c["t"] - r @ c0["t"]))
-    uv, conf = truth._matched(truth.combination)                        # (V, P, F, J, 2) normalised
+    uv, conf = truth._matched(truth.combination, smooth=False)          # (V, P, F, J, 2) normalised
     k = np.stack([c["K"] for c in truth.cams])
     px = np.stack([uv[..., 0] * k[:, None, None, None, 0, 0] + k[:, None, None, None, 0, 2],
                    uv[..., 1] * k[:, None, None, None, 1, 1] + k[:, None, None, None, 1, 2]], axis=-1)
@@ -458,8 +565,14 @@ def from_lab(truth: Truth, take: str) -> dict:
 def bench(cache: Path, take: str, before: Path | None) -> None:
     predict(cache, take)
     truth = Truth(take, cache)
-    print(f"== {take}: truth offsets (lab rig, plain DLT): combination {truth.combination}, "
-          f"pairwise {truth.pairwise}")
+    d = truth.doc
+    print(f"== {take}: truth offsets (lab rig, plain DLT, low-passed tracks interpolated, parabola at the minimum): "
+          f"all views together {truth.combination} (whole frames {d['whole_frames']}), bootstrap spread "
+          f"{', '.join(f'{x:.2f}' for x in d['spread'][1:])} frame, curvature "
+          f"{', '.join(f'{x:.2f}' for x in d['curvature'][1:])} px/frame^2, cost range over +-{FINE} frames "
+          f"{', '.join(f'{x:.2f}' for x in d['rise'][1:])} px; pairwise against cam01 {truth.pairwise}, spread "
+          f"{', '.join(f'{x:.2f}' for x in d['pairwise_spread'][1:])} frame; all views - pairwise "
+          f"{', '.join(f'{x - y:+.2f}' for x, y in zip(truth.combination[1:], truth.pairwise[1:]))} frame")
     codes = {"before": before} if before else {}
     codes["after"] = ROOT
     runs = {code: run_worker(take, cache, truth.combination, path) for code, path in codes.items()}
