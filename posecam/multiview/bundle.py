@@ -44,6 +44,7 @@ from scipy.sparse import csr_matrix, vstack
 
 from posecam.errors import FusionError
 from posecam.geometry.camera import Rig
+from posecam.multiview.observations import TimedKeypoints, catmull_rom, held
 from posecam.skeleton import skeleton_of
 from posecam.geometry.triangulate import observation_weights, triangulate
 
@@ -70,6 +71,11 @@ class BundleOptions:
     ftol: float = 1e-6
     max_error_px: float = 60.0        # median reprojection error above this: did not converge
     left_out: tuple[str, ...] = LEFT_OUT   # joint names the adjustment does not use
+    # with timed keypoints (`bundle_adjust`), each camera's time offset is one more unknown, within
+    # this many frames of where it starts, on keypoints low-passed at offset_lowpass_hz
+    refine_offsets: bool = False
+    offset_window: int = 4
+    offset_lowpass_hz: float = 6.0
 
 
 @dataclass
@@ -82,6 +88,8 @@ class BundleResult:
     scale: float                      # factor applied to make bones metric
     converged: bool
     spreads: list["CameraSpread"]     # (V,) one standard deviation of each camera
+    offsets: np.ndarray | None = None         # (V,) refined offsets (frames), when they were unknowns
+    offset_spreads: np.ndarray | None = None  # (V,) their standard deviations (frames; reference: 0)
 
 
 def rodrigues(r: np.ndarray) -> np.ndarray:
@@ -129,13 +137,23 @@ def coverage_frames(points: np.ndarray, weight: np.ndarray, n: int) -> np.ndarra
 class _Problem:
     """The adjustment's unknowns and observations (see the module docstring)."""
 
-    p0: np.ndarray          # (V, 9) camera vectors, log f in slot 6
-    free: np.ndarray        # (V, 9) which slots are unknowns
+    p0: np.ndarray          # (V, 10) camera vectors, log f in slot 6, the time offset in slot 9
+    free: np.ndarray        # (V, 10) which slots are unknowns
     obs_v: np.ndarray       # (N,) camera of each observation
     obs_m: np.ndarray       # (N,) point of each observation
-    obs_uv: np.ndarray      # (N, 2) pixels
+    obs_uv: np.ndarray      # (N, 2) pixels (at the start offsets)
     obs_w: np.ndarray       # (N,) sqrt(confidence) / pixel_sigma
     n_points: int
+    # with offsets among the unknowns: each observation's keypoint at S whole-frame offsets
+    # (TimedKeypoints, gaps held), sample s at offset base[camera] + s
+    samples: np.ndarray | None = None   # (N, S, 2)
+    base: np.ndarray | None = None      # (V,)
+
+    def observed(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """(N, 2) the keypoints at the cameras' offsets (p[:, 9]) and their derivatives d/d offset."""
+        if self.samples is None:
+            return self.obs_uv, None
+        return catmull_rom(self.samples, p[self.obs_v, 9] - self.base[self.obs_v])
 
     @property
     def n_cam(self) -> int:
@@ -153,11 +171,11 @@ class _Problem:
         pc = np.einsum("nij,nj->ni", rot[self.obs_v], pts[self.obs_m]) + p[self.obs_v, 3:6]
         z = np.maximum(pc[:, 2], 1.0)
         proj = p[self.obs_v, 6:7] * pc[:, :2] / z[:, None] + p[self.obs_v, 7:9]
-        return ((proj - self.obs_uv) * self.obs_w[:, None]).ravel()
+        return ((proj - self.observed(p)[0]) * self.obs_w[:, None]).ravel()
 
     def blocks(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The residuals' exact derivatives, per observation: (N, 2, 9) against its camera's
-        vector (log f in slot 6) and (N, 2, 3) against its point."""
+        """The residuals' exact derivatives, per observation: (N, 2, 10) against its camera's
+        vector (log f in slot 6, the offset in slot 9) and (N, 2, 3) against its point."""
         p, pts = self.unpack(x)
         v, X = self.obs_v, pts[self.obs_m]
         rot = rodrigues(p[:, :3])
@@ -170,13 +188,16 @@ class _Problem:
         dproj[:, 0, 0] = dproj[:, 1, 1] = f / z
         dproj[:, :, 2] = -f[:, None] * pc[:, :2] / z[:, None] ** 2
         dproj *= self.obs_w[:, None, None]
-        cam = np.zeros((len(v), 2, 9))
+        cam = np.zeros((len(v), 2, p.shape[1]))
         # d(R X)/dr = -R [X]x J = -[R X]x R J: column k is (R J)_k x (R X)
         d_rot = np.cross(np.swapaxes(rj, 1, 2)[v], rx[:, None, :])        # (N, k, 3)
         cam[:, :, 0:3] = np.einsum("nai,nki->nak", dproj, d_rot)           # rotation vector
         cam[:, :, 3:6] = dproj                                            # translation
         cam[:, :, 6] = f[:, None] * pc[:, :2] / z[:, None] * self.obs_w[:, None]   # log f
         cam[:, 0, 7] = cam[:, 1, 8] = self.obs_w                          # cx, cy
+        speed = self.observed(p)[1]
+        if speed is not None:                                             # the keypoint moves with the offset
+            cam[:, :, 9] = -speed * self.obs_w[:, None]
         return cam, dproj @ rot[v]
 
     def slots(self) -> np.ndarray:
@@ -201,7 +222,7 @@ class _Problem:
 
 def camera_covariance(problem: _Problem, x: np.ndarray, loss_weights: np.ndarray,
                       clusters: np.ndarray) -> np.ndarray:
-    """(V, 9, 9) covariance of each camera's vector (slot 6: log f) at the solution: a
+    """(V, 10, 10) covariance of each camera's vector (slot 6: log f, 9: offset) at the solution: a
     cluster-robust sandwich S^-1 M S^-1. S: the Gauss-Newton normal matrix with the points
     marginalised (Schur complement), each residual weighted as the robust loss weighs it
     (`loss_weights` (2N,)); M: the outer products of the residuals' reduced gradients summed
@@ -245,7 +266,7 @@ def camera_covariance(problem: _Problem, x: np.ndarray, loss_weights: np.ndarray
         proj -= np.outer(u, u)
     s_inv = proj @ np.linalg.pinv(proj @ s @ proj, rcond=1e-10) @ proj
     cov = s_inv @ middle @ s_inv
-    out = np.zeros(problem.free.shape + (9,))
+    out = np.zeros(problem.free.shape + problem.free.shape[1:])
     for v in range(len(p)):
         ok = slot[v] >= 0
         out[v][np.ix_(ok, ok)] = cov[np.ix_(slot[v][ok], slot[v][ok])]
@@ -253,11 +274,16 @@ def camera_covariance(problem: _Problem, x: np.ndarray, loss_weights: np.ndarray
 
 
 def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarray | None,
-                  joints: tuple[str, ...], options: BundleOptions | None = None) -> BundleResult:
+                  joints: tuple[str, ...], options: BundleOptions | None = None,
+                  timed: TimedKeypoints | None = None, offsets: np.ndarray | None = None) -> BundleResult:
     """Refine `rig` (reference camera first-class, any order) from keypoints uv (V, F, J, 2)
     and confidences (V, F, J); `bones_mm` (B,) is the metric length of each bone of the
     skeleton of `joints` (None keeps the input rig's scale). At most `max_frames` frames take
-    part, chosen for coverage (`coverage_frames`)."""
+    part, chosen for coverage (`coverage_frames`). With `timed` keypoints of the same views and
+    frames and the views' `offsets` (V,) (uv, conf: `timed.at(offsets)`), each camera's offset
+    but the reference's is one more unknown, started there (`BundleOptions.refine_offsets`):
+    its keypoints are interpolated at it (Catmull-Rom between the timed samples, with the
+    exact derivative: a keypoint's speed), within the samples' span."""
     opts = options or BundleOptions()
     cams = rig.cameras
     n_v, n_f, n_j = conf.shape
@@ -280,17 +306,30 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     if n_m < 20:
         raise FusionError(f"bundle adjustment: only {n_m} joints are seen by two cameras or more")
 
-    # free parameters of each camera's vector (posecam.geometry.camera.CameraCalibration.params):
-    # rotation and translation but the reference's, the focal length, the principal point if asked
-    p0 = rig.params()                                                     # (V, 9)
+    # free parameters of each camera's vector (posecam.geometry.camera.CameraCalibration.params,
+    # and its time offset): rotation and translation but the reference's, the focal length, the
+    # principal point if asked, the offset but the reference's with timed keypoints
+    refine = timed is not None and opts.refine_offsets
+    p0 = np.c_[rig.params(), np.zeros(n_v) if offsets is None else offsets]   # (V, 10)
     p0[:, 6] = np.log(p0[:, 6])                                           # optimised as log f
     free = np.zeros(p0.shape, bool)
     free[:, 6] = True
     free[:, 7:9] = not opts.fix_principal_point
-    free[[i for i in range(n_v) if i != ref], :6] = True
+    others = [i for i in range(n_v) if i != ref]
+    free[others, :6] = True
+    free[others, 9] = refine
+    samples = None
+    if refine:
+        samples = held(timed.frames(frames).uv.transpose(0, 2, 3, 1, 4)[obs_v, obs_f, obs_j])   # (N, S, 2)
     problem = _Problem(p0, free, obs_v, obs_m, uv[obs_v, obs_f, obs_j],
-                       np.sqrt(w[obs_v, obs_f, obs_j]) / opts.pixel_sigma, n_m)
+                       np.sqrt(w[obs_v, obs_f, obs_j]) / opts.pixel_sigma, n_m, samples,
+                       timed.base if refine else None)
     x0 = np.concatenate([p0[free], points[used].ravel()])
+    bounds = (-np.inf, np.inf)
+    if refine:                                                            # the offsets within the samples
+        lo, hi = np.full(p0.shape, -np.inf), np.full(p0.shape, np.inf)
+        lo[:, 9], hi[:, 9] = timed.bounds()
+        bounds = (np.r_[lo[free], np.full(3 * n_m, -np.inf)], np.r_[hi[free], np.full(3 * n_m, np.inf)])
     fun, jac = problem.residuals, problem.jacobian
     if not opts.fix_principal_point:                                      # weak prior: near the centre
         size = np.array([c.size for c in cams], dtype=float)
@@ -307,12 +346,15 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
 
     converged, x = True, x0
     for f_scale in F_SCALES:
-        fit = least_squares(fun, x, jac=jac, loss="soft_l1", f_scale=f_scale, x_scale="jac", method="trf",
-                            tr_solver="lsmr", max_nfev=opts.max_nfev, ftol=opts.ftol)
+        fit = least_squares(fun, x, jac=jac, bounds=bounds, loss="soft_l1", f_scale=f_scale, x_scale="jac",
+                            method="trf", tr_solver="lsmr", max_nfev=opts.max_nfev, ftol=opts.ftol)
         converged, x = converged and fit.status > 0, fit.x
     p, pts = problem.unpack(fit.x)
     loss_w = 1.0 / np.sqrt(1.0 + (problem.residuals(fit.x) / F_SCALES[-1]) ** 2)     # soft_l1's weights
     cov = camera_covariance(problem, fit.x, loss_w, obs_v * n_j + obs_j)
+    if refine:                                                            # the keypoints at the refined offsets
+        uv, conf = timed.frames(frames).at(p[:, 9])
+    p, shifts = p[:, :9], p[:, 9]
     scale = 1.0
     if bones_mm is not None:
         skel = skeleton_of(joints)
@@ -326,10 +368,11 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     cov[:, 3:6, :] *= scale
     cov[:, :, 3:6] *= scale
     out = rig.with_params(p, source="bundle").cameras
+    observed = problem.observed(np.c_[p, shifts])[0]
     err = np.full((n_v, n_m), np.nan)
     for i, cam in enumerate(out):
         sel = obs_v == i
-        err[i, obs_m[sel]] = np.linalg.norm(cam.project(pts[obs_m[sel]]) - problem.obs_uv[sel], axis=-1)
+        err[i, obs_m[sel]] = np.linalg.norm(cam.project(pts[obs_m[sel]]) - observed[sel], axis=-1)
     median = np.array([np.nanmedian(e) if np.isfinite(e).any() else np.nan for e in err])
     if not np.all(np.isfinite(median)) or np.nanmedian(median) > opts.max_error_px:
         raise FusionError(f"bundle adjustment did not converge: median reprojection error "
@@ -338,7 +381,9 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     all_points[used] = pts
     return BundleResult(Rig(out, rig.reference), all_points, frames, median,
                         np.bincount(obs_v, minlength=n_v), scale, converged,
-                        [CameraSpread.of(c, k) for c, k in zip(out, cov)])
+                        [CameraSpread.of(c, k) for c, k in zip(out, cov)],
+                        np.round(shifts, 2) if refine else None,
+                        np.sqrt(np.maximum(cov[:, 9, 9], 0.0)) if refine else None)
 
 
 @dataclass

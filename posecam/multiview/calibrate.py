@@ -24,7 +24,7 @@ from posecam.geometry.camera import CameraCalibration, Rig
 from posecam.multiview.associate import Association
 from posecam.multiview.bundle import BundleOptions, CameraSpread, bundle_adjust
 from posecam.multiview.consensus import ConsensusOptions, estimate_rig, stretch_residuals
-from posecam.multiview.observations import Observations, Take
+from posecam.multiview.observations import Observations, Take, TimedKeypoints
 from posecam.multiview.sync import MIN_MOTION, SyncResult, motion_agreement
 from posecam.skeleton import skeleton_of
 
@@ -55,6 +55,8 @@ class KeptCameras:
     views: list[int]            # indices (into the inputs) of the kept cameras
     warnings: list[str]         # of the stage that made them: cameras dropped, names matched, ...
     spreads: list[CameraSpread] | None = None   # (len(views),) estimated: from the bundle adjustment
+    offsets: list[float] | None = None          # (len(views),) refined by the bundle adjustment
+    offset_spreads: list[float] | None = None   # (len(views),) their standard deviations, frames
 
 
 def _bone_lengths(obs: Observations, joints: tuple[str, ...], min_conf: float) -> np.ndarray:
@@ -130,8 +132,11 @@ def _usable_frames(people: list[Observations], n_views: int, min_conf: float) ->
 
 
 def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations], joints: tuple[str, ...], reference: int,
-                     min_conf: float, bundle: bool = True, bundle_options: BundleOptions | None = None) -> KeptCameras:
-    """Cameras of the views that the people allow; FusionError when fewer than two are left."""
+                     min_conf: float, bundle: bool = True, bundle_options: BundleOptions | None = None,
+                     timed: TimedKeypoints | None = None, offsets: list[float] | None = None) -> KeptCameras:
+    """Cameras of the views that the people allow; FusionError when fewer than two are left.
+    With `timed` keypoints of the people (side by side) at the views' `offsets`, the bundle
+    adjustment refines the offsets too (posecam.multiview.bundle) and KeptCameras has them."""
     views = list(range(len(assumed)))
     warnings = []
     people = [p for p in people if ((p.conf.max(axis=-1) > 0).sum(axis=0) >= 2).any()]   # seen twice
@@ -148,10 +153,14 @@ def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations
         obs = Observations.side_by_side([p.take(views) for p in people])
         try:
             rig = _consensus(assumed, people, views, reference, min_conf)
+            refined = None
             if bundle:
-                fit = bundle_adjust(rig, obs.uv, obs.conf, _bone_lengths(obs, joints, min_conf), joints,
-                                    bundle_options)
+                start = None if timed is None else np.asarray(offsets, float)[views]
+                uv, conf = (obs.uv, obs.conf) if timed is None else timed.take(views).at(start)
+                fit = bundle_adjust(rig, uv, conf, _bone_lengths(obs, joints, min_conf), joints, bundle_options,
+                                    None if timed is None else timed.take(views), start)
                 rig, med, points, spreads = fit.rig, fit.median_error_px, fit.points, fit.spreads
+                refined = fit
                 if not fit.converged and not any("iteration limit" in w for w in warnings):
                     warnings.append("the bundle adjustment stopped at its iteration limit: the cameras may be "
                                     "short of their best")
@@ -173,22 +182,31 @@ def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations
             raise FusionError(f"reference camera {assumed[reference].name} cannot be estimated: "
                               f"{reasons[views.index(reference)]}")
         if not bad:
-            return KeptCameras(rig, views, warnings, spreads)
+            if refined is None or refined.offsets is None:
+                return KeptCameras(rig, views, warnings, spreads)
+            return KeptCameras(rig, views, warnings, spreads, refined.offsets.tolist(),
+                               refined.offset_spreads.tolist())
         worst = max(bad, key=lambda i: np.nan_to_num(med[i], nan=np.inf))
         warnings.append(f"camera {assumed[views[worst]].name} dropped: {reasons[worst]}")
         views.pop(worst)
 
 
 def cameras_from_people(take: Take, association: Association, sync: SyncResult, min_conf: float,
-                        bundle: bool = True, bundle_options: BundleOptions | None = None) -> KeptCameras:
+                        bundle: bool = True, bundle_options: BundleOptions | None = None,
+                        refine_offsets: bool = False) -> KeptCameras:
     """The stage without a calibration: `estimate_cameras` on every associated person at the
-    offsets, then, while a kept view's people do not move as the reference's (`motion_agreement`
+    offsets (with `refine_offsets`, the bundle adjustment refines them: KeptCameras.offsets),
+    then, while a kept view's people do not move as the reference's (`motion_agreement`
     below MIN_SAME_MOTION where they move enough to tell), that view dropped and the cameras
     estimated again without it."""
     ref = take.reference
     every = list(range(len(take.names)))
+    opts = bundle_options or BundleOptions()
+    timed = None
+    if bundle and refine_offsets and opts.refine_offsets:
+        timed = take.timed(association.people, sync.offsets, opts.offset_window, opts.offset_lowpass_hz, min_conf)
     est = estimate_cameras(take.assumed, take.observations(association.people, sync.offsets, every), take.joints,
-                           ref, min_conf, bundle, bundle_options)
+                           ref, min_conf, bundle, bundle_options, timed, sync.offsets)
     while True:                          # views whose people do not move as the reference's: not one scene
         agreement = motion_agreement(take, association.people, sync.offsets, min_conf)
         unrelated = [(agreement[v][0], v) for v in est.views if v in agreement
@@ -203,7 +221,9 @@ def cameras_from_people(take: Take, association: Association, sync: SyncResult, 
             raise FusionError(line.replace(" dropped:", " cannot be fused:"))
         est = estimate_cameras([take.assumed[u] for u in kept],
                                [p.take(kept) for p in take.observations(association.people, sync.offsets, every)],
-                               take.joints, kept.index(ref), min_conf, bundle, bundle_options)
+                               take.joints, kept.index(ref), min_conf, bundle, bundle_options,
+                               None if timed is None else timed.take(kept),
+                               None if timed is None else [sync.offsets[u] for u in kept])
         est.views, est.warnings = [kept[i] for i in est.views], [line] + est.warnings
 
 

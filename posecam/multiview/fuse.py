@@ -206,9 +206,20 @@ def _offsets(take: Take, association: Association, rig: Rig | None, start: list[
 
 def _estimated(take: Take, association: Association, sync: SyncResult, opts: FuseOptions,
                say: Callable[[str], None]) -> KeptCameras:
-    """The cameras without a calibration (posecam.multiview.calibrate.cameras_from_people)."""
+    """The cameras without a calibration (posecam.multiview.calibrate.cameras_from_people); offsets
+    found by `--sync auto` are refined with them."""
     say("estimating the cameras")
-    return cameras_from_people(take, association, sync, opts.min_conf, opts.bundle, opts.bundle_options)
+    return cameras_from_people(take, association, sync, opts.min_conf, opts.bundle, opts.bundle_options, opts.sync)
+
+
+def refined_offsets(sync: SyncResult, cameras: KeptCameras) -> SyncResult:
+    """The sync with the offsets (and their spreads) the bundle adjustment refined, where it did."""
+    if cameras.offsets is None:
+        return sync
+    offsets, spread = list(sync.offsets), list(sync.spread or [0.0] * len(sync.offsets))
+    for v, o, s in zip(cameras.views, cameras.offsets, cameras.offset_spreads):
+        offsets[v], spread[v] = o, s
+    return replace(sync, offsets=offsets, spread=spread)
 
 
 def fuse_recordings(recordings: list[Recording], options: FuseOptions | None = None,
@@ -232,6 +243,7 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
     if given and opts.sync:                  # through a rig, who is who depends on the offsets
         association = associate_people(take, rig, sync.offsets, opts.min_conf)
     cameras = given or _estimated(take, association, sync, opts, say)
+    sync = refined_offsets(sync, cameras)
     warnings = cameras.warnings + sync.warnings
 
     say("checking left and right")

@@ -46,6 +46,86 @@ def shift(a: np.ndarray, offset: float, length: int, fill=np.nan) -> np.ndarray:
     return out
 
 
+def lowpass(a: np.ndarray, seen: np.ndarray, fps: float, hz: float) -> np.ndarray:
+    """(F, J, D) tracks low-passed in time (2nd-order Butterworth at `hz`, forwards and back),
+    each joint's gaps bridged inside the span where it is `seen` (F, J); NaN outside that span
+    and for joints seen in fewer than 15 frames."""
+    from scipy.signal import butter, filtfilt
+
+    out = np.full(a.shape, np.nan)
+    b, c = butter(2, min(hz / (fps / 2), 0.99))
+    idx = np.arange(len(a))
+    for k in range(a.shape[1]):
+        ok = seen[:, k]
+        if ok.sum() < 15:
+            continue
+        span = (idx >= idx[ok][0]) & (idx <= idx[ok][-1])
+        filled = np.stack([np.interp(idx[span], idx[ok], a[ok, k, d]) for d in range(a.shape[2])], axis=1)
+        out[span, k] = filtfilt(b, c, filled, axis=0, padlen=min(9, int(span.sum()) - 1))
+    return out
+
+
+@dataclass
+class TimedKeypoints:
+    """People's 2D keypoints seen by V views at S whole-frame offsets about each view's own:
+    sample s of view v at the reference's frame i is the view's frame i + base[v] + s, so that
+    a continuous offset o in [base + 1, base + S - 2] is interpolated (Catmull-Rom: `at`)
+    between samples; what lets the bundle adjustment move the offsets (posecam.multiview.bundle).
+    Low-passed in time, every view alike: interpolating raw keypoints halves their frame-to-frame
+    noise at half frames, which would draw every offset there."""
+
+    uv: np.ndarray              # (V, S, F, J, 2), NaN where unseen
+    conf: np.ndarray            # (V, S, F, J)
+    base: np.ndarray            # (V,) int
+
+    def take(self, views: list[int]) -> "TimedKeypoints":
+        return TimedKeypoints(self.uv[views], self.conf[views], self.base[views])
+
+    def frames(self, index: np.ndarray) -> "TimedKeypoints":
+        return TimedKeypoints(self.uv[:, :, index], self.conf[:, :, index], self.base)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(V,) the offsets that the samples can interpolate."""
+        return self.base + 1.0, self.base + self.uv.shape[1] - 2.0
+
+    def at(self, offsets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(V, F, J, 2) keypoints and (V, F, J) confidences at the offsets (V,)."""
+        v, s, f, j, _ = self.uv.shape
+        t = np.repeat(np.asarray(offsets, float) - self.base, f * j)
+        uv, _ = catmull_rom(held(self.uv.transpose(0, 2, 3, 1, 4).reshape(-1, s, 2)), t)
+        return uv.reshape(v, f, j, 2), self.conf_at(np.asarray(offsets, float))
+
+    def conf_at(self, offsets: np.ndarray) -> np.ndarray:
+        """(V, F, J) confidence at the offsets: the smaller of the two samples around each."""
+        s = np.clip(np.floor(offsets - self.base).astype(int), 1, self.uv.shape[1] - 3)
+        v = np.arange(len(s))
+        frac = offsets - self.base - s
+        return np.where((frac > 1e-6)[:, None, None], np.minimum(self.conf[v, s], self.conf[v, s + 1]), self.conf[v, s])
+
+
+def held(samples: np.ndarray) -> np.ndarray:
+    """(N, S, D) samples with each NaN run filled from the nearest finite sample before it, else
+    after it (NaN where a row has none)."""
+    out = samples.copy()
+    for s in range(1, out.shape[1]):
+        out[:, s] = np.where(np.isnan(out[:, s]), out[:, s - 1], out[:, s])
+    for s in range(out.shape[1] - 2, -1, -1):
+        out[:, s] = np.where(np.isnan(out[:, s]), out[:, s + 1], out[:, s])
+    return out
+
+
+def catmull_rom(samples: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Samples (N, S, D) at times 0..S-1 evaluated at t (N,) in [1, S-2], the cubic through the
+    four samples around each (Catmull-Rom: C1, exact at the samples); (N, D) values and their
+    derivatives d/dt."""
+    k = np.clip(np.floor(t).astype(int), 1, samples.shape[1] - 3)
+    u = (t - k)[:, None]
+    n = np.arange(len(t))
+    p0, p1, p2, p3 = (samples[n, k + d] for d in (-1, 0, 1, 2))
+    a, b, c = -p0 + 3 * p1 - 3 * p2 + p3, 2 * p0 - 5 * p1 + 4 * p2 - p3, p2 - p0
+    return 0.5 * (((a * u + b) * u + c) * u + 2 * p1), 0.5 * ((3 * a * u + 2 * b) * u + c)
+
+
 @dataclass
 class ViewTrack:
     """One person id of one view, over that view's own frames (NaN / conf 0 where unseen)."""
@@ -184,3 +264,24 @@ class Take:
         """Each person in the `views`, at the offsets, in the reference's frames."""
         n = self.lengths[self.reference]
         return [Observations.of(p, self.lengths, offsets, n).take(views) for p in people]
+
+    def timed(self, people: list[PersonTracks], offsets: list[float], window: int, hz: float,
+              min_conf: float) -> TimedKeypoints:
+        """Every view's keypoints of the people (side by side along the frames, as
+        Observations.side_by_side puts them), low-passed at `hz` (`lowpass`; a joint seen
+        below min_conf is a gap), at whole-frame offsets `window` frames either way of each
+        view's offset (TimedKeypoints)."""
+        n, fps = self.lengths[self.reference], self.fps or 30.0
+        base = np.round(offsets).astype(int) - window - 1
+        steps = 2 * window + 3
+        uv = np.full((len(self.names), steps, n * len(people), len(self.joints), 2), np.nan)
+        conf = np.zeros(uv.shape[:-1])
+        for v, length in enumerate(self.lengths):
+            for q, person in enumerate(people):
+                track, _, c, _ = person.view_arrays(v, length)
+                smooth = lowpass(track, (c >= min_conf) & np.isfinite(track).all(axis=-1), fps, hz)
+                c = np.where(np.isfinite(smooth).all(axis=-1), c, 0.0)
+                for s in range(steps):
+                    uv[v, s, q * n:(q + 1) * n] = shift(smooth, base[v] + s, n)
+                    conf[v, s, q * n:(q + 1) * n] = shift(c, base[v] + s, n, 0.0)
+        return TimedKeypoints(uv, conf, base)
