@@ -48,8 +48,8 @@ def shift(a: np.ndarray, offset: float, length: int, fill=np.nan) -> np.ndarray:
 
 def lowpass(a: np.ndarray, seen: np.ndarray, fps: float, hz: float) -> np.ndarray:
     """(F, J, D) tracks low-passed in time (2nd-order Butterworth at `hz`, forwards and back),
-    each joint's gaps bridged inside the span where it is `seen` (F, J); NaN outside that span
-    and for joints seen in fewer than 15 frames."""
+    each joint's gaps bridged where it is not `seen` (F, J), held before and after; NaN for
+    joints seen in fewer than 15 frames."""
     from scipy.signal import butter, filtfilt
 
     out = np.full(a.shape, np.nan)
@@ -59,9 +59,8 @@ def lowpass(a: np.ndarray, seen: np.ndarray, fps: float, hz: float) -> np.ndarra
         ok = seen[:, k]
         if ok.sum() < 15:
             continue
-        span = (idx >= idx[ok][0]) & (idx <= idx[ok][-1])
-        filled = np.stack([np.interp(idx[span], idx[ok], a[ok, k, d]) for d in range(a.shape[2])], axis=1)
-        out[span, k] = filtfilt(b, c, filled, axis=0, padlen=min(9, int(span.sum()) - 1))
+        filled = np.stack([np.interp(idx, idx[ok], a[ok, k, d]) for d in range(a.shape[2])], axis=1)
+        out[:, k] = filtfilt(b, c, filled, axis=0, padlen=min(9, len(idx) - 1))
     return out
 
 

@@ -28,7 +28,7 @@ from posecam.errors import FusionError
 from posecam.geometry.camera import CameraCalibration, Rig
 from posecam.geometry.triangulate import reprojection_errors, triangulate
 from posecam.media import DEFAULT_FPS
-from posecam.multiview.observations import PersonTracks, Take, shift
+from posecam.multiview.observations import PersonTracks, Take, lowpass, shift
 
 
 def rig_error(cams: list[CameraCalibration], uv: list[np.ndarray], conf: list[np.ndarray],
@@ -129,19 +129,9 @@ BOOTSTRAP = 30                  # resamples of blocks of frames for the offset's
 
 def _smoothed(xyz: np.ndarray, conf: np.ndarray, fps: float, min_conf: float) -> tuple[np.ndarray, np.ndarray]:
     """(F, J, 3) joints about the root (joint 0), gaps bridged, low-passed; (F, J) where seen."""
-    from scipy.signal import butter, filtfilt
-
     seen = (conf >= min_conf) & (conf[:, :1] >= min_conf) & np.isfinite(xyz).all(axis=-1)
-    rel = xyz - xyz[:, :1]
-    out = np.full(xyz.shape, np.nan)
-    b, a = butter(2, min(LOWPASS_HZ / (fps / 2), 0.99))
-    idx = np.arange(len(conf))
-    for k in range(1, conf.shape[1]):
-        ok = seen[:, k]
-        if ok.sum() < 15:
-            continue
-        filled = np.stack([np.interp(idx, idx[ok], rel[ok, k, d]) for d in range(3)], axis=1)
-        out[:, k] = filtfilt(b, a, filled, axis=0, padlen=min(9, len(idx) - 1))
+    out = lowpass(xyz - xyz[:, :1], seen, fps, LOWPASS_HZ)
+    out[:, 0] = np.nan
     return out, seen & np.isfinite(out).all(axis=-1)
 
 
