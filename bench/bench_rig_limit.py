@@ -1,0 +1,371 @@
+"""What limits the rig posecam estimates from the people (issue 17), per take and per keypoint
+set, on Pose2Sim's two demo takes (bench/bench_fuse.py describes them and its yardstick: the
+lab's Qualisys rig, the truth offsets from the bench's own scan, a plain DLT).
+
+Keypoint sets: the default predictions (BlazePose full), BlazePose heavy (`--model PATH`: built
+with `python -m export.convert.build_models heavy --out DIR`), and MoveNet MultiPose's 17 COCO
+keypoints (the detector's own, the whole frame at its 256 px and at 384 px), each person's
+detection the one nearest the person's BlazePose keypoints; every set at the default
+predictions' truth offsets and matched across views by the bench's yardstick.
+
+1. At the lab rig (lab intrinsics, distortion taken out, truth offsets): every joint
+   triangulated by plain DLT through all views, and its reprojection residual vectors per view:
+   per (view, joint) their mean (the bias: the same error in every frame; the median vector) and the median distance
+   about it (the noise), and the median residual before and after each bias is taken out. Then posecam's bundle
+   adjustment started FROM the lab rig on those keypoints (rotation median of the camera pairs,
+   worst focal length, against the lab's): as they are, with every (view, joint) bias taken out
+   (the bias measured at the lab rig, an oracle: the drift the noise alone causes), with the
+   noise taken out (each keypoint moved to its lab reprojection plus its (view, joint)'s bias:
+   the drift the bias alone causes), and with only the BIAS_CELLS largest biases taken out (is
+   it a few joints and views, or all of them?).
+2. From scratch (no calibration, `--sync auto` and at the truth offsets), the default
+   predictions against heavy's, the same code in this run.
+3. Spreads against the real error: per estimated camera, the spread the fuse reports (cluster-
+   robust sandwich from the adjustment's Jacobian) beside a bootstrap of the whole estimate
+   (consensus + adjustment, `estimate_cameras` on the same people) over joints and blocks of
+   BLOCK frames (each replicate weighs every joint and every block by a multinomial count), and
+   the camera's error against the lab (rotation of the pair with the reference, focal length,
+   centre). The ratio spread / error, median over the cameras, says which one means something.
+
+Usage: python bench/bench_rig_limit.py [--cache DIR] [--heavy MODEL.onnx] [--take single|multi|both]
+       [--boot N] [--skip-movenet]
+Predictions are cached under DIR/<set>/<take>/camNN.json (made once with `posecam predict`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import bench_fuse as bf  # noqa: E402  (the yardstick: lab rig, truth offsets, plain DLT)
+
+ROOT = bf.ROOT
+BIAS_CELLS = 8          # the largest (view, joint) biases taken out in the "a few" variant
+BLOCK = 10              # frames per block of the bootstrap
+MOVENET_SIZES = (256, 384)
+MAX_MATCH = 0.08        # normalised units (~130 px): a MoveNet detection this far from a person is not them
+
+
+# ---- keypoint sets ----------------------------------------------------------------------------
+
+def predict(cache: Path, label: str, take: str, model: str | None) -> None:
+    folder = cache / label / take
+    if all((folder / f"{n}.json").exists() for n in bf.NAMES):
+        return
+    folder.mkdir(parents=True, exist_ok=True)
+    subprocess.run([sys.executable, "-m", "posecam", "predict", *(["--model", model] if model else []),
+                    "--out-dir", str(folder), *[str(ROOT / bf.TAKES[take][0] / f"{n}.mp4") for n in bf.NAMES]],
+                   check=True, env=dict(os.environ, PYTHONPATH=str(ROOT)), stdout=subprocess.DEVNULL)
+
+
+def movenet_tracks(cache: Path, take: str, size: int, truth: bf.Truth) -> dict:
+    """Per view, person id -> (F, 17, 2) normalised undistorted MoveNet keypoints and (F, 17)
+    scores: each frame's detection nearest the person's BlazePose keypoints (cached)."""
+    from posecam.inference.detector import MoveNetDetector
+    from posecam.inference.session import load_model
+
+    stored = cache / f"movenet{size}" / take / "detections.json"
+    if not stored.exists():
+        det = MoveNetDetector(load_model("movenet", kind="detector"), input_size=size)
+        views = []
+        for n in bf.NAMES:
+            cap, frames = cv2.VideoCapture(str(ROOT / bf.TAKES[take][0] / f"{n}.mp4")), []
+            while True:
+                ok, bgr = cap.read()
+                if not ok:
+                    break
+                found = det(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+                frames.append([[d.keypoints.tolist(), d.keypoint_scores.tolist()] for d in found])
+            views.append({"size": [int(cap.get(3)), int(cap.get(4))], "frames": frames})
+        stored.parent.mkdir(parents=True, exist_ok=True)
+        stored.write_text(json.dumps(views))
+    views = json.loads(stored.read_text())
+    out = []
+    for cam, blaze, view in zip(truth.cams, truth.views, views):
+        k = cam["K"].copy()
+        k[0, 2] += (view["size"][0] - cam["size"][0]) / 2
+        k[1, 2] += (view["size"][1] - cam["size"][1]) / 2
+        n = len(view["frames"])
+        tracks = {}
+        for pid, (uv_b, conf_b) in blaze.items():
+            uv, conf = np.full((n, 17, 2), np.nan), np.zeros((n, 17))
+            for i, dets in enumerate(view["frames"][:len(uv_b)]):
+                ok = conf_b[i] >= 0.5
+                if ok.sum() < 6 or not dets:
+                    continue
+                centre = uv_b[i][ok].mean(axis=0)
+                pts = [cv2.undistortPoints(np.array(d[0], float).reshape(-1, 1, 2), k, cam["dist"]).reshape(-1, 2)
+                       for d in dets]
+                dist = [np.linalg.norm(p[np.array(d[1]) >= 0.3].mean(axis=0) - centre) if (np.array(d[1]) >= 0.3).sum()
+                        >= 6 else np.inf for p, d in zip(pts, dets)]
+                best = int(np.argmin(dist))
+                if dist[best] < MAX_MATCH:
+                    uv[i], conf[i] = pts[best], dets[best][1]
+            tracks[pid] = (uv, conf)
+        out.append(tracks)
+    return out
+
+
+def keypoint_sets(cache: Path, take: str, heavy: str | None, movenet: bool) -> dict[str, tuple[bf.Truth, tuple]]:
+    """label -> (the yardstick holding that set's tracks, its joint names)."""
+    from export.convert.build_models import MOVENET_KEYPOINTS
+    from posecam.skeleton import H36M_JOINTS
+
+    predict(cache, "full", take, None)
+    full = bf.Truth(take, cache / "full")
+    sets = {"full (default)": (full, H36M_JOINTS)}
+    if heavy:
+        predict(cache, "heavy", take, heavy)
+        shutil.copy(cache / "full" / take / "truth.json", cache / "heavy" / take / "truth.json")   # same offsets
+        sets["heavy"] = (bf.Truth(take, cache / "heavy"), H36M_JOINTS)
+    for size in MOVENET_SIZES if movenet else ():
+        t = bf.Truth(take, cache / "full")
+        t.views, t._matches = movenet_tracks(cache, take, size, full), {}
+        sets[f"movenet {size} px"] = (t, MOVENET_KEYPOINTS)
+    return sets
+
+
+# ---- 1. at the lab rig ------------------------------------------------------------------------
+
+def lab_residuals(truth: bf.Truth) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(V, N, J, 2) normalised keypoints, (V, N, J) confidences (N: people x frames) at the truth
+    offsets, and their DLT reprojection residual vectors through the lab rig in pixels (NaN
+    where unused)."""
+    uv, conf = truth._matched(truth.combination)
+    v, p, f, j = conf.shape
+    uv, conf = uv.reshape(v, p * f, j, 2), conf.reshape(v, p * f, j)
+    w = (conf >= 0.5).astype(float)
+    P = np.stack([np.c_[c["R"], c["t"]] for c in truth.cams])
+    fx = np.array([c["K"][0, 0] for c in truth.cams])
+    res = np.full(uv.shape, np.nan)
+    for k in range(j):
+        pts, _ = bf.dlt(truth.cams, uv[:, :, k], w[:, :, k])
+        pc = np.einsum("vij,nj->vni", P[:, :, :3], pts) + P[:, None, :, 3]
+        r = (pc[..., :2] / pc[..., 2:3] - uv[:, :, k]) * fx[:, None, None]
+        res[:, :, k] = np.where((w[:, :, k] > 0)[..., None] & np.isfinite(pts).all(axis=1)[None, :, None], r, np.nan)
+    return uv, conf, res
+
+
+def bias_noise(res: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per (view, joint): the median residual vector (V, J, 2: the bias, robust to the few
+    keypoints a detector misplaces by 100 px), the median distance about it (V, J: the noise)
+    and the count (V, J)."""
+    ok = np.isfinite(res).all(axis=-1)
+    count = ok.sum(axis=1)
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        bias = np.nanmedian(res, axis=1)
+        noise = np.nanmedian(np.linalg.norm(res - bias[:, None], axis=-1), axis=1)
+    return np.where(count[..., None] >= 10, bias, np.nan), np.where(count >= 10, noise, np.nan), count
+
+
+def adjust_from_lab(truth: bf.Truth, uv: np.ndarray, conf: np.ndarray, joints: tuple) -> dict:
+    """posecam's bundle adjustment started from the lab rig (cam01's frame) on normalised
+    keypoints (V, N, J, 2): the run dict `bf.Truth.score` reads."""
+    from posecam.geometry.camera import CameraCalibration, Intrinsics, Rig
+    from posecam.multiview.bundle import bundle_adjust
+
+    c0 = truth.cams[0]
+    cams = []
+    for name, c in zip(bf.NAMES, truth.cams):
+        r, k = c["R"] @ c0["R"].T, c["K"]
+        cams.append(CameraCalibration(name, c["size"], Intrinsics(k[0, 0], k[1, 1], k[0, 2], k[1, 2]), r,
+                                      c["t"] - r @ c0["t"]))
+    k = np.stack([c["K"] for c in truth.cams])
+    px = np.stack([uv[..., 0] * k[:, None, None, 0, 0] + k[:, None, None, 0, 2],
+                   uv[..., 1] * k[:, None, None, 1, 1] + k[:, None, None, 1, 2]], axis=-1)
+    fit = bundle_adjust(Rig(cams, "cam01"), px, conf, None, joints)
+    est = fit.rig.cameras
+    return {"frame": "camera", "cameras_names": list(bf.NAMES), "R": [c.rotation.tolist() for c in est],
+            "t": [c.translation.tolist() for c in est], "fx": [c.intrinsics.fx for c in est],
+            "offsets_kept": truth.combination, "pelvis": [[] for _ in range(truth.n)],
+            "error_px": float(np.median(fit.median_error_px))}
+
+
+def at_lab(label: str, truth: bf.Truth, joints: tuple) -> dict:
+    from posecam.multiview.bundle import LEFT_OUT
+
+    uv, conf, res = lab_residuals(truth)
+    bias, noise, count = bias_noise(res)
+    size = np.linalg.norm(bias, axis=-1)                                          # (V, J) px
+    ok = np.isfinite(res).all(axis=-1)
+    before = float(np.nanmedian(np.linalg.norm(res, axis=-1)))
+    after = float(np.nanmedian(np.linalg.norm(res - bias[:, None], axis=-1)))
+    used = ~np.isin(joints, LEFT_OUT)
+    print(f"-- {label}: {int(ok.sum())} residuals at the lab rig, median {before:.1f} px, {after:.1f} px once "
+          f"each (view, joint)'s bias is taken out; per (view, joint) of the adjustment's joints: bias median "
+          f"{np.nanmedian(size[:, used]):.1f} px (max {np.nanmax(size[:, used]):.1f}), noise median "
+          f"{np.nanmedian(noise[:, used]):.1f} px")
+    order = np.argsort(-np.nanmean(np.where(used, size, 0.0), axis=0))
+    rows = [f"{joints[j]} {' '.join(f'{size[v, j]:.1f}/{noise[v, j]:.1f}' for v in range(len(bf.NAMES)))}"
+            for j in order if used[j]][:6]
+    print(f"   largest biases, bias/noise px per view cam01..04: {'; '.join(rows)}")
+    by_view = np.nanmedian(np.where(used, size, np.nan), axis=1)
+    print(f"   median bias per view: {', '.join(f'{n} {b:.1f} px' for n, b in zip(bf.NAMES, by_view))}")
+    fx = np.array([c["K"][0, 0] for c in truth.cams])
+    shift = np.nan_to_num(bias) / fx[:, None, None]                               # normalised units
+    cells = np.argsort(-np.where(used[None], np.nan_to_num(size), 0).ravel())[:BIAS_CELLS]
+    some = np.zeros_like(shift)
+    some.reshape(-1, 2)[cells] = shift.reshape(-1, 2)[cells]
+    out = {}
+    noise_out = np.where(np.isfinite(res), res / fx[:, None, None, None], 0.0) - shift[:, None]
+    for name, kp in (("as they are", uv), ("every (view, joint) bias taken out (noise alone)", uv + shift[:, None]),
+                     ("the noise taken out (each bias alone, on the lab reprojection)", uv + noise_out),
+                     (f"the {BIAS_CELLS} largest biases taken out", uv + some[:, None])):
+        run = adjust_from_lab(truth, kp, conf, joints)
+        s = truth.score(run)
+        out[name] = s
+        print(f"   adjustment from the lab rig, keypoints {name}: rotation median {s['rot_median']:.2f} deg, "
+              f"focal max {s['focal_max']:.1f} % ({', '.join(f'{k} {v:+.1f}' for k, v in s['focal'].items())}), "
+              f"reprojection {run['error_px']:.1f} px")
+    top = [f"{bf.NAMES[c // len(joints)]} {joints[c % len(joints)]}" for c in cells]
+    print(f"   the {BIAS_CELLS} largest: {', '.join(top)}")
+    return {"residual": (before, after), "bias": float(np.nanmedian(size[:, used])), "noise": float(np.nanmedian(noise[:, used])),
+            **{k: (v["rot_median"], v["focal_max"]) for k, v in out.items()}}
+
+
+# ---- 2. from scratch, 3. spreads against the error -------------------------------------------
+
+def from_scratch(label: str, truth: bf.Truth, folder: Path) -> None:
+    """`fuse_recordings` without a calibration on the set's pose JSON, `--sync auto` and at the
+    truth offsets (this checkout)."""
+    from posecam import read_poses
+    from posecam.multiview.fuse import FuseOptions, fuse_recordings
+
+    recs = [read_poses(folder / f"{n}.json")[0] for n in bf.NAMES]
+    for how, opts in (("--sync auto", FuseOptions(sync=True)),
+                      ("lab offsets", FuseOptions(offsets=[round(o) for o in truth.combination]))):
+        t0 = time.perf_counter()
+        res = fuse_recordings(recs, opts)
+        dt = time.perf_counter() - t0
+        run = {"frame": "camera", "cameras_names": [c.name for c in res.rig.cameras],
+               "R": [c.rotation.tolist() for c in res.rig.cameras], "t": [c.translation.tolist() for c in res.rig.cameras],
+               "fx": [c.intrinsics.fx for c in res.rig.cameras], "offsets_kept": [res.offsets[v] for v in res.views],
+               "pelvis": [[p.keypoints_3d[0].tolist() for p in f.people] for f in res.recording.frames]}
+        s = truth.score(run)
+        print(f"   {label}, no calibration, {how}: {dt:.1f} s; rotation median {s['rot_median']:.2f} deg, focal max "
+              f"{s['focal_max']:.1f} % ({', '.join(f'{k} {v:+.1f}' for k, v in s['focal'].items())}), pelvis median "
+              f"{s['pelvis_median']:.0f} mm, offsets {[round(o, 2) for o in run['offsets_kept']]}")
+
+
+def spreads(truth: bf.Truth, folder: Path, n_boot: int, seed: int = 0) -> None:
+    """Per estimated camera: the reported (sandwich) spread, the bootstrap's, the error."""
+    from posecam import read_poses
+    from posecam.multiview.associate import associate_people
+    from posecam.multiview.calibrate import estimate_cameras
+    from posecam.multiview.fuse import FuseOptions, check_take
+    from posecam.multiview.left_right import fix_people
+    from posecam.multiview.observations import Observations
+    from posecam.multiview.sync import synchronise
+
+    recs = [read_poses(folder / f"{n}.json")[0] for n in bf.NAMES]
+    opts = FuseOptions(sync=True)
+    take = check_take(recs, opts)
+    association = associate_people(take, None, [0] * 4, opts.min_conf)
+    sync = synchronise(take, association.people, None, [0] * 4, opts.max_offset, opts.min_conf)
+    every = list(range(4))
+    people = take.observations(association.people, sync.offsets, every)
+    t0 = time.perf_counter()
+    est = estimate_cameras(take.assumed, people, take.joints, take.reference, opts.min_conf)
+    t_once = time.perf_counter() - t0
+    people, _ = fix_people(est.rig, [p.take(est.views) for p in people], take.joints)
+    est = estimate_cameras([take.assumed[v] for v in est.views], people, take.joints, take.reference, opts.min_conf)
+
+    def errors(rig) -> dict:
+        run = {"frame": "camera", "cameras_names": [c.name for c in rig.cameras],
+               "R": [c.rotation.tolist() for c in rig.cameras], "t": [c.translation.tolist() for c in rig.cameras],
+               "fx": [c.intrinsics.fx for c in rig.cameras], "offsets_kept": [sync.offsets[v] for v in est.views],
+               "pelvis": [[] for _ in range(truth.n)]}
+        return truth.score(run)
+
+    base = errors(est.rig)
+    names = [c.name for c in est.rig.cameras]
+    rng = np.random.default_rng(seed)
+    n_j = len(take.joints)
+    reps, t0 = [], time.perf_counter()
+    for _ in range(n_boot):
+        w_joint = rng.multinomial(n_j, np.full(n_j, 1 / n_j)).astype(float)
+        boot = []
+        for p in people:
+            n_f = p.conf.shape[1]
+            blocks = -(-n_f // BLOCK)
+            w_block = np.repeat(rng.multinomial(blocks, np.full(blocks, 1 / blocks)), BLOCK)[:n_f].astype(float)
+            boot.append(Observations(p.uv, p.xyz, p.conf * w_block[None, :, None] * w_joint[None, None], p.score))
+        try:
+            fit = estimate_cameras(est.rig.cameras, boot, take.joints, take.reference, opts.min_conf)
+        except Exception as exc:  # a replicate the gate refuses is a figure too
+            print(f"      replicate failed: {type(exc).__name__}: {exc}")
+            continue
+        if len(fit.views) == len(names):
+            reps.append(fit.rig)
+    t_boot = time.perf_counter() - t0
+    # spread of each camera over the replicates: rotation (deg, about its mean), focal (%), centre (mm)
+    rot = {n: [] for n in names}
+    foc = {n: [] for n in names}
+    cen = {n: [] for n in names}
+    for rig in reps:
+        for i, (c, c_est) in enumerate(zip(rig.cameras, est.rig.cameras)):
+            d = c.rotation @ c_est.rotation.T
+            rot[names[i]].append(np.degrees(cv2.Rodrigues(d)[0].ravel()))
+            foc[names[i]].append(100 * (c.intrinsics.fx / c_est.intrinsics.fx - 1))
+            cen[names[i]].append(c.centre)
+    print(f"   spreads (one sd) against the error of each camera (the fuse's rig, --sync auto): the fuse's "
+          f"sandwich | bootstrap of {len(reps)} replicates over joints and {BLOCK}-frame blocks "
+          f"({t_boot:.0f} s, one estimate {t_once:.1f} s) | error against the lab")
+    ratios = {"sandwich": [], "bootstrap": []}
+    for i, n in enumerate(names):
+        if i == names.index(names[take.reference]):
+            continue
+        sp = est.spreads[i]
+        b_rot = float(np.sqrt(np.linalg.eigvalsh(np.cov(np.array(rot[n]).T)).max())) if len(reps) > 2 else np.nan
+        b_foc = float(np.std(foc[n], ddof=1)) if len(reps) > 2 else np.nan
+        b_cen = float(np.sqrt(np.linalg.eigvalsh(np.cov(np.array(cen[n]).T)).max())) if len(reps) > 2 else np.nan
+        e_rot, e_foc, e_cen = base["rot"][f"{names[0]}-{n}"], abs(base["focal"][n]), base["centre"][n]
+        print(f"      {n}: rotation ±{sp.rotation_deg:.2f} | ±{b_rot:.2f} | {e_rot:.2f} deg; focal ±{sp.focal_pct:.1f} | "
+              f"±{b_foc:.1f} | {base['focal'][n]:+.1f} %; centre ±{sp.position_mm:.0f} | ±{b_cen:.0f} | {e_cen:.0f} mm")
+        ratios["sandwich"] += [sp.rotation_deg / e_rot, sp.focal_pct / max(e_foc, 1e-9)]
+        ratios["bootstrap"] += [b_rot / e_rot, b_foc / max(e_foc, 1e-9)]
+    print(f"      spread / error, median over the cameras' rotation and focal: sandwich "
+          f"{np.median(ratios['sandwich']):.2f}, bootstrap {np.median(ratios['bootstrap']):.2f}")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--cache", type=Path, default=Path("/tmp/rig_limit_cache"))
+    ap.add_argument("--heavy", help="BlazePose heavy ONNX (build_models heavy --out DIR); none: not run")
+    ap.add_argument("--take", choices=[*bf.TAKES, "both"], default="both")
+    ap.add_argument("--boot", type=int, default=20, help="bootstrap replicates (0: no spreads part)")
+    ap.add_argument("--skip-movenet", action="store_true")
+    args = ap.parse_args()
+    for take in bf.TAKES:
+        if args.take not in (take, "both"):
+            continue
+        sets = keypoint_sets(args.cache, take, args.heavy, not args.skip_movenet)
+        truth = sets["full (default)"][0]
+        print(f"== {take}: truth offsets (lab rig, plain DLT) {truth.combination}")
+        for label, (t, joints) in sets.items():
+            at_lab(label, t, joints)
+        print("-- from scratch (this checkout, the same run)")
+        for label, folder in (("full (default)", "full"), ("heavy", "heavy")):
+            if label in sets:
+                from_scratch(label, truth, args.cache / folder / take)
+        if args.boot:
+            for label, folder in (("full (default)", "full"), ("heavy", "heavy")):
+                if label in sets:
+                    print(f"-- {label}")
+                    spreads(truth, args.cache / folder / take, args.boot)
+
+
+if __name__ == "__main__":
+    main()
