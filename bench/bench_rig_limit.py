@@ -10,21 +10,22 @@ predictions' truth offsets and matched across views by the bench's yardstick.
 
 1. At the lab rig (lab intrinsics, distortion taken out, truth offsets): every joint
    triangulated by plain DLT through all views, and its reprojection residual vectors per view:
-   per (view, joint) their mean (the bias: the same error in every frame; the median vector) and the median distance
-   about it (the noise), and the median residual before and after each bias is taken out. Then posecam's bundle
-   adjustment started FROM the lab rig on those keypoints (rotation median of the camera pairs,
-   worst focal length, against the lab's): as they are, with every (view, joint) bias taken out
-   (the bias measured at the lab rig, an oracle: the drift the noise alone causes), with the
-   noise taken out (each keypoint moved to its lab reprojection plus its (view, joint)'s bias:
+   per (view, person, joint) their median vector (the bias: the same error in every frame) and
+   the median distance about it (the noise), and the median residual before and after each bias
+   is taken out. Then posecam's bundle adjustment started FROM the lab rig on those keypoints
+   (rotation median of the camera pairs, worst focal length, against the lab's): as they are,
+   with every bias taken out (the bias measured at the lab rig, an oracle: the drift the noise alone causes), with the
+   noise taken out (each keypoint moved to its lab reprojection plus its bias:
    the drift the bias alone causes), and with only the BIAS_CELLS largest biases taken out (is
    it a few joints and views, or all of them?).
 2. From scratch (no calibration, `--sync auto` and at the truth offsets), the default
    predictions against heavy's, the same code in this run.
-3. Spreads against the real error: per estimated camera, the spread the fuse reports (cluster-
-   robust sandwich from the adjustment's Jacobian) beside a bootstrap of the whole estimate
-   (consensus + adjustment, `estimate_cameras` on the same people) over joints and blocks of
-   BLOCK frames (each replicate weighs every joint and every block by a multinomial count), and
-   the camera's error against the lab (rotation of the pair with the reference, focal length,
+3. Spreads against the real error: per estimated camera, the adjustment's Jacobian's (cluster-
+   robust sandwich: what the gate uses, and what fuse reported before), a bootstrap of the
+   whole estimate (consensus + adjustment, `estimate_cameras` on the same people) over joints and blocks of
+   BLOCK frames (each replicate weighs every joint and every block by a multinomial count),
+   what fuse reports now (`calibrate.bootstrap_spreads`: the adjustment alone, warm-started),
+   and the camera's error against the lab (rotation of the pair with the reference, focal length,
    centre). The ratio spread / error, median over the cameras, says which one means something.
 
 Usage: python bench/bench_rig_limit.py [--cache DIR] [--heavy MODEL.onnx] [--take single|multi|both]
@@ -139,34 +140,34 @@ def keypoint_sets(cache: Path, take: str, heavy: str | None, movenet: bool) -> d
 # ---- 1. at the lab rig ------------------------------------------------------------------------
 
 def lab_residuals(truth: bf.Truth) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(V, N, J, 2) normalised keypoints, (V, N, J) confidences (N: people x frames) at the truth
-    offsets, and their DLT reprojection residual vectors through the lab rig in pixels (NaN
-    where unused)."""
+    """(V, P, F, J, 2) normalised keypoints and (V, P, F, J) confidences of the people at the
+    truth offsets, and their DLT reprojection residual vectors through the lab rig in pixels
+    (NaN where unused)."""
     uv, conf = truth._matched(truth.combination)
     v, p, f, j = conf.shape
-    uv, conf = uv.reshape(v, p * f, j, 2), conf.reshape(v, p * f, j)
-    w = (conf >= 0.5).astype(float)
+    w = (conf >= 0.5).astype(float).reshape(v, p * f, j)
+    flat = uv.reshape(v, p * f, j, 2)
     P = np.stack([np.c_[c["R"], c["t"]] for c in truth.cams])
     fx = np.array([c["K"][0, 0] for c in truth.cams])
-    res = np.full(uv.shape, np.nan)
+    res = np.full(flat.shape, np.nan)
     for k in range(j):
-        pts, _ = bf.dlt(truth.cams, uv[:, :, k], w[:, :, k])
+        pts, _ = bf.dlt(truth.cams, flat[:, :, k], w[:, :, k])
         pc = np.einsum("vij,nj->vni", P[:, :, :3], pts) + P[:, None, :, 3]
-        r = (pc[..., :2] / pc[..., 2:3] - uv[:, :, k]) * fx[:, None, None]
+        r = (pc[..., :2] / pc[..., 2:3] - flat[:, :, k]) * fx[:, None, None]
         res[:, :, k] = np.where((w[:, :, k] > 0)[..., None] & np.isfinite(pts).all(axis=1)[None, :, None], r, np.nan)
-    return uv, conf, res
+    return uv, conf, res.reshape(uv.shape)
 
 
 def bias_noise(res: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per (view, joint): the median residual vector (V, J, 2: the bias, robust to the few
-    keypoints a detector misplaces by 100 px), the median distance about it (V, J: the noise)
-    and the count (V, J)."""
+    """Per (view, person, joint) of residuals (V, P, F, J, 2): the median residual vector
+    (V, P, J, 2: the bias, robust to the few keypoints a detector misplaces by 100 px), the
+    median distance about it (V, P, J: the noise) and the count (V, P, J)."""
     ok = np.isfinite(res).all(axis=-1)
-    count = ok.sum(axis=1)
+    count = ok.sum(axis=2)
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
-        bias = np.nanmedian(res, axis=1)
-        noise = np.nanmedian(np.linalg.norm(res - bias[:, None], axis=-1), axis=1)
+        bias = np.nanmedian(res, axis=2)
+        noise = np.nanmedian(np.linalg.norm(res - bias[:, :, None], axis=-1), axis=2)
     return np.where(count[..., None] >= 10, bias, np.nan), np.where(count >= 10, noise, np.nan), count
 
 
@@ -198,41 +199,41 @@ def at_lab(label: str, truth: bf.Truth, joints: tuple) -> dict:
 
     uv, conf, res = lab_residuals(truth)
     bias, noise, count = bias_noise(res)
-    size = np.linalg.norm(bias, axis=-1)                                          # (V, J) px
-    ok = np.isfinite(res).all(axis=-1)
+    size = np.linalg.norm(bias, axis=-1)                                          # (V, P, J) px
+    n_v, n_p, n_f, n_j = conf.shape
     before = float(np.nanmedian(np.linalg.norm(res, axis=-1)))
-    after = float(np.nanmedian(np.linalg.norm(res - bias[:, None], axis=-1)))
+    after = float(np.nanmedian(np.linalg.norm(res - bias[:, :, None], axis=-1)))
     used = ~np.isin(joints, LEFT_OUT)
-    print(f"-- {label}: {int(ok.sum())} residuals at the lab rig, median {before:.1f} px, {after:.1f} px once "
-          f"each (view, joint)'s bias is taken out; per (view, joint) of the adjustment's joints: bias median "
-          f"{np.nanmedian(size[:, used]):.1f} px (max {np.nanmax(size[:, used]):.1f}), noise median "
-          f"{np.nanmedian(noise[:, used]):.1f} px")
-    order = np.argsort(-np.nanmean(np.where(used, size, 0.0), axis=0))
-    rows = [f"{joints[j]} {' '.join(f'{size[v, j]:.1f}/{noise[v, j]:.1f}' for v in range(len(bf.NAMES)))}"
+    print(f"-- {label}: {int(np.isfinite(res).all(axis=-1).sum())} residuals at the lab rig, median {before:.1f} px, "
+          f"{after:.1f} px once each (view, person, joint)'s bias is taken out; per (view, person, joint) of the "
+          f"adjustment's joints: bias median {np.nanmedian(size[..., used]):.1f} px (max {np.nanmax(size[..., used]):.1f}), "
+          f"noise median {np.nanmedian(noise[..., used]):.1f} px")
+    mean_size = np.nanmean(np.where(used, size, 0.0), axis=(1,))                 # (V, J): over the people
+    order = np.argsort(-np.nanmean(mean_size, axis=0))
+    rows = [f"{joints[j]} {' '.join(f'{np.nanmean(size[v, :, j]):.1f}/{np.nanmean(noise[v, :, j]):.1f}' for v in range(n_v))}"
             for j in order if used[j]][:6]
-    print(f"   largest biases, bias/noise px per view cam01..04: {'; '.join(rows)}")
-    by_view = np.nanmedian(np.where(used, size, np.nan), axis=1)
+    print(f"   largest biases, bias/noise px per view cam01..04 (mean over the people): {'; '.join(rows)}")
+    by_view = np.nanmedian(np.where(used, size, np.nan).reshape(n_v, -1), axis=1)
     print(f"   median bias per view: {', '.join(f'{n} {b:.1f} px' for n, b in zip(bf.NAMES, by_view))}")
     fx = np.array([c["K"][0, 0] for c in truth.cams])
-    shift = np.nan_to_num(bias) / fx[:, None, None]                               # normalised units
-    cells = np.argsort(-np.where(used[None], np.nan_to_num(size), 0).ravel())[:BIAS_CELLS]
+    shift = np.nan_to_num(bias) / fx[:, None, None, None]                         # (V, P, J, 2) normalised
+    cells = np.argsort(-np.where(used, np.nan_to_num(size), 0).ravel())[:BIAS_CELLS]
     some = np.zeros_like(shift)
     some.reshape(-1, 2)[cells] = shift.reshape(-1, 2)[cells]
+    noise_out = np.where(np.isfinite(res), res / fx[:, None, None, None, None], 0.0) - shift[:, :, None]
     out = {}
-    noise_out = np.where(np.isfinite(res), res / fx[:, None, None, None], 0.0) - shift[:, None]
-    for name, kp in (("as they are", uv), ("every (view, joint) bias taken out (noise alone)", uv + shift[:, None]),
+    for name, kp in (("as they are", uv), ("every bias taken out (the noise alone)", uv + shift[:, :, None]),
                      ("the noise taken out (each bias alone, on the lab reprojection)", uv + noise_out),
-                     (f"the {BIAS_CELLS} largest biases taken out", uv + some[:, None])):
-        run = adjust_from_lab(truth, kp, conf, joints)
+                     (f"the {BIAS_CELLS} largest biases taken out", uv + some[:, :, None])):
+        run = adjust_from_lab(truth, kp.reshape(n_v, n_p * n_f, n_j, 2), conf.reshape(n_v, n_p * n_f, n_j), joints)
         s = truth.score(run)
         out[name] = s
         print(f"   adjustment from the lab rig, keypoints {name}: rotation median {s['rot_median']:.2f} deg, "
               f"focal max {s['focal_max']:.1f} % ({', '.join(f'{k} {v:+.1f}' for k, v in s['focal'].items())}), "
               f"reprojection {run['error_px']:.1f} px")
-    top = [f"{bf.NAMES[c // len(joints)]} {joints[c % len(joints)]}" for c in cells]
+    top = [f"{bf.NAMES[c // (n_p * n_j)]} {joints[c % n_j]}" for c in cells]
     print(f"   the {BIAS_CELLS} largest: {', '.join(top)}")
-    return {"residual": (before, after), "bias": float(np.nanmedian(size[:, used])), "noise": float(np.nanmedian(noise[:, used])),
-            **{k: (v["rot_median"], v["focal_max"]) for k, v in out.items()}}
+    return {"residual": (before, after), **{k: (v["rot_median"], v["focal_max"]) for k, v in out.items()}}
 
 
 # ---- 2. from scratch, 3. spreads against the error -------------------------------------------
@@ -263,7 +264,7 @@ def spreads(truth: bf.Truth, folder: Path, n_boot: int, seed: int = 0) -> None:
     """Per estimated camera: the reported (sandwich) spread, the bootstrap's, the error."""
     from posecam import read_poses
     from posecam.multiview.associate import associate_people
-    from posecam.multiview.calibrate import estimate_cameras
+    from posecam.multiview.calibrate import bootstrap_spreads, estimate_cameras
     from posecam.multiview.fuse import FuseOptions, check_take
     from posecam.multiview.left_right import fix_people
     from posecam.multiview.observations import Observations
@@ -281,6 +282,9 @@ def spreads(truth: bf.Truth, folder: Path, n_boot: int, seed: int = 0) -> None:
     t_once = time.perf_counter() - t0
     people, _ = fix_people(est.rig, [p.take(est.views) for p in people], take.joints)
     est = estimate_cameras([take.assumed[v] for v in est.views], people, take.joints, take.reference, opts.min_conf)
+    t0 = time.perf_counter()
+    reported = bootstrap_spreads(est, people, take.joints, opts.min_conf).spreads
+    t_reported = time.perf_counter() - t0
 
     def errors(rig) -> dict:
         run = {"frame": "camera", "cameras_names": [c.name for c in rig.cameras],
@@ -320,10 +324,11 @@ def spreads(truth: bf.Truth, folder: Path, n_boot: int, seed: int = 0) -> None:
             rot[names[i]].append(np.degrees(cv2.Rodrigues(d)[0].ravel()))
             foc[names[i]].append(100 * (c.intrinsics.fx / c_est.intrinsics.fx - 1))
             cen[names[i]].append(c.centre)
-    print(f"   spreads (one sd) against the error of each camera (the fuse's rig, --sync auto): the fuse's "
-          f"sandwich | bootstrap of {len(reps)} replicates over joints and {BLOCK}-frame blocks "
-          f"({t_boot:.0f} s, one estimate {t_once:.1f} s) | error against the lab")
-    ratios = {"sandwich": [], "bootstrap": []}
+    print(f"   spreads (one sd) against the error of each camera (the fuse's rig, --sync auto): the adjustment's "
+          f"Jacobian (cluster-robust sandwich, the gate's) | bootstrap of the whole estimate, {len(reps)} replicates "
+          f"over joints and {BLOCK}-frame blocks ({t_boot:.0f} s; one estimate {t_once:.1f} s) | posecam's reported "
+          f"(calibrate.bootstrap_spreads, {t_reported:.1f} s) | error against the lab")
+    ratios = {"sandwich": [], "bootstrap": [], "reported": []}
     for i, n in enumerate(names):
         if i == names.index(names[take.reference]):
             continue
@@ -332,12 +337,16 @@ def spreads(truth: bf.Truth, folder: Path, n_boot: int, seed: int = 0) -> None:
         b_foc = float(np.std(foc[n], ddof=1)) if len(reps) > 2 else np.nan
         b_cen = float(np.sqrt(np.linalg.eigvalsh(np.cov(np.array(cen[n]).T)).max())) if len(reps) > 2 else np.nan
         e_rot, e_foc, e_cen = base["rot"][f"{names[0]}-{n}"], abs(base["focal"][n]), base["centre"][n]
-        print(f"      {n}: rotation ±{sp.rotation_deg:.2f} | ±{b_rot:.2f} | {e_rot:.2f} deg; focal ±{sp.focal_pct:.1f} | "
-              f"±{b_foc:.1f} | {base['focal'][n]:+.1f} %; centre ±{sp.position_mm:.0f} | ±{b_cen:.0f} | {e_cen:.0f} mm")
+        rp = reported[i]
+        print(f"      {n}: rotation ±{sp.rotation_deg:.2f} | ±{b_rot:.2f} | ±{rp.rotation_deg:.2f} | {e_rot:.2f} deg; "
+              f"focal ±{sp.focal_pct:.1f} | ±{b_foc:.1f} | ±{rp.focal_pct:.1f} | {base['focal'][n]:+.1f} %; "
+              f"centre ±{sp.position_mm:.0f} | ±{b_cen:.0f} | ±{rp.position_mm:.0f} | {e_cen:.0f} mm")
         ratios["sandwich"] += [sp.rotation_deg / e_rot, sp.focal_pct / max(e_foc, 1e-9)]
         ratios["bootstrap"] += [b_rot / e_rot, b_foc / max(e_foc, 1e-9)]
-    print(f"      spread / error, median over the cameras' rotation and focal: sandwich "
-          f"{np.median(ratios['sandwich']):.2f}, bootstrap {np.median(ratios['bootstrap']):.2f}")
+        ratios["reported"] += [rp.rotation_deg / e_rot, rp.focal_pct / max(e_foc, 1e-9)]
+    print(f"      spread / error, median over the cameras' rotation and focal: Jacobian "
+          f"{np.median(ratios['sandwich']):.2f}, whole-estimate bootstrap {np.median(ratios['bootstrap']):.2f}, "
+          f"reported {np.median(ratios['reported']):.2f}")
 
 
 def main() -> None:

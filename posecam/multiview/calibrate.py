@@ -15,8 +15,9 @@ adjustment's Jacobian) too wide to trust. What is left is estimated again withou
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
+import cv2
 import numpy as np
 
 from posecam.errors import FusionError
@@ -36,8 +37,9 @@ MAX_ERROR_PX = 40.0             # median bundle-adjustment reprojection error pe
 MIN_RAY_ANGLE_DEG = 8.0
 MAX_BEHIND = 0.05               # fraction of the fused points that may lie behind a camera
 FOCAL_WIDTHS = (0.2, 10.0)      # plausible focal lengths, in image widths
-# one standard deviation (posecam.multiview.bundle.CameraSpread) above which the data does not
-# pin a camera: people too still, too few frames, or geometry that tells little
+# one standard deviation from the adjustment's Jacobian (posecam.multiview.bundle.CameraSpread)
+# above which the data does not pin a camera: people too still, too few frames, or geometry that
+# tells little (0.4-0.8 deg and 1.4-2.4 % on Pose2Sim's takes: bench/bench_rig_limit.py)
 MAX_ROTATION_SPREAD_DEG = 3.0
 MAX_FOCAL_SPREAD_PCT = 15.0
 OUTLIER_FACTOR = 3.0            # a person's stretch this many times the median residual: outlier
@@ -45,6 +47,15 @@ OUTLIER_FACTOR = 3.0            # a person's stretch this many times the median 
 # 0.46-0.80 on Pose2Sim's takes; unrelated real clips (OpenCV's vtest.avi against itself 40 s
 # later, or against a Pose2Sim view) by 0.17-0.30: walkers' speeds are periodic and alike
 MIN_SAME_MOTION = 0.38
+# the reported spreads: a bootstrap of the bundle adjustment (`bootstrap_spreads`), this many
+# replicates, each weighing every joint and every block of BOOT_BLOCK frames by a multinomial
+# count, warm-started from the rig on BOOT_FRAMES frames (their spreads match those on 150 within
+# 0.1 deg and 1 %, in a fifth of the time); the replicates' standard deviations vary by about
+# 1 / sqrt(2 BOOT_REPLICATES) = 20 % of themselves
+BOOT_REPLICATES = 12
+BOOT_BLOCK = 10
+BOOT_FRAMES = 50
+BOOT_FTOL = 1e-4
 
 
 @dataclass
@@ -54,7 +65,8 @@ class KeptCameras:
     rig: Rig                    # the kept cameras only
     views: list[int]            # indices (into the inputs) of the kept cameras
     warnings: list[str]         # of the stage that made them: cameras dropped, names matched, ...
-    spreads: list[CameraSpread] | None = None   # (len(views),) estimated: from the bundle adjustment
+    # (len(views),) estimated: from the adjustment's Jacobian (the gate's), then `bootstrap_spreads`
+    spreads: list[CameraSpread] | None = None
     offsets: list[float] | None = None          # (len(views),) refined by the bundle adjustment
     offset_spreads: list[float] | None = None   # (len(views),) their standard deviations, frames
 
@@ -114,8 +126,8 @@ def _gate(rig: Rig, points: np.ndarray, errors: np.ndarray, obs: Observations, m
                            "(degenerate geometry)")
         elif spreads and not (spreads[i].rotation_deg <= MAX_ROTATION_SPREAD_DEG
                               and spreads[i].focal_pct <= MAX_FOCAL_SPREAD_PCT):
-            reasons.append(f"the people pin it poorly (rotation ±{spreads[i].rotation_deg:.1f} deg, focal length "
-                           f"±{spreads[i].focal_pct:.0f} %: too little motion or too few frames)")
+            reasons.append(f"the people pin it poorly (its adjustment's Jacobian: rotation ±{spreads[i].rotation_deg:.1f} "
+                           f"deg, focal length ±{spreads[i].focal_pct:.0f} %: too little motion or too few frames)")
         else:
             reasons.append(None)
     return reasons
@@ -238,3 +250,53 @@ def cameras_without_swaps(take: Take, cameras: KeptCameras, people: list[Observa
                              min_conf, bundle, bundle_options)
     kept = KeptCameras(again.rig, [views[i] for i in again.views], again.warnings, again.spreads)
     return kept, [p.take(again.views) for p in people], swaps[again.views]
+
+
+def bootstrap_spreads(cameras: KeptCameras, people: list[Observations], joints: tuple[str, ...], min_conf: float,
+                      bundle_options: BundleOptions | None = None, seed: int = 0) -> KeptCameras:
+    """The estimated cameras with the spreads a bootstrap gives (one standard deviation of each
+    camera's rotation, focal length and centre, at the rig's scale): the bundle adjustment again
+    from the rig, BOOT_REPLICATES times, each on the people (their views the cameras') with
+    every joint and every block of BOOT_BLOCK frames weighed by a multinomial count. The
+    detector's error for a joint in a view is its own in every frame (a bias) and drifts with
+    the pose, so the rig's real error is of the size of how far it moves when joints and
+    stretches of the take are left out or doubled; the Jacobian's spreads (the gate's) are 1/4 to
+    1/6 of it on Pose2Sim's takes, the bootstrap's 0.6-1.0 times it (bench/bench_rig_limit.py).
+    Cameras given (no spreads) are returned as they are."""
+    if cameras.spreads is None:
+        return cameras
+    rig = cameras.rig
+    obs = Observations.side_by_side(people)
+    opts = replace(bundle_options or BundleOptions(), max_frames=BOOT_FRAMES, ftol=BOOT_FTOL)
+    rng = np.random.default_rng(seed)
+    n_j, n_f = len(joints), obs.conf.shape[1]
+    blocks = -(-n_f // BOOT_BLOCK)
+    ref = rig.names.index(rig.reference) if rig.reference else 0
+    centres = np.stack([c.centre for c in rig.cameras])
+    baseline = np.linalg.norm(centres - centres[ref], axis=1).sum()
+    rot, focal, centre = [], [], []
+    for _ in range(BOOT_REPLICATES):
+        per_joint = rng.multinomial(n_j, np.full(n_j, 1 / n_j))
+        per_block = np.repeat(rng.multinomial(blocks, np.full(blocks, 1 / blocks)), BOOT_BLOCK)[:n_f]
+        try:
+            fit = bundle_adjust(rig, obs.uv, obs.conf * per_block[None, :, None] * per_joint[None, None], None,
+                                joints, opts)
+        except FusionError:                              # a replicate left with too few joints
+            continue
+        c = np.stack([cam.centre for cam in fit.rig.cameras])
+        c = c[ref] + (c - c[ref]) * baseline / np.linalg.norm(c - c[ref], axis=1).sum()   # at the rig's scale
+        rot.append([cv2.Rodrigues(b.rotation @ a.rotation.T)[0].ravel() for a, b in zip(rig.cameras, fit.rig.cameras)])
+        focal.append([b.intrinsics.fx / a.intrinsics.fx for a, b in zip(rig.cameras, fit.rig.cameras)])
+        centre.append(c)
+    if len(rot) < 3:
+        spreads = [CameraSpread(np.inf, np.inf, np.inf) for _ in rig.cameras]
+    else:
+        rot, focal, centre = np.array(rot), np.array(focal), np.array(centre)      # (B, V, 3), (B, V), (B, V, 3)
+        spreads = [CameraSpread(float(np.degrees(_largest_sd(rot[:, v]))), float(100 * np.std(focal[:, v], ddof=1)),
+                                float(_largest_sd(centre[:, v]))) for v in range(len(rig.cameras))]
+    return replace(cameras, spreads=spreads)
+
+
+def _largest_sd(x: np.ndarray) -> float:
+    """(B, 3) replicates -> the standard deviation along their widest axis."""
+    return float(np.sqrt(max(np.linalg.eigvalsh(np.cov(x.T)).max(), 0.0)))

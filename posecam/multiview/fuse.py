@@ -36,7 +36,7 @@ from posecam.heights import Heights
 from posecam.metric import stature
 from posecam.multiview.associate import Association, associate_people
 from posecam.multiview.bundle import BundleOptions
-from posecam.multiview.calibrate import KeptCameras, cameras_from_people, cameras_without_swaps
+from posecam.multiview.calibrate import KeptCameras, bootstrap_spreads, cameras_from_people, cameras_without_swaps
 from posecam.multiview.fuse_people import FusedPerson, fuse_person
 from posecam.multiview.left_right import fix_people
 from posecam.multiview.observations import Observations, Take
@@ -254,6 +254,9 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
         cameras, people, swaps = cameras_without_swaps(take, cameras, people, swaps, opts.min_conf, opts.bundle,
                                                        opts.bundle_options)
         warnings += cameras.warnings
+    if not given and opts.bundle:
+        say("bootstrapping the cameras' spreads")
+        cameras = bootstrap_spreads(cameras, people, take.joints, opts.min_conf, opts.bundle_options)
     cameras, scale_source = (given, "the calibration") if given else to_metric(cameras, people, take, opts)
     if given and opts.heights:
         warnings.append("the calibration fixes the metric scale; --height is not used")
