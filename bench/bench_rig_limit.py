@@ -93,7 +93,7 @@ def movenet_tracks(cache: Path, take: str, size: int, truth: bf.Truth) -> dict:
         stored.write_text(json.dumps(views))
     views = json.loads(stored.read_text())
     out = []
-    for cam, blaze, view in zip(truth.cams, truth.views, views):
+    for cam, blaze, view in zip(truth.cams, truth.raw, views):
         k = cam["K"].copy()
         k[0, 2] += (view["size"][0] - cam["size"][0]) / 2
         k[1, 2] += (view["size"][1] - cam["size"][1]) / 2
@@ -132,7 +132,8 @@ def keypoint_sets(cache: Path, take: str, heavy: str | None, movenet: bool) -> d
         sets["heavy"] = (bf.Truth(take, cache / "heavy"), H36M_JOINTS)
     for size in MOVENET_SIZES if movenet else ():
         t = bf.Truth(take, cache / "full")
-        t.views, t._matches = movenet_tracks(cache, take, size, full), {}
+        t.raw, t._matches = movenet_tracks(cache, take, size, full), {}
+        t.views = [{pid: bf.smoothed(track) for pid, track in v.items()} for v in t.raw]
         sets[f"movenet {size} px"] = (t, MOVENET_KEYPOINTS)
     return sets
 
@@ -143,7 +144,7 @@ def lab_residuals(truth: bf.Truth) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(V, P, F, J, 2) normalised keypoints and (V, P, F, J) confidences of the people at the
     truth offsets, and their DLT reprojection residual vectors through the lab rig in pixels
     (NaN where unused)."""
-    uv, conf = truth._matched(truth.combination)
+    uv, conf = truth._matched(truth.combination, smooth=False)                  # as detected, not low-passed
     v, p, f, j = conf.shape
     w = (conf >= 0.5).astype(float).reshape(v, p * f, j)
     flat = uv.reshape(v, p * f, j, 2)
