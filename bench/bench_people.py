@@ -98,6 +98,21 @@ def read_frames(video: Path, limit: int | None = None) -> list[np.ndarray]:
     return [rgb for _, (_, _, rgb) in zip(range(limit or 10 ** 9), open_media(video).frames())]
 
 
+def video_fps(video: Path) -> float | None:
+    from posecam.media import open_media
+
+    return open_media(video).fps
+
+
+def track(est, frames: list[np.ndarray], k, fps: float | None):
+    """The estimator's frames for one video at its frame rate (an older posecam's `track`
+    has no `fps`: its searches were scheduled in frames)."""
+    import inspect
+
+    given = {"fps": fps} if "fps" in inspect.signature(est.track).parameters else {}
+    return est.track(frames, k, **given)
+
+
 # ---------------------------------------------------------------- reference from the other views
 
 def reference_detections(frames: dict[str, list[np.ndarray]], detector: str) -> dict[str, list[list]]:
@@ -304,7 +319,7 @@ def two_person(args) -> dict:
     for cam in cams:
         est = estimator(args, cam.intrinsics)
         t0 = time.perf_counter()
-        rec_frames = list(est.track(frames[cam.name], cam.intrinsics))
+        rec_frames = list(track(est, frames[cam.name], cam.intrinsics, video_fps(videos[cam.name])))
         fps = len(rec_frames) / (time.perf_counter() - t0)
         s = score_camera(cam, rec_frames, reference, start[cam.name], sizes[cam.name][1])
         errors.append(s["root_mm"])
@@ -344,7 +359,7 @@ def vtest(args) -> dict:
     people, dropped = [], {}
     sink = VideoSink(args.overlay, 10.0, frames[0].shape[1], frames[0].shape[0]) if args.overlay else None
     with sink if sink else _nothing():
-        for rgb, frame in zip(frames, est.track(frames)):
+        for rgb, frame in zip(frames, track(est, frames, None, video_fps(Path(args.vtest)))):
             people.append(frame.people)
             for d in frame.dropped:   # (a posecam before the stages listed presence scores only)
                 stage = getattr(d, "stage", "presence")

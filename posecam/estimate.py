@@ -157,8 +157,9 @@ class PoseEstimator:
         detections = None
         if tracker.needs_detection(w, h):
             person_px = max(tracker.person_px() or MIN_PERSON_PX, MIN_PERSON_PX)
-            if tracker.active():   # the whole image and the tiles the tracker asks for
-                detections = self.detector(image_rgb, tiles=tracker.tiles_to_search(self.detector.tiles(w, h, person_px)))
+            if tracker.active():   # where the tracker asks for: everywhere (every tile), or around some people
+                search = tracker.search(self.detector.tiles(w, h, person_px), w, h)
+                detections = self.detector(image_rgb, tiles=search.regions, whole=search.whole)
             else:                  # nobody followed: every tile, and people in any orientation
                 detections = detect_any_turn(self.detector, image_rgb, person_px)
         tracks = tracker.begin_frame(detections, image_rgb)
@@ -227,11 +228,12 @@ class PoseEstimator:
         agrees = oks(c.keypoints_2d[idx], c.confidence[idx], own.keypoints, own.keypoint_scores, area) >= 0.5
         return c, None if c.score >= min_presence or agrees else "presence"
 
-    def _tracker(self, video: bool = True) -> Tracker:
-        """A tracker for one input; the looks are only for a video's frames (one image has no one to recognise)."""
+    def _tracker(self, video: bool = True, fps: float | None = None) -> Tracker:
+        """A tracker for one input (a video's at `fps` frames/s); the looks are only for a
+        video's frames (one image has no one to recognise)."""
         o, d = self.options, self.detector
         return Tracker(TrackerOptions(o.max_people, o.redetect_every, high_score=d.start_score, low_score=d.min_score),
-                       self.embedder if video else None)
+                       self.embedder if video else None, fps)
 
     def _intrinsics(self, image_rgb: np.ndarray, k: Intrinsics | None) -> Intrinsics:
         h, w = image_rgb.shape[:2]   # given intrinsics are checked as the CLI checks them
@@ -241,10 +243,11 @@ class PoseEstimator:
         """Poses of every person in one RGB uint8 image; nothing is kept between calls."""
         return self._step(image_rgb, self._intrinsics(image_rgb, intrinsics), self._tracker(video=False))
 
-    def track(self, frames_rgb: Iterable[np.ndarray], intrinsics: Intrinsics | None = None) -> Iterator[Frame]:
-        """Poses for the frames of one video, people followed with stable ids. The tracks live
-        in this generator: each call starts a new video."""
-        tracker, k = self._tracker(), intrinsics
+    def track(self, frames_rgb: Iterable[np.ndarray], intrinsics: Intrinsics | None = None,
+              fps: float | None = None) -> Iterator[Frame]:
+        """Poses for the frames of one video (`fps` frames/s; None: 10), people followed with
+        stable ids. The tracks live in this generator: each call starts a new video."""
+        tracker, k = self._tracker(fps=fps), intrinsics
         for index, rgb in enumerate(frames_rgb):
             k = self._intrinsics(rgb, k)
             frame = self._step(rgb, k, tracker)
@@ -269,7 +272,7 @@ class PoseEstimator:
                         fps=media.sample_fps)
 
         def frames() -> Iterator[tuple[Frame, np.ndarray]]:
-            tracker = self._tracker()
+            tracker = self._tracker(fps=media.sample_fps)
             for index, time, rgb in media.frames():
                 frame = self._step(rgb, k, tracker if media.kind != "image" else self._tracker(video=False))
                 frame.index, frame.time = index, time

@@ -20,11 +20,13 @@ their id back, instead of a new one, if close enough to where they were seen
 last for the time they were away. Embeddings are computed only on detector frames, only for
 these detections.
 
-The tracker also says when to run the detector: every frame while nobody is followed or
-someone was just lost, every few frames while people may be missing (young tracks, people at
-the image's edges, a crowd), otherwise every `redetect_every` frames, and on a run that only
-two people's overlap asks for, where (the tiles holding them); and how small the people it has
-seen are, which sets how finely the detector searches the image.
+The tracker also says when to run the detector and where (`needs_detection`, `search`):
+everywhere (the whole image and the detector's tiles) while nobody is followed, every
+`search_every` seconds while people may be missing (people at the image's edges, a crowd),
+otherwise every `redetect_every` frames; in between, only around some people (one detector
+run on a region about them): someone just lost, two people whose boxes overlap, a track not
+yet confirmed. It also says how small the people it has seen are, which sets how finely the
+detector's tiles cut the image.
 """
 
 from __future__ import annotations
@@ -38,6 +40,11 @@ from posecam.inference.detector import MIN_KEYPOINT_SCORE, Detection, oks
 from posecam.inference.embedder import AppearanceEmbedder
 from posecam.inference.roi import Roi
 from posecam.results import Dropped
+
+DEFAULT_FPS = 10.0   # a video's frame rate when none is given
+MIN_REGION_PX = 16   # a search region narrower than this (clipped at the image's border) is not searched
+WHOLE_SHARE = 0.5    # search regions covering more of the image than this: the whole image is searched instead
+
 
 def min_cost_assignment(cost: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rows and columns of the assignment with the least total cost of a (N, M) matrix, as
@@ -149,6 +156,31 @@ class BoxKalman:
         return np.array([cx - w / 2, cy - h / 2, cx + w / 2, cy + h / 2])
 
 
+@dataclass
+class Search:
+    """Where one detector run looks: the whole image or not, and regions (x0, y0, x1, y1) of
+    it, each searched in a run of its own (the detector's tiles, or around some people)."""
+
+    whole: bool
+    regions: list[tuple[int, int, int, int]]
+
+
+def _merged_regions(regions: list[tuple[np.ndarray, float]], span: float) -> list[np.ndarray]:
+    """Regions (box x0, y0, x1, y1 and the height of the person it is about), each overlapping
+    pair merged into their bounds while those span at most `span` heights of its smaller person."""
+    merged: list[tuple[np.ndarray, float]] = []
+    for box, tall in regions:
+        for k, (other, other_tall) in enumerate(merged):
+            union = np.concatenate([np.minimum(box[:2], other[:2]), np.maximum(box[2:], other[2:])])
+            touching = (np.minimum(box[2:], other[2:]) > np.maximum(box[:2], other[:2])).all()
+            if touching and (union[2:] - union[:2]).max() <= span * min(tall, other_tall):
+                merged[k] = (union, min(tall, other_tall))
+                break
+        else:
+            merged.append((box, tall))
+    return [box for box, _ in merged]
+
+
 def _inside(tracks: list[Track], tile: tuple[int, int, int, int]) -> np.ndarray:
     """(N,) mask of the tracks whose box centre lies in `tile` (x0, y0, x1, y1)."""
     centres = np.array([(t.box[:2] + t.box[2:]) / 2 for t in tracks]).reshape(-1, 2)
@@ -189,7 +221,9 @@ class Track:
 class TrackerOptions:
     max_people: int = 20
     redetect_every: int = 15        # frames between detector runs while nobody may be missing
-    search_every: int = 3           # ... while people may be missing (see needs_detection)
+    search_every: float = 0.3       # seconds between searches everywhere while people may be missing (see needs_detection)
+    search_pad: float = 0.5         # a search around someone reaches this many of their heights beyond their box
+    search_span: float = 4.0        # ... and around several at most this many heights of the smallest
     crowd: int = 3                  # this many people followed make a crowd
     walking: float = 0.005          # box heights a frame: someone at the edge moving faster is entering or leaving
     edge: float = 0.05              # a box this close to the image's border (fraction of its side): entering or leaving
@@ -214,54 +248,70 @@ class TrackerOptions:
 class Tracker:
     """Ids, motion and ROIs of the people followed in one video."""
 
-    def __init__(self, options: TrackerOptions | None = None, embedder: AppearanceEmbedder | None = None):
+    def __init__(self, options: TrackerOptions | None = None, embedder: AppearanceEmbedder | None = None,
+                 fps: float | None = None):
         self.options = options or TrackerOptions()
         self.embedder = embedder             # None: ids from motion alone
+        self.fps = fps or DEFAULT_FPS        # the video's frame rate, for the searches' schedule
         self.tracks: list[Track] = []
         self._frame = -1
         self._image: np.ndarray | None = None
         self._features: dict[int, np.ndarray] = {}   # this frame's appearance vectors, by id(detection)
         self._next_id = 0
         self._since_detection = 0
-        self._dropped = False
         self.refused: list[Dropped] = []     # this frame's confident detections over max_people
         self._smallest: float | None = None  # height (px) of the smallest confirmed person so far
-        self._near: list[Track] = []         # the people whose overlap alone asks for this detector run
-        self._searching: list[tuple[int, int, int, int]] | None = None   # this run's tiles (None: everywhere)
+        self._lost_now: set[int] = set()     # ids of people followed whom the pose model lost on the last frame
+        self._asking: list[Track] = []       # the people who alone ask for this detector run
+        self._searching: list[tuple[int, int, int, int]] | None = None   # this run's regions (None: everywhere)
 
     def needs_detection(self, width: int, height: int) -> bool:
-        """Detect on the first frame, while nobody is followed, as soon as someone followed was
-        lost, and on every frame where two people's boxes overlap (there a crop placed from the
-        last pose may slide onto the neighbour); every `search_every` frames while people may be
-        missing (a track not yet confirmed, someone walking at the image's edge: entering or
-        leaving, a crowd); else every `redetect_every` frames (someone standing at the edge is
-        neither). A run that only the overlap asks for searches only where those people are
-        (see `tiles_to_search`)."""
+        """Detect on the first frame and while nobody is followed; every `search_every` seconds
+        while people may be missing (someone walking at the image's edge: entering or leaving,
+        a crowd), else every `redetect_every` frames (someone standing at the edge is neither):
+        these runs search everywhere. In between, a run only where some people are (see
+        `search`): around someone followed who was just lost, around two people whose boxes
+        overlap (there a crop placed from the last pose may slide onto the neighbour), and
+        every `search_every` seconds around a track not yet confirmed."""
         o, active = self.options, self.active()
-        self._near = []
-        if not active or self._dropped:
+        self._asking = []
+        if not active:
             return True
         boxes = np.array([t.box for t in active])
         margin = o.edge * np.array([width, height])
         at_edge = ((boxes[:, :2] < margin) | (boxes[:, 2:] > [width, height] - margin)).any(axis=1)
         speed = np.array([np.hypot(*t.kalman.x[4:6]) / max(t.kalman.x[3], 1.0) for t in active])
-        missing = ((at_edge & (speed > o.walking)).any()
-                   or any(t.hits < o.confirm_hits for t in active) or len(active) >= o.crowd)
-        if self._since_detection >= (min(o.search_every, o.redetect_every) if missing else o.redetect_every):
+        missing = (at_edge & (speed > o.walking)).any() or len(active) >= o.crowd
+        every = max(1, round(o.search_every * self.fps))
+        if self._since_detection >= (min(every, o.redetect_every) if missing else o.redetect_every):
             return True
         iou = np.triu(box_iou(boxes, boxes), 1)
-        self._near = [t for t, near in zip(active, (iou > 0).any(axis=0) | (iou > 0).any(axis=1)) if near]
-        return bool(self._near)
+        near = (iou > 0).any(axis=0) | (iou > 0).any(axis=1)
+        young = {t.id for t in active if t.hits < o.confirm_hits} if self._since_detection >= every else set()
+        near_ids = {t.id for t, n in zip(active, near) if n}
+        self._asking = [t for t in self.tracks if t.id in self._lost_now | young | near_ids]
+        return bool(self._asking)
 
-    def tiles_to_search(self, tiles: list[tuple[int, int, int, int]]) -> list[tuple[int, int, int, int]]:
-        """Which of the detector's `tiles` (x0, y0, x1, y1) it searches on this run besides the
-        whole image: on a run that only two people's overlap asks for, the tiles holding their
-        centres, and then only the people whose centre lies in those tiles count as missed if
-        not found (see `begin_frame`); else all of them."""
-        if not self._near or not tiles:
-            return tiles
-        self._searching = [tile for tile in tiles if _inside(self._near, tile).any()]
-        return self._searching
+    def search(self, tiles: list[tuple[int, int, int, int]], width: int, height: int) -> Search:
+        """Where this detector run looks: on a run that some people alone ask for (see
+        `needs_detection`), only around them: each one's box padded by `search_pad` of its
+        height, boxes that overlap merged while the merged region spans at most `search_span`
+        heights of its smallest person (the detector resizes each region to its input: they
+        fill at least 1 / `search_span` of its side); only the people whose centre lies in
+        those regions count as missed if not found (see `begin_frame`); regions covering more
+        than WHOLE_SHARE of the image give way to the whole image, in one run. Else the whole
+        image and all the detector's `tiles`."""
+        if not self._asking:
+            return Search(True, tiles)
+        o = self.options
+        regions = _merged_regions([(t.box + o.search_pad * (t.box[3] - t.box[1]) * np.array([-1, -1, 1, 1]),
+                                    float(t.box[3] - t.box[1])) for t in self._asking], o.search_span)
+        clipped = [tuple(int(v) for v in np.clip(np.round(box), 0, [width, height, width, height]))
+                   for box in regions]
+        if sum((x1 - x0) * (y1 - y0) for x0, y0, x1, y1 in clipped) > WHOLE_SHARE * width * height:
+            return Search(True, [])   # people that tall: the whole image shows them as well, in one run
+        self._searching = [r for r in clipped if r[2] - r[0] >= MIN_REGION_PX and r[3] - r[1] >= MIN_REGION_PX]
+        return Search(False, self._searching)
 
     def person_px(self) -> float | None:
         """The height (px) of the smallest person confirmed so far in this video (None: nobody yet)."""
@@ -289,7 +339,7 @@ class Tracker:
             self.tracks = [t for t in self.tracks if t.lost <= self._remembered(t)]
             self._since_detection += 1
             return self.active()
-        self._since_detection, self._dropped = 1, False
+        self._since_detection, self._lost_now = 1, set()
         self._image, self._features = (image_rgb if self.embedder is not None else None), {}
         high = [d for d in detections if d.score >= o.high_score]
         low = [d for d in detections if o.low_score <= d.score < o.high_score]
@@ -455,7 +505,8 @@ class Tracker:
             kp, sc = keypoints[i], keypoint_scores[i]
             if not found[i] or (kp is not None and any(self._same_pose(kp, sc, tracks[j]) for j in kept)):
                 t.lost = max(t.lost, 1)
-                self._dropped |= t.shown > 0   # someone followed is lost (not a false start)
+                if t.shown > 0:   # someone followed is lost (not a false start)
+                    self._lost_now.add(t.id)
                 continue
             if t.detection is None and kp is not None:
                 seen = kp[sc >= MIN_KEYPOINT_SCORE]

@@ -219,7 +219,7 @@ def test_someone_the_detector_misses_stays_with_the_pose_model():
                           [t.roi for t in tracks])
 
 
-def test_a_run_for_an_overlap_alone_searches_where_those_people_are():
+def test_a_run_for_an_overlap_alone_searches_only_around_those_people():
     tiles = [(0, 0, 600, 450), (400, 0, 1000, 450), (0, 350, 600, 800), (400, 350, 1000, 800)]
     tracker = Tracker()
     pair = [_det([100, 100, 180, 300]), _det([150, 110, 230, 310])]     # overlapping, top left
@@ -227,15 +227,37 @@ def test_a_run_for_an_overlap_alone_searches_where_those_people_are():
     asked = _follow(tracker, pair + [apart], 9)
     assert asked == list(range(9))                              # the overlap asks on every frame
     assert tracker.needs_detection(1000, 800)
-    assert tracker.tiles_to_search(tiles) == [tiles[0]]         # ... for the tile holding the pair
-    tracks = tracker.begin_frame(pair)                          # the tile finds the pair only
+    search = tracker.search(tiles, 1000, 800)
+    assert not search.whole and len(search.regions) == 1        # one region, not the whole image nor a tile
+    (x0, y0, x1, y1) = search.regions[0]
+    assert x0 <= 100 and y0 <= 100 and x1 >= 230 and y1 >= 310   # holding the pair ...
+    assert max(x1 - x0, y1 - y0) <= 4 * 200 and x1 < 800         # ... at their scale, not the one apart
+    tracks = tracker.begin_frame(pair)                          # the region finds the pair only
     assert {t.detection is None for t in tracks} == {False, True}
     (alone,) = [t for t in tracks if t.detection is None]
     assert alone.unseen == 0 and alone.lost == 0                # not searched there: not missed either
-    for _ in range(tracker.options.search_every):               # frames the pose model alone follows
+    for _ in range(3):                                          # frames the pose model alone follows (0.3 s)
         tracker.end_frame(tracks, [True] * 3, [None] * 3, [None] * 3, [t.roi for t in tracks])
         tracks = tracker.begin_frame(None)
-    assert tracker.needs_detection(1000, 800)                   # a crowd's scheduled run: every tile
-    assert tracker.tiles_to_search(tiles) == tiles
+    assert tracker.needs_detection(1000, 800)                   # a crowd's scheduled run: everywhere
+    assert tracker.search(tiles, 1000, 800).whole and tracker.search(tiles, 1000, 800).regions == tiles
     tracks = tracker.begin_frame(pair)                          # searched everywhere, missed
     assert alone.unseen == 1 and alone in tracks
+
+
+def test_someone_just_lost_is_searched_for_where_they_were():
+    tracker = Tracker()
+    a, b = _det([100, 100, 180, 300]), _det([700, 100, 780, 300])
+    _follow(tracker, [a, b], 30)                                # both followed and confirmed
+    assert not tracker.needs_detection(1000, 800)               # nobody missing, no run due
+    tracks = tracker.begin_frame(None)
+    tracker.end_frame(tracks, [t.roi.cx < 500 for t in tracks], [None] * 2, [None] * 2, [t.roi for t in tracks])
+    assert tracker.needs_detection(1000, 800)                   # b's pose lost: a run at once ...
+    (region,) = tracker.search([(0, 0, 1000, 800)], 1000, 800).regions
+    assert region[0] <= 700 and region[2] >= 780 and region[0] > 180   # ... around b only
+
+
+def test_searches_everywhere_are_scheduled_in_seconds():
+    crowd = [_det([100 + 150 * i, 200, 180 + 150 * i, 400]) for i in range(3)]
+    assert _follow(Tracker(fps=10), crowd, 20) == list(range(0, 20, 3))        # 0.3 s at 10 frames/s
+    assert _follow(Tracker(fps=30), crowd, 40) == list(range(0, 40, 9))        # ... at 30 frames/s

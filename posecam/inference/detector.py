@@ -94,8 +94,9 @@ class BlazePoseDetector:
         return []
 
     def __call__(self, image_rgb: np.ndarray, person_px: float | None = None,
-                 tiles: list[tuple[int, int, int, int]] | None = None) -> list[Detection]:
-        """People in the image, most confident first (one run: `person_px` and `tiles` are not used)."""
+                 tiles: list[tuple[int, int, int, int]] | None = None, whole: bool = True) -> list[Detection]:
+        """People in the image, most confident first (one run on the whole image: `person_px`,
+        `tiles` and `whole` are not used)."""
         crop, scale, pad = self.letterbox(image_rgb)
         out = self.model.run({self.model.contract.input.name: to_input_tensor(crop[None], self.model.contract.input)})
         a = len(self.anchors)
@@ -182,13 +183,14 @@ class MoveNetDetector:
                 for y0 in np.linspace(0, height - th, ny).round().astype(int)]
 
     def __call__(self, image_rgb: np.ndarray, person_px: float | None = None,
-                 tiles: list[tuple[int, int, int, int]] | None = None) -> list[Detection]:
-        """People in the image, most confident first: one run on the whole image, and one on
-        each of `tiles` (None: every tile that shows people `person_px` tall at FOUND_PX, see
-        `tiles`). A person cut by a tile's inner edge is left to the tile or the whole image
-        that holds them, and the detections of one person are merged."""
+                 tiles: list[tuple[int, int, int, int]] | None = None, whole: bool = True) -> list[Detection]:
+        """People in the image, most confident first: one run on the whole image (unless not
+        `whole`), and one on each of `tiles` (None: every tile that shows people `person_px`
+        tall at FOUND_PX, see `tiles`; any region of the image, each resized to the input). A
+        person cut by a tile's inner edge is left to the tile or the whole image that holds
+        them, and the detections of one person are merged."""
         h, w = image_rgb.shape[:2]
-        found = self._detect(image_rgb, np.zeros(2))
+        found = self._detect(image_rgb, np.zeros(2)) if whole else []
         for x0, y0, x1, y1 in self.tiles(w, h, person_px) if tiles is None else tiles:
             inner = np.array([x0 > 0, y0 > 0, x1 < w, y1 < h])   # tile edges inside the image
             edge = 0.01 * max(x1 - x0, y1 - y0)
