@@ -9,6 +9,12 @@ frame of the ONNX model alone (median over the frames, onnxruntime on --threads 
 --repeat N times the models only, interleaved, N runs each (min / p25 / median): the numbers
 to quote from a machine that other work shares.
 --draw writes every --draw-every-th frame with the boxes and keypoints drawn, to look at.
+--hand-counts (with vtest.avi as --video): on the 14 frames counted by hand in bench_people.py
+(VTEST_PEOPLE, every person at least 40 px tall), the people found (a detection at posecam's
+start score whose box centre lies within half the person's height of the mark, Hungarian) and
+the milliseconds of the search, --repeat times interleaved (medians): posecam's search (the
+whole image at 256 and its tiles for people 40 and 55 px tall) against ONE run on the whole
+image at each of --sizes (the ONNX input is dynamic). Can one larger run replace the tiles?
 
 MoveNet MultiPose: the image is scaled so that its long side is SIZE and padded (bottom/right,
 black) to multiples of 32; the ONNX input is float32 RGB 0..255, NHWC. Its output [1, 6, 56]
@@ -138,6 +144,37 @@ def timing(detectors: list, video: str, repeat: int, min_score: float) -> None:
               f"median {statistics.median(t):6.1f}  ({repeat} runs)")
 
 
+def hand_counts(video: str, sizes: list[int], repeat: int) -> None:
+    """People found on vtest's hand-counted frames and ms a frame: posecam's tiled search
+    against one whole-image run at each size (see the module's docstring)."""
+    from scipy.optimize import linear_sum_assignment
+
+    sys.path.insert(0, str(REPO / "bench"))
+    from bench_people import VTEST_MATCH, VTEST_PEOPLE
+    from posecam.inference.detector import load_detector
+
+    clip = {k: cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB) for k, bgr in frames(video, 0, 1) if k in VTEST_PEOPLE}
+    searches = {f"tiles for {px} px": (load_detector("movenet"), px) for px in (40, 55)}
+    searches |= {f"one run at {s}": (load_detector("movenet", input_size=s), None) for s in sizes}
+    found, times = {}, {name: [] for name in searches}
+    for r in range(max(repeat, 1)):
+        for name, (det, px) in searches.items():
+            hits = 0
+            for k, rgb in clip.items():
+                start = time.perf_counter()
+                people = [d for d in det(rgb, px) if d.score >= det.start_score]
+                times[name].append(1000 * (time.perf_counter() - start))
+                if people:
+                    centres = np.array([(d.box[:2] + d.box[2:]) / 2 for d in people])
+                    cost = np.array([[np.hypot(*(c - (x, y))) / h for c in centres] for x, y, h in VTEST_PEOPLE[k]])
+                    rows, cols = linear_sum_assignment(cost)
+                    hits += int((cost[rows, cols] < VTEST_MATCH).sum())
+            found[name] = hits
+    total = sum(len(v) for v in VTEST_PEOPLE.values())
+    for name in searches:
+        print(f"{name:18s} found {found[name]:3d} / {total}  ms a frame: median {statistics.median(times[name]):6.1f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--video", required=True, nargs="+")
@@ -151,7 +188,11 @@ def main() -> None:
     ap.add_argument("--draw-every", type=int, default=100)
     ap.add_argument("--repeat", type=int, default=0,
                     help="only time the models: this many interleaved runs each, no detection statistics")
+    ap.add_argument("--hand-counts", action="store_true", help="vtest.avi's hand counts: tiles against one larger run")
     args = ap.parse_args()
+    if args.hand_counts:
+        hand_counts(args.video[0], args.sizes, args.repeat)
+        return
     if args.repeat:
         for video in args.video:
             detectors = [MoveNet(args.movenet, s, args.threads) for s in args.sizes]

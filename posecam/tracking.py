@@ -221,7 +221,7 @@ class Track:
 class TrackerOptions:
     max_people: int = 20
     redetect_every: int = 15        # frames between detector runs while nobody may be missing
-    search_every: float = 0.3       # seconds between searches everywhere while people may be missing (see needs_detection)
+    search_every: float = 0.5       # seconds between searches everywhere while people may be missing (see needs_detection)
     search_pad: float = 0.5         # a search around someone reaches this many of their heights beyond their box
     search_span: float = 4.0        # ... and around several at most this many heights of the smallest
     crowd: int = 3                  # this many people followed make a crowd

@@ -198,14 +198,14 @@ def _follow(tracker, dets, frames, width=1000, height=800):
 
 def test_detector_runs_more_often_while_people_may_be_missing():
     alone = [_det([400, 200, 480, 400])]                        # one person in the middle
-    asked = _follow(Tracker(), alone, 40)
-    assert asked[:3] == [0, 3, 6] and asked[3:] == [21, 36]     # confirmed after 3 runs: every 15 frames
+    asked = _follow(Tracker(), alone, 45)                       # (10 frames/s: searches every 0.5 s = 5 frames)
+    assert asked[:3] == [0, 5, 10] and asked[3:] == [25, 40]    # confirmed after 3 runs: every 15 frames
     standing = [_det([960, 200, 1000, 400])]                    # standing at the right edge: every 15
-    assert _follow(Tracker(), standing, 40)[3:] == [21, 36]
-    entering = lambda f: [_det([960 - 2 * f, 200, 1000 - 2 * f, 400])]   # walking in at the edge: every 3
-    assert _follow(Tracker(), entering, 25) == list(range(0, 25, 3))    # (it leaves the edge at frame 25)
-    crowd = [_det([100 + 150 * i, 200, 180 + 150 * i, 400]) for i in range(3)]   # 3 people: every 3
-    assert _follow(Tracker(), crowd, 40) == list(range(0, 40, 3))
+    assert _follow(Tracker(), standing, 45)[3:] == [25, 40]
+    entering = lambda f: [_det([960 - 2 * f, 200, 1000 - 2 * f, 400])]   # walking in at the edge: every 5
+    assert _follow(Tracker(), entering, 25) == list(range(0, 25, 5))    # (it leaves the edge at frame 25)
+    crowd = [_det([100 + 150 * i, 200, 180 + 150 * i, 400]) for i in range(3)]   # 3 people: every 5
+    assert _follow(Tracker(), crowd, 40) == list(range(0, 40, 5))
 
 
 def test_someone_the_detector_misses_stays_with_the_pose_model():
@@ -236,7 +236,7 @@ def test_a_run_for_an_overlap_alone_searches_only_around_those_people():
     assert {t.detection is None for t in tracks} == {False, True}
     (alone,) = [t for t in tracks if t.detection is None]
     assert alone.unseen == 0 and alone.lost == 0                # not searched there: not missed either
-    for _ in range(3):                                          # frames the pose model alone follows (0.3 s)
+    for _ in range(5):                                          # frames the pose model alone follows (0.5 s)
         tracker.end_frame(tracks, [True] * 3, [None] * 3, [None] * 3, [t.roi for t in tracks])
         tracks = tracker.begin_frame(None)
     assert tracker.needs_detection(1000, 800)                   # a crowd's scheduled run: everywhere
@@ -259,5 +259,5 @@ def test_someone_just_lost_is_searched_for_where_they_were():
 
 def test_searches_everywhere_are_scheduled_in_seconds():
     crowd = [_det([100 + 150 * i, 200, 180 + 150 * i, 400]) for i in range(3)]
-    assert _follow(Tracker(fps=10), crowd, 20) == list(range(0, 20, 3))        # 0.3 s at 10 frames/s
-    assert _follow(Tracker(fps=30), crowd, 40) == list(range(0, 40, 9))        # ... at 30 frames/s
+    assert _follow(Tracker(fps=10), crowd, 20) == list(range(0, 20, 5))        # 0.5 s at 10 frames/s
+    assert _follow(Tracker(fps=20), crowd, 40) == list(range(0, 40, 10))       # ... at 20 frames/s
