@@ -26,6 +26,13 @@ hip joint centre lies inside the body, so a detector's hip keypoint is not one 3
 every side: `left_out` keeps the hips out of the adjustment (they are fused as usual afterwards,
 and triangulated through the refined rig for its bone-length scale).
 
+Optionally (`BundleOptions.refine_offsets`, with timed keypoints: posecam.multiview.observations.
+TimedKeypoints) each camera's time offset but the reference's is one more slot of its vector:
+its keypoints are interpolated at it between whole frames (Catmull-Rom), the keypoint's speed
+its exact derivative. Not the default: on Pose2Sim's takes the minimum over rig and offsets
+together lies frames from the lab's offsets (started at them, cam03 of the single take goes
+from 4.2 to 0.8 frames) and the two-person rig's rotation worsens (README, Benchmarks).
+
 The spreads (`CameraSpread`) are cluster-robust: a joint's errors in one view are correlated
 over every frame (the detector's bias for that joint there), so the covariance is a sandwich
 whose middle sums the residuals' gradients per (view, joint) before squaring them, not per

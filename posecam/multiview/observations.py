@@ -70,8 +70,8 @@ class TimedKeypoints:
     sample s of view v at the reference's frame i is the view's frame i + base[v] + s, so that
     a continuous offset o in [base + 1, base + S - 2] is interpolated (Catmull-Rom: `at`)
     between samples; what lets the bundle adjustment move the offsets (posecam.multiview.bundle).
-    Low-passed in time, every view alike: interpolating raw keypoints halves their frame-to-frame
-    noise at half frames, which would draw every offset there."""
+    Low-passed in time, every view alike: interpolating raw keypoints averages two frames' noise
+    at a fractional offset, which would bias the reprojection error there low."""
 
     uv: np.ndarray              # (V, S, F, J, 2), NaN where unseen
     conf: np.ndarray            # (V, S, F, J)
