@@ -372,6 +372,7 @@ class Truth:
 
 CONFIGS = {
     "no calibration, lab offsets": {"offsets": "truth"},
+    "no calibration, lab offsets, refined in the bundle adjustment": {"offsets": "truth", "refine": True},
     "no calibration, --sync auto": {"sync": True},
     "no calibration, --sync auto, offsets refined in the bundle adjustment": {"sync": True, "refine": True},
     "no calibration, --sync auto, --height": {"sync": True, "heights": 1},

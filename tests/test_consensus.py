@@ -147,8 +147,7 @@ def test_bundle_adjustment_refines_fractional_offsets_started_a_frame_off():
     rotation = {}
     for refine, at in ((False, start), (True, start), ("true", true)):
         sync = SyncResult(at.tolist(), [1.0] * 4, [])
-        kept = cameras_from_people(take, association, sync, 0.5,
-                                   bundle_options=BundleOptions(refine_offsets=refine is True), refine_offsets=True)
+        kept = cameras_from_people(take, association, sync, 0.5, bundle_options=BundleOptions(refine_offsets=refine is True))
         rotation[refine] = max(relative_rotation_error_deg(cams[0].rotation, c.rotation, np.eye(3), e.rotation)
                                for c, e in zip(cams[1:], kept.rig.cameras[1:]))
         if refine is True:

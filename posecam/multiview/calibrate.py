@@ -204,10 +204,10 @@ def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations
 
 
 def cameras_from_people(take: Take, association: Association, sync: SyncResult, min_conf: float,
-                        bundle: bool = True, bundle_options: BundleOptions | None = None,
-                        refine_offsets: bool = False) -> KeptCameras:
+                        bundle: bool = True, bundle_options: BundleOptions | None = None) -> KeptCameras:
     """The stage without a calibration: `estimate_cameras` on every associated person at the
-    offsets (with `refine_offsets`, the bundle adjustment refines them: KeptCameras.offsets),
+    offsets (with BundleOptions.refine_offsets, the bundle adjustment refines them, from where
+    they are: KeptCameras.offsets),
     then, while a kept view's people do not move as the reference's (`motion_agreement`
     below MIN_SAME_MOTION where they move enough to tell), that view dropped and the cameras
     estimated again without it."""
@@ -215,7 +215,7 @@ def cameras_from_people(take: Take, association: Association, sync: SyncResult, 
     every = list(range(len(take.names)))
     opts = bundle_options or BundleOptions()
     timed = None
-    if bundle and refine_offsets and opts.refine_offsets:
+    if bundle and opts.refine_offsets:
         timed = take.timed(association.people, sync.offsets, opts.offset_window, opts.offset_lowpass_hz, min_conf)
     est = estimate_cameras(take.assumed, take.observations(association.people, sync.offsets, every), take.joints,
                            ref, min_conf, bundle, bundle_options, timed, sync.offsets)

@@ -206,10 +206,10 @@ def _offsets(take: Take, association: Association, rig: Rig | None, start: list[
 
 def _estimated(take: Take, association: Association, sync: SyncResult, opts: FuseOptions,
                say: Callable[[str], None]) -> KeptCameras:
-    """The cameras without a calibration (posecam.multiview.calibrate.cameras_from_people); offsets
-    found by `--sync auto` are refined with them."""
+    """The cameras without a calibration (posecam.multiview.calibrate.cameras_from_people), and the
+    offsets with them where BundleOptions.refine_offsets asks."""
     say("estimating the cameras")
-    return cameras_from_people(take, association, sync, opts.min_conf, opts.bundle, opts.bundle_options, opts.sync)
+    return cameras_from_people(take, association, sync, opts.min_conf, opts.bundle, opts.bundle_options)
 
 
 def refined_offsets(sync: SyncResult, cameras: KeptCameras) -> SyncResult:
