@@ -3,6 +3,7 @@
     python bench/bench_people.py [--detector movenet|blazepose] [--redetect-every N]
                                  [--vtest PATH [--vtest-frames N] [--overlay OUT.mp4]]
                                  [--before CHECKOUT [--runs 3]] [--appearance on|off]
+                                 [--ids-table [--contact-sheet OUT.png]]
 
 1. Pose2Sim's two-person take (`Demo_MultiPerson`, 4 portrait cameras 1088x1920, 100 frames,
    the lab's Qualisys calibration), each camera run with the lab intrinsics. The reference
@@ -27,7 +28,14 @@
    - frames with nobody, over the whole clip; people per frame;
    - ids: distinct ids over the clip, against VTEST_DISTINCT (the people told apart by their
      clothes on the counted frames; they walk loops and come back);
-   and an overlay video with ids to look at (--overlay).
+   and an overlay video with ids to look at (--overlay). With --ids-table: where the ids come
+   from, one row per id (first and last frame, frames seen, where it began) with what the
+   tracks say it is: "false start" (seen on fewer than FALSE_START frames), "switch?" (born
+   on a person another id was following in that frame, who then ends within SLID frames:
+   the track slid off them), "back? after N" (an id that ended N frames before within reach
+   of where this one begins, N <= BACK, walking at most WALK heights a frame: a person lost
+   who came back), "new" (none of these: someone entering, or back after longer); --contact-sheet writes six crops along each id to judge
+   the rows by eye.
 Frames per second are printed for each recording. Everything runs with posecam's defaults
 unless an option is given (the table says which). The milliseconds a frame spent in the
 appearance embedder (the tracker's re-identification by looks) are printed too; `--appearance
@@ -84,6 +92,9 @@ VTEST_PEOPLE = {
 }
 VTEST_DISTINCT = 12     # people told apart by their clothes on the frames above
 VTEST_MATCH = 0.5       # a posecam person's box centre within this many heights of the hand mark
+FALSE_START = 10        # frames: an id seen on fewer is a false start (--ids-table)
+SLID = 5                # frames: an id that ends this soon after another is born on its person slid off them
+BACK, WALK = 100, 0.05  # frames, heights a frame: an id that ended this long before, within 1 + WALK * gap heights
 
 
 def demo_path(relative: str) -> Path:
@@ -367,6 +378,11 @@ def vtest(args) -> dict:
             if sink:
                 sink.write(draw_people(rgb, frame.people, est.joints))
     fps = len(people) / (time.perf_counter() - t0)
+    if args.ids_table:
+        rows = id_rows(people)
+        print_id_rows(rows)
+        if args.contact_sheet:
+            contact_sheet(frames, people, rows, args.contact_sheet)
     c = np.array([len(p) for p in people])
     found, total = vtest_found(people, VTEST_PEOPLE)
     ids = len({p.id for ps in people for p in ps})
@@ -382,6 +398,68 @@ def vtest(args) -> dict:
             "per_frame": round(float(c.mean()), 2), "fps": fps, "embed_ms": embedder_ms(est, len(c)),
             **{f"{n} images/frame": round(w["images"] / len(c), 2) for n, w in work.items()},
             **{f"{n} ms/frame": w["seconds"] / len(c) * 1000 for n, w in work.items()}}
+
+
+def id_rows(people: list[list]) -> list[dict]:
+    """Where the ids of a recording come from: per id (in order of birth) its first and last
+    frame, frames seen, its first box, and what the tracks say it is (see --ids-table)."""
+    seen: dict[int, list[tuple[int, np.ndarray]]] = {}
+    for f, ps in enumerate(people):
+        for p in ps:
+            seen.setdefault(p.id, []).append((f, np.asarray(p.bbox, float)))
+    centre = lambda b: (b[:2] + b[2:]) / 2
+    rows = []
+    for i, track in sorted(seen.items(), key=lambda kv: kv[1][0][0]):
+        first, box = track[0]
+        last, h = track[-1][0], box[3] - box[1]
+        kind = "first frame" if first == 0 else "new"
+        on = [j for j, other in seen.items() if j != i and other[0][0] < first <= other[-1][0] <= first + SLID
+              and any(f == first and np.linalg.norm(centre(b) - centre(box)) < 0.5 * h for f, b in other)]
+        ended = [(first - other[-1][0], j) for j, other in seen.items() if 0 < first - other[-1][0] <= BACK and
+                 np.linalg.norm(centre(other[-1][1]) - centre(box)) < (1 + WALK * (first - other[-1][0])) * h]
+        if len(track) < FALSE_START:
+            kind = "false start"
+        elif on:
+            kind = f"switch? off {on[0]}"
+        elif ended and first > 0:
+            gap, j = min(ended)
+            kind = f"back? after {gap} (of {j})"
+        rows.append({"id": i, "first": first, "last": last, "seen": len(track), "x": float(centre(box)[0]),
+                     "y": float(centre(box)[1]), "h": float(h), "kind": kind})
+    return rows
+
+
+def print_id_rows(rows: list[dict]) -> None:
+    print(f"\nwhere the {len(rows)} ids come from:")
+    print(f"{'id':>4s}{'first':>7s}{'last':>6s}{'seen':>6s}{'at x, y (h) px':>17s}  what the tracks say")
+    for r in rows:
+        print(f"{r['id']:4d}{r['first']:7d}{r['last']:6d}{r['seen']:6d}{r['x']:7.0f},{r['y']:4.0f} ({r['h']:3.0f})  {r['kind']}")
+    kinds = [r["kind"].split(" ")[0] for r in rows]
+    print("  " + ", ".join(f"{kinds.count(k)} {k}" for k in dict.fromkeys(kinds)))
+
+
+def contact_sheet(frames: list[np.ndarray], people: list[list], rows: list[dict], path: str) -> None:
+    """Six crops along each id (frame numbers written on them), one row an id, in two columns."""
+    import cv2
+
+    h, w = 112, 56
+    lines = []
+    for r in rows:
+        track = [(f, p.bbox) for f, ps in enumerate(people) for p in ps if p.id == r["id"]]
+        cells = [np.zeros((h, 40, 3), np.uint8)]
+        cv2.putText(cells[0], str(r["id"]), (2, 60), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (255, 255, 255), 1)
+        for f, box in (track[k] for k in np.linspace(0, len(track) - 1, 6).astype(int)):
+            x0, y0, x1, y1 = np.clip(np.asarray(box, int), 0, None)
+            crop = frames[f][y0:max(y1, y0 + 1), x0:max(x1, x0 + 1)]
+            crop = cv2.resize(crop, (w, h)) if crop.size else np.zeros((h, w, 3), np.uint8)
+            cv2.putText(crop, str(f), (1, h - 3), cv2.FONT_HERSHEY_SIMPLEX, 0.35, (255, 255, 0), 1)
+            cells.append(crop)
+        lines.append(np.hstack(cells))
+    half = (len(lines) + 1) // 2
+    right = lines[half:] + [np.zeros_like(lines[0])] * (2 * half - len(lines))
+    sheet = np.hstack([np.vstack(lines[:half]), np.zeros((h * half, 10, 3), np.uint8), np.vstack(right)])
+    cv2.imwrite(path, cv2.cvtColor(sheet, cv2.COLOR_RGB2BGR))
+    print(f"contact sheet of the ids: {path}")
 
 
 def count_runs(model) -> dict:
@@ -466,6 +544,8 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=3, help="with --before: runs of each, alternated")
     ap.add_argument("--appearance", choices=("on", "off"), default="on",
                     help="re-identify people by their looks (on: the default) or ids from motion alone (off)")
+    ap.add_argument("--ids-table", action="store_true", help="where vtest's ids come from, one row an id (see above)")
+    ap.add_argument("--contact-sheet", help="with --ids-table: crops along each id, written to this picture")
     ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)   # a child's figures, for --before
     a = ap.parse_args()
     if a.before:
