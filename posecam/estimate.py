@@ -37,7 +37,7 @@ from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
 from posecam.media import FrameSelection, Media, open_media
 from posecam.results import Dropped, Frame, Person, Recording
 from posecam.skeleton import BLAZEPOSE_LANDMARKS, H36M_JOINTS, blazepose_to_h36m, skeleton_of
-from posecam.tracking import Track, Tracker, TrackerOptions, foreign_joints, oks
+from posecam.tracking import ConfirmedIds, Track, Tracker, TrackerOptions, foreign_joints, number_people, oks
 
 SKELETONS = ("17", "33")
 MIN_PERSON_PX = 40    # the detector searches for people at least this tall (image pixels)
@@ -148,10 +148,11 @@ class PoseEstimator:
         box = np.concatenate([c.keypoints_2d.min(axis=0), c.keypoints_2d.max(axis=0)])
         return Person(track_id, c.score, box, uv, xyz, conf, skeleton=self.skeleton)
 
-    def _step(self, image_rgb: np.ndarray, k: Intrinsics, tracker: Tracker) -> Frame:
+    def _step(self, image_rgb: np.ndarray, k: Intrinsics, tracker: Tracker) -> tuple[Frame, list[Track]]:
         """One frame: detect if the tracker asks for it (searching for people as small as the
         smallest it has seen), run the pose model on every track; the people left out are
-        listed with the stage that dropped them."""
+        listed with the stage that dropped them. Returns the frame and each person's track
+        (their ids are numbered once the tracks are confirmed: `number_people`, `ConfirmedIds`)."""
         _check_image(image_rgb)
         h, w = image_rgb.shape[:2]
         detections = None
@@ -164,7 +165,7 @@ class PoseEstimator:
                 detections = detect_any_turn(self.detector, image_rgb, person_px)
         tracks = tracker.begin_frame(detections, image_rgb)
         if not tracks:
-            return Frame(0, 0.0, [], dropped=list(tracker.refused))
+            return Frame(0, 0.0, [], dropped=list(tracker.refused)), []
         candidates = self.pose_model(image_rgb, [t.roi for t in tracks], k)
         stages: list[str | None] = [None if c.score >= self.options.min_presence else "presence" for c in candidates]
         if detections is not None:
@@ -179,8 +180,8 @@ class PoseEstimator:
             [c.next_roi for c in candidates])
         dropped = [Dropped(stage or "duplicate", float(c.score), _box_of(c.keypoints_2d, c.confidence))
                    for i, (c, stage) in enumerate(zip(candidates, stages)) if i not in kept]
-        return Frame(0, 0.0, [self._to_person(tracks[i].id, candidates[i]) for i in kept],
-                     dropped=list(tracker.refused) + dropped)
+        return (Frame(0, 0.0, [self._to_person(-1, candidates[i]) for i in kept], dropped=list(tracker.refused) + dropped),
+                [tracks[i] for i in kept])
 
     def _own_pose(self, image_rgb: np.ndarray, k: Intrinsics, track: Track, c: PoseCandidate,
                   detections: list[Detection]) -> tuple[PoseCandidate, str | None]:
@@ -229,11 +230,18 @@ class PoseEstimator:
         return c, None if c.score >= min_presence or agrees else "presence"
 
     def _tracker(self, video: bool = True, fps: float | None = None) -> Tracker:
-        """A tracker for one input (a video's at `fps` frames/s); the looks are only for a
-        video's frames (one image has no one to recognise)."""
+        """A tracker for one input at `fps` frames a second (None: tracking.DEFAULT_FPS); the looks are
+        only for a video's frames (one image has no one to recognise), and in one image every
+        person found is confirmed at once."""
         o, d = self.options, self.detector
-        return Tracker(TrackerOptions(o.max_people, o.redetect_every, high_score=d.start_score, low_score=d.min_score),
+        return Tracker(TrackerOptions(o.max_people, o.redetect_every, high_score=d.start_score, low_score=d.min_score,
+                                      **({} if video else {"confirm_hits": 1, "confirm_frames": 1})),
                        self.embedder if video else None, fps)
+
+    def _image_frame(self, image_rgb: np.ndarray, k: Intrinsics) -> Frame:
+        frame, tracks = self._step(image_rgb, k, self._tracker(video=False))
+        number_people(frame, tracks)
+        return frame
 
     def _intrinsics(self, image_rgb: np.ndarray, k: Intrinsics | None) -> Intrinsics:
         h, w = image_rgb.shape[:2]   # given intrinsics are checked as the CLI checks them
@@ -241,18 +249,22 @@ class PoseEstimator:
 
     def predict_image(self, image_rgb: np.ndarray, intrinsics: Intrinsics | None = None) -> Frame:
         """Poses of every person in one RGB uint8 image; nothing is kept between calls."""
-        return self._step(image_rgb, self._intrinsics(image_rgb, intrinsics), self._tracker(video=False))
+        return self._image_frame(image_rgb, self._intrinsics(image_rgb, intrinsics))
 
     def track(self, frames_rgb: Iterable[np.ndarray], intrinsics: Intrinsics | None = None,
               fps: float | None = None) -> Iterator[Frame]:
-        """Poses for the frames of one video (`fps` frames/s; None: 10), people followed with
-        stable ids. The tracks live in this generator: each call starts a new video."""
+        """Poses for the frames of one video (`fps` frames a second; None: DEFAULT_FPS), people
+        followed with stable ids (a frame comes out once the tracks in it are confirmed: at
+        most `confirm_frames` frames late). The tracks live in this generator: each call
+        starts a new video."""
         tracker, k = self._tracker(fps=fps), intrinsics
+        confirmed: ConfirmedIds[Frame] = ConfirmedIds(tracker)
         for index, rgb in enumerate(frames_rgb):
             k = self._intrinsics(rgb, k)
-            frame = self._step(rgb, k, tracker)
+            frame, tracks = self._step(rgb, k, tracker)
             frame.index = index
-            yield frame
+            yield from confirmed.push(frame, tracks, frame)
+        yield from confirmed.flush()
 
     def stream_file(self, path: str | Path, intrinsics: IntrinsicsSource = None,
                     frames: FrameSelection | None = None) -> FileStream:
@@ -273,10 +285,17 @@ class PoseEstimator:
 
         def frames() -> Iterator[tuple[Frame, np.ndarray]]:
             tracker = self._tracker(fps=media.sample_fps)
+            confirmed: ConfirmedIds[tuple[Frame, np.ndarray]] = ConfirmedIds(tracker)
             for index, time, rgb in media.frames():
-                frame = self._step(rgb, k, tracker if media.kind != "image" else self._tracker(video=False))
+                if media.kind == "image":
+                    frame = self._image_frame(rgb, k)
+                    frame.index, frame.time = index, time
+                    yield frame, rgb
+                    continue
+                frame, tracks = self._step(rgb, k, tracker)
                 frame.index, frame.time = index, time
-                yield frame, rgb
+                yield from confirmed.push(frame, tracks, (frame, rgb))
+            yield from confirmed.flush()
 
         return FileStream(rec, media, frames())
 

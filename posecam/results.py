@@ -54,7 +54,8 @@ class Dropped:
     """A person seen but not reported, and the stage that left them out."""
 
     stage: str                  # "max_people" (detector: over the cap), "presence" (pose model: below
-                                # min_presence), "neighbour" (the pose lies on another person), "duplicate"
+                                # min_presence), "neighbour" (the pose lies on another person), "duplicate",
+                                # "unconfirmed" (a video's track not confirmed: a false start)
     score: float                # the detector's score (max_people) or the pose model's presence
     bbox: np.ndarray            # (4,) x0, y0, x1, y1 in pixels
 

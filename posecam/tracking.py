@@ -13,7 +13,7 @@ appearance vectors of its person, taken from crops that overlap nobody else's bo
 birth, then at most every `refresh_every` frames). Where the motion match is ambiguous (a track
 near two detections, two tracks near one: people crossing), the cost also weighs the cosine
 distance of the detections' looks to the tracks' galleries; and a confident detection that no
-track's motion takes is first compared with the people lost in the last `reid_frames` frames
+track's motion takes is first compared with the people lost in the last `reid_seconds` seconds
 (a motion match of someone lost is refused if the looks differ by more than `unlike`):
 one whose gallery it resembles (cosine distance under `reid_distance`, a similar height) gets
 their id back, instead of a new one, if close enough to where they were seen
@@ -31,15 +31,20 @@ detector's tiles cut the image.
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass, field
+from typing import Generic, TypeVar
 
 import numpy as np
 
 from posecam.geometry.boxes import box_iou
 from posecam.inference.detector import MIN_KEYPOINT_SCORE, Detection, oks
-from posecam.inference.embedder import AppearanceEmbedder
+from posecam.inference.embedder import AppearanceEmbedder, colour_distance
 from posecam.inference.roi import Roi
-from posecam.results import Dropped
+from posecam.results import Dropped, Frame
+
+Item = TypeVar("Item")
+
 
 DEFAULT_FPS = 10.0   # a video's frame rate when none is given
 MIN_REGION_PX = 16   # a search region narrower than this (clipped at the image's border) is not searched
@@ -193,7 +198,7 @@ def _xywh(box: np.ndarray) -> np.ndarray:
 
 @dataclass
 class Track:
-    id: int
+    id: int                                    # this tracker's key for the track (tentative ones too)
     roi: Roi                                   # where the pose model looks in this frame
     kalman: BoxKalman
     keypoints: np.ndarray                      # (K, 2) last keypoints, detector joint order
@@ -205,6 +210,7 @@ class Track:
     detection: Detection | None = field(default=None, repr=False)   # this frame's, if any
     gallery: list[np.ndarray] = field(default_factory=list, repr=False)   # unit appearance vectors, newest last
     looked: int = -1                           # frame of the newest one (-1: none)
+    number: int | None = None                  # the person's id, numbered once the track is confirmed
 
     def appearance_distance(self, features: np.ndarray) -> np.ndarray:
         """(N,) smallest cosine distance of N appearance vectors to this track's gallery (inf: empty)."""
@@ -228,17 +234,20 @@ class TrackerOptions:
     walking: float = 0.005          # box heights a frame: someone at the edge moving faster is entering or leaving
     edge: float = 0.05              # a box this close to the image's border (fraction of its side): entering or leaving
     confirm_hits: int = 3           # a track younger than this may be a false start or half of a person
+    confirm_frames: int = 10        # a track is confirmed (takes an id) once matched confirm_hits times and followed this many
+                                    # frames; a frame waits at most this long for its people's ids (ConfirmedIds)
     high_score: float = 0.3         # a detection this confident may start a track ...
     low_score: float = 0.1          # ... one this confident only keeps a track alive
     max_lost: int = 30              # frames a track survives unseen
     coast: int = 4                  # detector runs in a row that may miss someone the pose model still follows
     match_cost: float = 0.8         # 1 - similarity above which no match (first stage)
     low_match_cost: float = 0.5     # ... second stage (weak detections)
-    reid_frames: int = 60           # frames a lost person is remembered, to be recognised by appearance
-    unlike: float = 0.4             # cosine distance of looks over which a lost person's motion match is refused
+    reid_seconds: float = 10.0      # seconds a lost person is remembered, to be recognised by appearance
+    unlike: float = 0.35            # cosine distance of looks over which a lost person's motion match is refused
     reid_distance: float = 0.3      # cosine distance of looks under which a lost person is recognised
+    reid_colour: float = 0.2        # ... if the colours of their clothes alone are this near too
     reid_height: float = 1.6        # ... if their heights differ by less than this factor
-    reid_speed: float = 0.1         # ... and they are no farther than (1 + this * frames lost) of their heights
+    reid_speed: float = 1.0         # ... and they are no farther than (1 + this * seconds lost) of their heights
     reid_margin: float = 0.05       # ... and nobody else is within this distance of the same match
     appearance_weight: float = 0.5  # share of the looks in an ambiguous motion match's cost
     gallery: int = 8                # appearance vectors kept per track
@@ -252,12 +261,13 @@ class Tracker:
                  fps: float | None = None):
         self.options = options or TrackerOptions()
         self.embedder = embedder             # None: ids from motion alone
-        self.fps = fps or DEFAULT_FPS        # the video's frame rate, for the searches' schedule
+        self.fps = fps or DEFAULT_FPS        # the video's frame rate: the searches' schedule, the re-id memory and reach
         self.tracks: list[Track] = []
         self._frame = -1
         self._image: np.ndarray | None = None
         self._features: dict[int, np.ndarray] = {}   # this frame's appearance vectors, by id(detection)
         self._next_id = 0
+        self._next_number = 0
         self._since_detection = 0
         self.refused: list[Dropped] = []     # this frame's confident detections over max_people
         self._smallest: float | None = None  # height (px) of the smallest confirmed person so far
@@ -336,7 +346,7 @@ class Tracker:
         if detections is None:
             for t in self.tracks:
                 t.lost += t.lost > 0
-            self.tracks = [t for t in self.tracks if t.lost <= self._remembered(t)]
+            self._forget()
             self._since_detection += 1
             return self.active()
         self._since_detection, self._lost_now = 1, set()
@@ -351,14 +361,22 @@ class Tracker:
         for tile in self._searching or []:
             searched |= _inside(self.tracks, tile)
         self._searching = None
-        for t, looked in zip(self.tracks, searched):
+        # a person overlapping another followed person is often merged with them by the
+        # detector: such a miss does not count (the pose model still follows both; end_frame
+        # drops a pose that duplicates the other's)
+        followed = np.array([t.lost == 0 for t in self.tracks], bool)
+        boxes = np.array([t.box for t in self.tracks]).reshape(-1, 4)
+        overlap = np.triu(box_iou(boxes, boxes), 1) > 0
+        overlap &= followed[:, None] & followed[None, :]
+        overlap = overlap.any(axis=0) | overlap.any(axis=1)
+        for t, looked, merged in zip(self.tracks, searched, overlap):
             if t.detection is not None:
                 t.unseen = 0
-            elif t.lost == 0 and t.shown and (t.unseen < o.coast or not looked):
-                t.unseen += int(looked)    # the detector missed someone the pose model still follows
+            elif t.lost == 0 and t.shown and (t.unseen < o.coast or not looked or merged):
+                t.unseen += int(looked and not merged)   # the detector missed someone the pose model still follows
             else:
                 t.lost += 1
-        self.tracks = [t for t in self.tracks if t.lost <= self._remembered(t)]
+        self._forget()
         left = self._recognise(left)
         # births, the tallest (nearest) first, while there is room: the people in front get the first ids
         for d in sorted(left, key=lambda d: d.box[1] - d.box[3]):
@@ -371,10 +389,15 @@ class Tracker:
         self._image, self._features = None, {}
         return self.active()
 
+    def _forget(self) -> None:
+        """Drop the tracks unseen for longer than they are remembered, and the tentative ones
+        as soon as they are lost: a track that was never confirmed is a false start."""
+        self.tracks = [t for t in self.tracks if t.lost <= self._remembered(t) and (t.lost == 0 or t.number is not None)]
+
     def _remembered(self, track: Track) -> int:
-        """Frames an unseen track is kept: `reid_frames` if its looks are known, else `max_lost`."""
+        """Frames an unseen track is kept: `reid_seconds` if its looks are known, else `max_lost`."""
         o = self.options
-        return max(o.reid_frames, o.max_lost) if self.embedder is not None and track.gallery else o.max_lost
+        return max(round(o.reid_seconds * self.fps), o.max_lost) if self.embedder is not None and track.gallery else o.max_lost
 
     def _looks(self, detections: list[Detection]) -> np.ndarray:
         """(N, D) appearance vectors of detections in this frame, each computed once."""
@@ -445,6 +468,7 @@ class Tracker:
     def _recognise(self, detections: list[Detection]) -> list[Detection]:
         """Confident detections no motion took, against the people lost (unseen, remembered, with
         a gallery): a person whose looks one resembles (cosine distance under `reid_distance`,
+        and that of the clothes' colours alone under `reid_colour`),
         heights within `reid_height` of each other, no farther from where they were last than
         they could walk: `reid_speed`), clearly more than anyone else's (`unambiguous_pairs`),
         takes it with their id, their motion started afresh there. Returns the detections left to start new tracks."""
@@ -454,14 +478,17 @@ class Tracker:
             return detections
         looks = self._looks(detections)
         cost = np.stack([t.appearance_distance(looks) for t in lost])
+        colours = np.stack([colour_distance(looks, np.stack(t.gallery)).min(axis=1) for t in lost])
+        cost[colours > o.reid_colour] = np.inf
         heights = np.array([d.box[3] - d.box[1] for d in detections])
         was = np.array([t.kalman.x[3] for t in lost])
         ratio = np.maximum(heights[None] / np.maximum(was[:, None], 1.0), was[:, None] / np.maximum(heights[None], 1.0))
         cost[ratio > o.reid_height] = np.inf
-        # nobody walks faster than about a tenth of their height a frame (a body height a second at 10 fps)
+        # nobody walks faster than about a body height a second
         centres = np.array([(d.box[:2] + d.box[2:]) / 2 for d in detections])
         away = np.linalg.norm(centres[None] - np.array([t.kalman.x[:2] for t in lost])[:, None], axis=-1)
-        cost[away > was[:, None] * (1.0 + o.reid_speed * np.array([t.lost for t in lost]))[:, None]] = np.inf
+        seconds = np.array([t.lost for t in lost]) / self.fps
+        cost[away > was[:, None] * (1.0 + o.reid_speed * seconds)[:, None]] = np.inf
         used = set()
         for i, j in unambiguous_pairs(cost, o.reid_distance, o.reid_margin):
             t, d = lost[i], detections[j]
@@ -520,9 +547,60 @@ class Tracker:
             if t.hits >= self.options.confirm_hits:
                 h = float(t.box[3] - t.box[1])
                 self._smallest = h if self._smallest is None else min(self._smallest, h)
+                if t.number is None and t.shown >= self.options.confirm_frames:
+                    t.number, self._next_number = self._next_number, self._next_number + 1
+        self._forget()
         return sorted(kept)
 
     @staticmethod
     def _same_pose(kp: np.ndarray, sc: np.ndarray, other: Track) -> bool:
         area = float(np.prod(np.clip(other.box[2:] - other.box[:2], 1, None)))
         return len(kp) == len(other.keypoints) and oks(kp, sc, other.keypoints, other.keypoint_scores, area) > 0.7
+
+
+def number_people(frame: Frame, tracks: list[Track]) -> None:
+    """Give the people of `frame` (one a track of `tracks`, in order) their tracks' ids; a
+    person whose track is not confirmed moves to `frame.dropped` ("unconfirmed")."""
+    people = []
+    for person, track in zip(frame.people, tracks):
+        if track.number is None:
+            frame.dropped.append(Dropped("unconfirmed", person.score, person.bbox))
+        else:
+            person.id = track.number
+            people.append(person)
+    frame.people = people
+
+
+class ConfirmedIds(Generic[Item]):
+    """Frames held back until the tracks in them are decided, so that ids are numbered only
+    for confirmed tracks (a false start or half a person takes no id). A frame comes out when
+    each of its tracks is confirmed or forgotten (a false start), or when it has waited
+    `confirm_frames` frames; then its people take their ids (`number_people`), the ones still
+    unconfirmed go to its `dropped`. Each frame travels with an item of the caller's (the frame
+    itself, or the frame and its image), given back in order."""
+
+    def __init__(self, tracker: Tracker):
+        self.tracker = tracker
+        self._held: deque[tuple[Frame, list[Track], Item]] = deque()
+
+    def push(self, frame: Frame, tracks: list[Track], item: Item) -> list[Item]:
+        """Hold `frame` (its people one a track of `tracks`); returns the items now decided."""
+        self._held.append((frame, tracks, item))
+        return self._release(final=False)
+
+    def flush(self) -> list[Item]:
+        """The items still held, at the end of the video."""
+        return self._release(final=True)
+
+    def _release(self, final: bool) -> list[Item]:
+        out = []
+        while self._held:
+            frame, tracks, item = self._held[0]
+            alive = {id(t) for t in self.tracker.tracks}
+            waiting = any(t.number is None and id(t) in alive for t in tracks)
+            if waiting and not final and len(self._held) <= self.tracker.options.confirm_frames:
+                break
+            self._held.popleft()
+            number_people(frame, tracks)
+            out.append(item)
+        return out

@@ -11,7 +11,8 @@ from posecam.inference.detector import Detection
 from posecam.inference.roi import Roi
 from posecam.media import open_media, read_image
 from posecam.geometry.boxes import box_iou
-from posecam.tracking import Tracker, TrackerOptions, foreign_joints
+from posecam.results import Frame, Person
+from posecam.tracking import ConfirmedIds, Tracker, TrackerOptions, foreign_joints
 
 
 @pytest.fixture(scope="module")
@@ -261,3 +262,53 @@ def test_searches_everywhere_are_scheduled_in_seconds():
     crowd = [_det([100 + 150 * i, 200, 180 + 150 * i, 400]) for i in range(3)]
     assert _follow(Tracker(fps=10), crowd, 20) == list(range(0, 20, 5))        # 0.5 s at 10 frames/s
     assert _follow(Tracker(fps=20), crowd, 40) == list(range(0, 40, 10))       # ... at 20 frames/s
+
+
+def _person(box) -> Person:
+    box = np.asarray(box, float)
+    return Person(-1, 0.9, box, np.zeros((17, 2)), np.zeros((17, 3)), np.ones(17))
+
+
+def test_ids_are_numbered_only_for_confirmed_tracks():
+    """A steady person, a detection on frames 5-7 only (a false start), a person who comes at
+    frame 8, the detector run on every frame: the two people take ids 0 and 1 once confirmed,
+    from their first frame on; the false start (matched 3 times, missed at 8, before it was
+    followed for `confirm_frames`) takes none and its poses are listed as dropped
+    ("unconfirmed"); every frame comes out, in order, at most `confirm_frames` late."""
+    tracker = Tracker()
+    held, out = ConfirmedIds(tracker), []
+    a, b, c = [400, 200, 480, 400], [100, 500, 160, 620], [700, 200, 780, 400]
+    for f in range(30):
+        dets = [_det(a)] + ([_det(b)] if 5 <= f <= 7 else []) + ([_det(c)] if f >= 8 else [])
+        tracks = tracker.begin_frame(dets)
+        kept = tracker.end_frame(tracks, [t.detection is not None for t in tracks], [None] * len(tracks),
+                                 [None] * len(tracks), [t.roi for t in tracks])
+        frame = Frame(f, 0.0, [_person(tracks[i].box) for i in kept])
+        released = held.push(frame, [tracks[i] for i in kept], frame)
+        assert len(out) + len(released) >= f + 1 - tracker.options.confirm_frames
+        out += released
+    out += held.flush()
+    assert [f.index for f in out] == list(range(30))
+    assert [[p.id for p in f.people] for f in out[:8]] == [[0]] * 8
+    assert [sorted(p.id for p in f.people) for f in out[8:]] == [[0, 1]] * 22
+    assert [[d.stage for d in f.dropped] for f in out[4:9]] == [[], ["unconfirmed"], ["unconfirmed"], ["unconfirmed"], []]
+
+
+def test_a_person_the_detector_merges_with_a_neighbour_stays_followed():
+    """Two overlapping people, the detector finding one of them on 8 runs in a row: the other
+    is still followed by the pose model (the misses of someone overlapping a neighbour do not
+    count), and lost as usual once apart and missed `coast` times."""
+    tracker = Tracker(TrackerOptions(coast=2))
+    front, behind = [400, 200, 500, 420], [440, 210, 520, 400]
+    _follow(tracker, [_det(front), _det(behind)], 12)
+    for run in range(8):
+        tracks = tracker.begin_frame([_det(front)])
+        assert len(tracks) == 2, run
+        tracker.end_frame(tracks, [True] * 2, [None] * 2, [None] * 2, [t.roi for t in tracks])
+    (hidden,) = [t for t in tracker.tracks if t.detection is None]
+    hidden.kalman.x[:2] = [800, 300]                            # apart now
+    for run in range(3):
+        tracks = tracker.begin_frame([_det(front)])
+        tracker.end_frame(tracks, [True] * len(tracks), [None] * len(tracks), [None] * len(tracks),
+                          [t.roi for t in tracks])
+    assert hidden.lost > 0

@@ -74,7 +74,8 @@ def print_summary(summaries: list[InputSummary], console, unreadable: int = 0) -
 
 
 DROP_REASONS = {"max_people": "over --max-people", "presence": "pose model presence below --min-presence",
-                "neighbour": "pose on a neighbour", "duplicate": "pose of a person already followed"}
+                "neighbour": "pose on a neighbour", "duplicate": "pose of a person already followed",
+                "unconfirmed": "track not confirmed (a false start)"}
 
 
 def dropped_text(counts: dict[str, int]) -> str:

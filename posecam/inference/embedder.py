@@ -1,7 +1,11 @@
 """Appearance vectors of people's boxes, for re-identifying them (an "embedder" model).
 
 Each box is stretched to the model's input (a portrait crop; a standing person fills it) and
-the model gives one unit vector per crop: 1 - a . b is the cosine distance of two people's looks.
+the model gives one unit vector per crop; a classic complement is appended: the colours of
+the upper and the lower body (HSV histograms of the crop's middle, square-rooted, so that
+their dot product is the Bhattacharyya coefficient), which tell apart people whose ImageNet
+features are alike. 1 - a . b is the cosine distance of two people's looks: the share
+`COLOUR_SHARE` of it from the colours, the rest from the network.
 """
 
 from __future__ import annotations
@@ -12,6 +16,33 @@ import numpy as np
 from posecam.inference.session import Model, load_model, to_input_tensor
 
 DEFAULT_EMBEDDER = "mobilenetv2"
+COLOUR_SHARE = 0.5
+HSV_BINS = (8, 3, 3)                            # hue, saturation, value
+BODY_PARTS = ((0.15, 0.5), (0.5, 0.9))          # upper and lower body: rows of the crop (fractions)
+MIDDLE = (0.2, 0.8)                             # columns of the crop (the background left out)
+
+
+def colour_histograms(crops: np.ndarray) -> np.ndarray:
+    """(N, H, W, 3) uint8 RGB portrait crops -> (N, 2 * prod(HSV_BINS)) unit vectors: the
+    square roots of the normalised HSV histograms of the upper and the lower body."""
+    n, h, w = crops.shape[:3]
+    cols = slice(int(MIDDLE[0] * w), int(MIDDLE[1] * w))
+    out = np.empty((n, len(BODY_PARTS) * int(np.prod(HSV_BINS))), np.float32)
+    for i, crop in enumerate(crops):
+        hsv = cv2.cvtColor(crop, cv2.COLOR_RGB2HSV)
+        parts = []
+        for y0, y1 in BODY_PARTS:
+            part = np.ascontiguousarray(hsv[int(y0 * h):int(y1 * h), cols])
+            counts = cv2.calcHist([part], [0, 1, 2], None, list(HSV_BINS), [0, 180, 0, 256, 0, 256]).ravel()
+            parts.append(np.sqrt(counts / max(counts.sum(), 1.0)))
+        out[i] = np.concatenate(parts) / np.sqrt(len(BODY_PARTS))
+    return out
+
+
+def colour_distance(features: np.ndarray, others: np.ndarray) -> np.ndarray:
+    """(N, M) cosine distance of the colour part alone of N and M appearance vectors."""
+    n = len(BODY_PARTS) * int(np.prod(HSV_BINS))
+    return 1.0 - (features[:, -n:] @ others[:, -n:].T) / COLOUR_SHARE
 
 
 class AppearanceEmbedder:
@@ -35,10 +66,10 @@ class AppearanceEmbedder:
         if not len(boxes):
             return np.zeros((0, 0), np.float32)
         spec = self.model.contract.input
-        x = to_input_tensor(self.crops(image_rgb, boxes), spec)
-        out = self.model.run({spec.name: x})
+        crops = self.crops(image_rgb, boxes)
+        out = self.model.run({spec.name: to_input_tensor(crops, spec)})
         self.model.check_shapes(out, {"embedding": (len(boxes), None)})
-        return out["embedding"]
+        return np.hstack([np.sqrt(1 - COLOUR_SHARE) * out["embedding"], np.sqrt(COLOUR_SHARE) * colour_histograms(crops)])
 
 
 def load_embedder(name_or_path: str = DEFAULT_EMBEDDER, threads: int | None = None,
