@@ -501,17 +501,20 @@ class Tracker:
     def _refresh_looks(self, detections: list[Detection]) -> None:
         """Add to the galleries of the tracks matched on this frame whose newest vector is
         `refresh_every` frames old (or missing), from their detection's crop when it overlaps
-        no other detection's box (a crop with a neighbour in it would describe two people)."""
+        no other detection's box (a crop with a neighbour in it would describe two people) and
+        lies inside the image (someone entering or leaving is cut)."""
         if self._image is None:
             return
         o = self.options
         due = [t for t in self.tracks if t.detection is not None
                and (t.looked < 0 or self._frame - t.looked >= o.refresh_every)]
         boxes = np.array([d.box for d in detections])
+        h, w = self._image.shape[:2]
         clean = []
         for t in due:
             overlap = box_iou(t.detection.box[None], boxes)[0]
-            if (overlap > 0).sum() <= 1:   # itself only
+            inside = (t.detection.box[:2] > 0).all() and t.detection.box[2] < w and t.detection.box[3] < h
+            if (overlap > 0).sum() <= 1 and inside:   # itself only, whole (not cut by the image's border)
                 clean.append(t)
         if not clean:
             return
@@ -548,9 +551,33 @@ class Tracker:
                 h = float(t.box[3] - t.box[1])
                 self._smallest = h if self._smallest is None else min(self._smallest, h)
                 if t.number is None and t.shown >= self.options.confirm_frames:
-                    t.number, self._next_number = self._next_number, self._next_number + 1
+                    t.number = self._number_of(t)
         self._forget()
         return sorted(kept)
+
+    def _number_of(self, track: Track) -> int:
+        """The id of a track being confirmed: that of a person lost whom its looks recognise
+        (as `_recognise` does for a detection, from the crops of its first frames: someone who
+        came back, first seen cut by the image's border or half hidden), else a new one."""
+        o = self.options
+        lost = [t for t in self.tracks if t.number is not None and t.lost > 0 and t.gallery]
+        if lost and track.gallery:
+            looks = np.stack(track.gallery)
+            cost = np.array([[t.appearance_distance(looks).min() for t in lost]])
+            colours = np.array([[colour_distance(looks, np.stack(t.gallery)).min() for t in lost]])
+            was = np.array([t.kalman.x[3] for t in lost])
+            h = track.kalman.x[3]
+            seconds = np.maximum(np.array([t.lost for t in lost]) - track.shown, 0) / self.fps
+            away = np.linalg.norm(np.array([t.kalman.x[:2] for t in lost]) - track.kalman.x[:2], axis=1)
+            far = away > was * (1.0 + o.reid_speed * (seconds + track.shown / self.fps))
+            cost[(colours > o.reid_colour) | (np.maximum(h / was, was / h) > o.reid_height)[None] | far[None]] = np.inf
+            for _, j in unambiguous_pairs(cost, o.reid_distance, o.reid_margin):
+                found = lost[j]
+                track.gallery = (found.gallery + track.gallery)[-o.gallery:]
+                self.tracks.remove(found)
+                return found.number
+        number, self._next_number = self._next_number, self._next_number + 1
+        return number
 
     @staticmethod
     def _same_pose(kp: np.ndarray, sc: np.ndarray, other: Track) -> bool:
