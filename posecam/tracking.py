@@ -555,6 +555,12 @@ class Tracker:
         self._forget()
         return sorted(kept)
 
+    def confirm_followed(self) -> None:
+        """Number every track still followed that is not confirmed yet (at a video's end)."""
+        for t in self.tracks:
+            if t.number is None and t.lost == 0 and t.shown:
+                t.number = self._number_of(t)
+
     def _number_of(self, track: Track) -> int:
         """The id of a track being confirmed: that of a person lost whom its looks recognise
         (as `_recognise` does for a detection, from the crops of its first frames: someone who
@@ -616,7 +622,9 @@ class ConfirmedIds(Generic[Item]):
         return self._release(final=False)
 
     def flush(self) -> list[Item]:
-        """The items still held, at the end of the video."""
+        """The items still held, at the end of the video (where the people still followed are
+        confirmed: the video's end, not a miss, cut their confirmation short)."""
+        self.tracker.confirm_followed()
         return self._release(final=True)
 
     def _release(self, final: bool) -> list[Item]:
