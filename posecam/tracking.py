@@ -234,8 +234,9 @@ class TrackerOptions:
     walking: float = 0.005          # box heights a frame: someone at the edge moving faster is entering or leaving
     edge: float = 0.05              # a box this close to the image's border (fraction of its side): entering or leaving
     confirm_hits: int = 3           # a track younger than this may be a false start or half of a person
-    confirm_frames: int = 10        # a track is confirmed (takes an id) once matched confirm_hits times and followed this many
-                                    # frames; a frame waits at most this long for its people's ids (ConfirmedIds)
+    confirm_frames: int = 10        # a track is confirmed (takes an id) once followed this many frames, matched confirm_hits
+                                    # times or not missed by the detector since it last matched; a frame waits at most this
+                                    # long for its people's ids (ConfirmedIds)
     high_score: float = 0.3         # a detection this confident may start a track ...
     low_score: float = 0.1          # ... one this confident only keeps a track alive
     max_lost: int = 30              # frames a track survives unseen
@@ -550,8 +551,9 @@ class Tracker:
             if t.hits >= self.options.confirm_hits:
                 h = float(t.box[3] - t.box[1])
                 self._smallest = h if self._smallest is None else min(self._smallest, h)
-                if t.number is None and t.shown >= self.options.confirm_frames:
-                    t.number = self._number_of(t)
+            if t.number is None and t.shown >= self.options.confirm_frames and \
+                    (t.hits >= self.options.confirm_hits or t.unseen == 0):
+                t.number = self._number_of(t)
         self._forget()
         return sorted(kept)
 
