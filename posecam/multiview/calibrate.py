@@ -49,8 +49,9 @@ OUTLIER_FACTOR = 3.0            # a person's stretch this many times the median 
 MIN_SAME_MOTION = 0.38
 # the reported spreads: a bootstrap of the bundle adjustment (`bootstrap_spreads`), this many
 # replicates, each weighing every joint and every block of BOOT_BLOCK frames by a multinomial
-# count, warm-started from the rig on BOOT_FRAMES frames (their spreads match those on 150 within
-# 0.1 deg and 1 %, in a fifth of the time); the replicates' standard deviations vary by about
+# count, warm-started from the rig on BOOT_FRAMES frames and ending at a relative cost change of
+# BOOT_FTOL (on the single take 10 replicates' spreads match those on 150 frames at 1e-6 within
+# 0.05 deg and 1 %, in 11 s against 17 s); the replicates' standard deviations vary by about
 # 1 / sqrt(2 BOOT_REPLICATES) = 20 % of themselves
 BOOT_REPLICATES = 12
 BOOT_BLOCK = 10
@@ -260,8 +261,8 @@ def bootstrap_spreads(cameras: KeptCameras, people: list[Observations], joints: 
     every joint and every block of BOOT_BLOCK frames weighed by a multinomial count. The
     detector's error for a joint in a view is its own in every frame (a bias) and drifts with
     the pose, so the rig's real error is of the size of how far it moves when joints and
-    stretches of the take are left out or doubled; the Jacobian's spreads (the gate's) are 1/4 to
-    1/6 of it on Pose2Sim's takes, the bootstrap's 0.6-1.0 times it (bench/bench_rig_limit.py).
+    stretches of the take are left out or doubled; the Jacobian's spreads (the gate's) are 1/5 to
+    1/8 of it on Pose2Sim's takes, the bootstrap's 0.65-1.1 times it (bench/bench_rig_limit.py).
     Cameras given (no spreads) are returned as they are."""
     if cameras.spreads is None:
         return cameras
