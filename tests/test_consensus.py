@@ -210,9 +210,10 @@ def test_heights_set_the_metric_scale():
 
 def test_camera_spread_counts_a_joint_bias_of_the_detector(estimated):
     """A detector's error for one joint in one view is the same in every frame (a bias): the
-    spreads are cluster-robust (posecam.multiview.bundle.camera_covariance), so they grow with
-    such a bias (plain Gauss-Newton ones would shrink with the frames as if it averaged out) and
-    stay of the size of the error it causes."""
+    spreads come from a bootstrap over joints and blocks of frames
+    (posecam.multiview.calibrate.bootstrap_spreads), so they grow with such a bias (plain
+    Gauss-Newton ones would shrink with the frames as if it averaged out) and are of the size of
+    the rotation error it causes (1.4-2.0 deg against 1.6-2.1 deg here)."""
     cams, plain = estimated
     recs = monocular_views(cams, skeleton_motion(150))
     bias = np.random.default_rng(7).normal(0.0, 8.0, (len(recs), len(recs[0].joints), 2))   # px
@@ -226,7 +227,7 @@ def test_camera_spread_counts_a_joint_bias_of_the_detector(estimated):
     spreads = [rep.spread.rotation_deg for rep in biased.cameras[1:]]
     for a, b in zip(plain.cameras[1:], biased.cameras[1:]):
         assert b.spread.rotation_deg > 1.5 * a.spread.rotation_deg, (a.name, a.spread, b.spread)
-    assert np.median(errors) < 4 * np.median(spreads), (errors, spreads)
+    assert np.median(spreads) / 2 < np.median(errors) < 1.5 * np.median(spreads), (errors, spreads)
 
 
 def _principal_point_case(cams, world, fix: bool, bias_px: float = 0.0) -> float:
