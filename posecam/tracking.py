@@ -1,7 +1,10 @@
 """People followed over the frames of a video: ByteTrack-style multi-object tracking.
 
-Each track keeps an id, a constant-velocity Kalman filter on its box (centre, size), its last
-keypoints and the ROI where the pose model looks next. On a detector frame the tracks are
+Each track keeps a key, a constant-velocity Kalman filter on its box (centre, size), its last
+keypoints and the ROI where the pose model looks next; the person's id (`Track.number`) is
+numbered only once the track is confirmed (`confirm_hits`, `confirm_frames`): a track lost
+before that is a false start and forgotten at once, and `ConfirmedIds` holds a video's frames
+back until their people are decided. On a detector frame the tracks are
 matched to the detections in two stages (ByteTrack): first the confident detections, then the
 weak ones against the tracks left over, each by the Hungarian method on a cost that mixes box
 overlap (IoU) and keypoint similarity (OKS). Hysteresis: only a confident detection starts a
@@ -9,15 +12,17 @@ track, a weak one keeps it alive, and an unmatched track can be matched by its m
 `max_lost` frames. Between detector frames each track's ROI comes from its previous pose.
 
 Appearance (with an embedder, posecam.inference.embedder): each track keeps a small gallery of
-appearance vectors of its person, taken from crops that overlap nobody else's box (at its
-birth, then at most every `refresh_every` frames). Where the motion match is ambiguous (a track
+appearance vectors of its person (the network's features and the clothes' colours), taken
+from crops that overlap nobody else's box and are not cut by the image's border (at its birth,
+then at most every `refresh_every` frames). Where the motion match is ambiguous (a track
 near two detections, two tracks near one: people crossing), the cost also weighs the cosine
 distance of the detections' looks to the tracks' galleries; and a confident detection that no
 track's motion takes is first compared with the people lost in the last `reid_seconds` seconds
 (a motion match of someone lost is refused if the looks differ by more than `unlike`):
-one whose gallery it resembles (cosine distance under `reid_distance`, a similar height) gets
-their id back, instead of a new one, if close enough to where they were seen
-last for the time they were away. Embeddings are computed only on detector frames, only for
+one whose gallery it resembles (cosine distance under `reid_distance`, the colours' alone
+under `reid_colour`, a similar height) gets their id back, instead of a new one, if close
+enough to where they were seen last for the time they were away; a track being confirmed is
+compared with them the same way (someone first seen cut by the border or half hidden). Embeddings are computed only on detector frames, only for
 these detections.
 
 The tracker also says when to run the detector and where (`needs_detection`, `search`):
