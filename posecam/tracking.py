@@ -471,30 +471,39 @@ class Tracker:
         t.kalman.update(d.box)
         t.keypoints, t.keypoint_scores = d.keypoints, d.keypoint_scores
 
+    def _reid_cost(self, lost: list[Track], looks: list[np.ndarray], boxes: np.ndarray, ages: np.ndarray) -> np.ndarray:
+        """(len(lost), N) cost of recognising each of N candidates (their appearance vectors,
+        boxes, frames since first seen) as one of the people `lost`: the smallest cosine
+        distance of their looks to the person's gallery, inf where the colours alone are
+        farther than `reid_colour`, the heights differ by more than `reid_height` or the
+        candidate is farther from where the person was last than they could have walked
+        (`reid_speed` heights a second, over the frames lost or, longer, the candidate's age)."""
+        o = self.options
+        galleries = [np.stack(t.gallery) for t in lost]
+        cost = np.array([[t.appearance_distance(f).min() for f in looks] for t in lost])
+        colours = np.array([[colour_distance(f, g).min() for f in looks] for g in galleries])
+        heights = boxes[:, 3] - boxes[:, 1]
+        was = np.array([t.kalman.x[3] for t in lost])
+        ratio = np.maximum(heights[None] / np.maximum(was[:, None], 1.0), was[:, None] / np.maximum(heights[None], 1.0))
+        # nobody walks faster than about a body height a second
+        centres = (boxes[:, :2] + boxes[:, 2:]) / 2
+        away = np.linalg.norm(centres[None] - np.array([t.kalman.x[:2] for t in lost])[:, None], axis=-1)
+        seconds = np.maximum(np.array([t.lost for t in lost])[:, None], ages[None]) / self.fps
+        cost[(colours > o.reid_colour) | (ratio > o.reid_height) | (away > was[:, None] * (1.0 + o.reid_speed * seconds))] = np.inf
+        return cost
+
     def _recognise(self, detections: list[Detection]) -> list[Detection]:
         """Confident detections no motion took, against the people lost (unseen, remembered, with
-        a gallery): a person whose looks one resembles (cosine distance under `reid_distance`,
-        and that of the clothes' colours alone under `reid_colour`),
-        heights within `reid_height` of each other, no farther from where they were last than
-        they could walk: `reid_speed`), clearly more than anyone else's (`unambiguous_pairs`),
-        takes it with their id, their motion started afresh there. Returns the detections left to start new tracks."""
+        a gallery): a person whom one resembles (`_reid_cost` under `reid_distance`) clearly
+        more than anyone else (`unambiguous_pairs`) takes it with their id, their motion started
+        afresh there. Returns the detections left to start new tracks."""
         o = self.options
         lost = [t for t in self.tracks if t.detection is None and t.lost > 0 and t.gallery]
         if self._image is None or not lost or not detections:
             return detections
         looks = self._looks(detections)
-        cost = np.stack([t.appearance_distance(looks) for t in lost])
-        colours = np.stack([colour_distance(looks, np.stack(t.gallery)).min(axis=1) for t in lost])
-        cost[colours > o.reid_colour] = np.inf
-        heights = np.array([d.box[3] - d.box[1] for d in detections])
-        was = np.array([t.kalman.x[3] for t in lost])
-        ratio = np.maximum(heights[None] / np.maximum(was[:, None], 1.0), was[:, None] / np.maximum(heights[None], 1.0))
-        cost[ratio > o.reid_height] = np.inf
-        # nobody walks faster than about a body height a second
-        centres = np.array([(d.box[:2] + d.box[2:]) / 2 for d in detections])
-        away = np.linalg.norm(centres[None] - np.array([t.kalman.x[:2] for t in lost])[:, None], axis=-1)
-        seconds = np.array([t.lost for t in lost]) / self.fps
-        cost[away > was[:, None] * (1.0 + o.reid_speed * seconds)[:, None]] = np.inf
+        cost = self._reid_cost(lost, [f[None] for f in looks], np.array([d.box for d in detections]),
+                               np.zeros(len(detections)))
         used = set()
         for i, j in unambiguous_pairs(cost, o.reid_distance, o.reid_margin):
             t, d = lost[i], detections[j]
@@ -569,23 +578,15 @@ class Tracker:
                 t.number = self._number_of(t)
 
     def _number_of(self, track: Track) -> int:
-        """The id of a track being confirmed: that of a person lost whom its looks recognise
-        (as `_recognise` does for a detection, from the crops of its first frames: someone who
-        came back, first seen cut by the image's border or half hidden), else a new one."""
+        """The id of a track being confirmed: that of a person lost whom the looks of its first
+        frames recognise (`_reid_cost`, unambiguously: someone who came back, first seen cut by
+        the image's border or half hidden), else a new one."""
         o = self.options
         lost = [t for t in self.tracks if t.number is not None and t.lost > 0 and t.gallery]
         if lost and track.gallery:
-            looks = np.stack(track.gallery)
-            cost = np.array([[t.appearance_distance(looks).min() for t in lost]])
-            colours = np.array([[colour_distance(looks, np.stack(t.gallery)).min() for t in lost]])
-            was = np.array([t.kalman.x[3] for t in lost])
-            h = track.kalman.x[3]
-            seconds = np.maximum(np.array([t.lost for t in lost]) - track.shown, 0) / self.fps
-            away = np.linalg.norm(np.array([t.kalman.x[:2] for t in lost]) - track.kalman.x[:2], axis=1)
-            far = away > was * (1.0 + o.reid_speed * (seconds + track.shown / self.fps))
-            cost[(colours > o.reid_colour) | (np.maximum(h / was, was / h) > o.reid_height)[None] | far[None]] = np.inf
-            for _, j in unambiguous_pairs(cost, o.reid_distance, o.reid_margin):
-                found = lost[j]
+            cost = self._reid_cost(lost, [np.stack(track.gallery)], track.box[None], np.array([track.shown]))
+            for i, _ in unambiguous_pairs(cost, o.reid_distance, o.reid_margin):
+                found = lost[i]
                 track.gallery = (found.gallery + track.gallery)[-o.gallery:]
                 self.tracks.remove(found)
                 return found.number
