@@ -592,9 +592,11 @@ def _signal_a_batch_run(tmp_path, workers, sig, code, word, group):
     proc = subprocess.Popen([sys.executable, "-m", "posecam", "predict", *inputs, "--model", "lite", "--out-dir", out,
                              *workers], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)
+    launched = time.perf_counter()
     deadline = time.time() + 300            # the two workers' first tasks end together: the next two
     while time.time() < deadline and len([p for p in out.iterdir() if p.suffix == ".json"]) < 2:   # are a
         time.sleep(0.02)                                                                # whole clip away
+    first = time.perf_counter() - launched
     time.sleep(0.3)
     written = {p.name for p in out.iterdir() if p.suffix == ".json"}
     assert 2 <= len(written) < 8
@@ -605,7 +607,8 @@ def _signal_a_batch_run(tmp_path, workers, sig, code, word, group):
     time.sleep(1.0)                         # a worker left behind would write now
     assert proc.returncode == code and err.strip().splitlines()[-1] == f"posecam: {word}", (proc.returncode, err)
     assert "Traceback" not in err and "Error" not in err, err
-    assert took < 2.0, f"{took:.1f} s"
+    # 2 s on a quiet machine; on a loaded one, still well within the time the first tasks took
+    assert took < max(2.0, first / 2), f"{took:.1f} s to stop; the first outputs took {first:.1f} s"
     assert {p.name for p in out.iterdir()} == written, "a file was written after the signal, or staging left"
 
 
