@@ -52,6 +52,7 @@ GIVEN_SD = 0.035                # relative uncertainty of the scale a given heig
 MIN_TRACK_CONTACTS = 5          # foot contacts a track needs for the floor to scale it
 REFIT_EVERY = 30                # frames between fits of the floor (and at the end)
 LENS_SAMPLES = 64               # per track: upright frames kept for the lens
+HUMAN_STATURE = (0.8, 2.3)      # m: a floor that makes someone standing shorter or taller is refused
 # The pose model's skeleton has one size, whoever the person: the statures of its skeletons (the
 # chain above) over the pedestrians of vtest.avi (tracks of 20 frames and more, each its median)
 # spread by 1.5 % about their median, no more than one 1.72 m adult's do over the 8 lab views of
@@ -339,6 +340,12 @@ class MetricStage:
                           / np.median([size[tid] for tid in adults]))
         estimated = {tid: (relative[tid] * gauge * h if tid in relative else self._model_mm or h) / 1000.0
                      for tid, h in stat.items()}
+        odd = {tid: estimated[tid] for tid in relative if not HUMAN_STATURE[0] <= estimated[tid] <= HUMAN_STATURE[1]}
+        if odd:   # feet out of view or off the ground (someone cut by the border, balancing): not a floor
+            tid, metres = next(iter(odd.items()))
+            fit = self._fit = FloorFit(None, {}, {}, f"the feet's plane would make person {tid} {metres:.2f} m tall")
+            on_floor, relative, gauge = False, {}, 1.0
+            estimated = {tid: (self._model_mm or h) / 1000.0 for tid, h in stat.items()}
         given = self.options.heights.assign(estimated) if self.options.heights else {}
         on_given = [given[tid][0] * 1000.0 / (relative[tid] * stat[tid]) for tid in given if tid in relative]
         used_gauge, gauge_sd = (float(np.median(on_given)), GIVEN_SD) if on_given else (gauge, MODEL_SD)

@@ -292,3 +292,17 @@ def test_the_stage_takes_the_lens_from_the_people_in_place_of_the_default():
     assert out.intrinsics.source.startswith("people") and out.intrinsics.fx == pytest.approx(K.fx, rel=0.05)
     ratio = [p.root[2] / poses[(p.id, f.index)][0, 2] for f in out.frames for p in f.people]
     assert np.median(ratio) == pytest.approx(1.0, abs=0.05)
+
+
+def test_a_floor_that_would_make_someone_a_toddler_is_refused(tmp_path):
+    """Pose2Sim's cam01, 30 frames: the man balances on a board (his feet off the ground) and a
+    bystander stands cut by the left border. Their 'feet' fit a plane that made the man 0.56 m
+    tall and put him at 1 m instead of about 3 m; no such floor is used."""
+    out = tmp_path / "poses.json"
+    run = run_posecam("predict", DATA / "balance_cam01_30f.mp4", "-o", out)
+    assert run.returncode == 0 and "no floor: the feet's plane would make person" in run.stderr, run.stderr
+    rec = read_poses(out)[0]
+    people = [p for f in rec.frames for p in f.people]
+    assert {p.height_source for p in people} == {"model"}
+    subject = max(rec.frames[0].people, key=lambda p: p.bbox[3] - p.bbox[1])
+    assert 2500 < subject.root[2] < 3500     # the board stands about 3 m from cam01 (the default lens)
