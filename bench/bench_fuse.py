@@ -22,9 +22,10 @@ undistortion and a plain DLT:
   combination offsets, triangulated by DLT through the lab rig (the pelvis, in lab mm).
 Each run of `fuse_recordings` (from the cached pose JSON) is scored against it: per camera
 pair the angle between estimated and lab relative rotation, per camera the focal length error
-and the camera centre error (cam01's frame, mm), the offsets against the truth, and every fused
-pelvis's distance to the nearest true pelvis of its frame (median, mm); and per estimated
-camera its spreads (one standard deviation of rotation, focal length, centre) beside its errors.
+and the camera centre error (cam01's frame, mm), the offsets against the truth, and every
+true pelvis's distance to the nearest fused pelvis of its frame (median, mm; fused people the
+truth lacks, seen by one view only like the single take's bystander, are counted apart); and per
+estimated camera its spreads (one standard deviation of rotation, focal length, centre) beside its errors.
 
 Before / after in one run: `--before DIR` runs the same fuses with another checkout's posecam
 (`git archive <commit> posecam | tar -x -C DIR`) in a subprocess and scores them the same way.
@@ -352,19 +353,19 @@ class Truth:
             est = R0 @ (-r.T @ np.array(t)) + t0                          # in cam01's frame
             true = c0["R"] @ (-c["R"].T @ c["t"]) + c0["t"]
             centre[n] = float(np.linalg.norm(est - true))
-        errs = []
-        for i, people in enumerate(run["pelvis"]):
+        errs, extra = [], 0   # each true pelvis to the nearest fused one of its frame; fused people the
+        for i, people in enumerate(run["pelvis"]):   # truth lacks (seen by one view: a bystander) counted apart
             truth = self.pelvis[i][np.isfinite(self.pelvis[i]).all(axis=1)]
-            for x in people:
-                x = np.array(x, float)
-                if truth.size and np.isfinite(x).all():
-                    lab_x = x if world else c0["R"].T @ (x - c0["t"])
-                    errs.append(np.min(np.linalg.norm(truth - lab_x, axis=1)))
+            fused = np.array([x if world else c0["R"].T @ (np.array(x) - c0["t"]) for x in people
+                              if np.isfinite(x).all()]).reshape(-1, 3)
+            if truth.size and fused.size:
+                errs += np.linalg.norm(truth[:, None] - fused[None], axis=2).min(axis=1).tolist()
+            extra += max(len(fused) - len(truth), 0)
         off = {n: float(o) - self.combination[v] for n, o, v in zip(names, run["offsets_kept"], views)}
         return {"rot": rot, "rot_median": float(np.median(list(rot.values()))) if rot else np.nan,
                 "focal": focal, "focal_max": max(abs(e) for e in focal.values()), "centre": centre,
                 "centre_median": float(np.median(list(centre.values())[1:])) if len(centre) > 1 else np.nan,
-                "pelvis_median": float(np.median(errs)) if errs else np.nan, "pelvises": len(errs),
+                "pelvis_median": float(np.median(errs)) if errs else np.nan, "pelvises": len(errs), "extra": extra,
                 "offset_error": off, "offset_max": max(abs(e) for e in off.values())}
 
 
@@ -535,7 +536,7 @@ def show(label: str, runs: dict[str, dict], truth: Truth) -> None:
         print(f"   {code:6s}: {r['time_s']:.1f} s; rotation median {s['rot_median']:.2f} deg "
               f"({', '.join(f'{k} {v:.1f}' for k, v in s['rot'].items())}); focal max {s['focal_max']:.1f} % "
               f"({', '.join(f'{k} {v:+.1f}' for k, v in s['focal'].items())}); centre median {s['centre_median']:.0f} mm; "
-              f"pelvis median {s['pelvis_median']:.0f} mm ({s['pelvises']}); offsets {r['offsets_kept']} "
+              f"pelvis median {s['pelvis_median']:.0f} mm ({s['pelvises']}; {s['extra']} fused not in the truth); offsets {r['offsets_kept']} "
               f"(max error {s['offset_max']:.2f} frame)" + (f"; scale: {r['scale']}" if "scale" in r else ""))
         if any(r.get("spreads") or []):
             # one standard deviation per camera against its error: rotation against cam01's (the
