@@ -58,15 +58,14 @@ def lab_cameras(take: str):
 
 def predictions(take: str, cams, cache: Path):
     """Per camera, posecam's unsmoothed recording with the lab intrinsics (default options)."""
-    from posecam import EstimatorOptions, IntrinsicsOptions, PoseEstimator, read_poses, write_poses
+    from posecam import PoseEstimator, read_poses, write_poses
 
     recs = []
     for cam in cams:
         path = cache / f"{take}_{cam.name}_lab.json"
         if not path.exists():
-            k = cam.intrinsics
-            opts = EstimatorOptions(intrinsics=IntrinsicsOptions(k.fx, k.fy, k.cx, k.cy))
-            write_poses(path, [PoseEstimator(opts).predict_file(REPO / "examples" / "demo" / take / f"{cam.name}.mp4")])
+            video = REPO / "examples" / "demo" / take / f"{cam.name}.mp4"
+            write_poses(path, [PoseEstimator().predict_file(video, cam.intrinsics)])
         recs.append(read_poses(path)[0])
     return recs
 

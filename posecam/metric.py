@@ -52,7 +52,7 @@ GIVEN_SD = 0.035                # relative uncertainty of the scale a given heig
 MIN_TRACK_CONTACTS = 5          # foot contacts a track needs for the floor to scale it
 REFIT_EVERY = 30                # frames between fits of the floor (and at the end)
 LENS_SAMPLES = 64               # per track: upright frames kept for the lens
-HUMAN_STATURE = (0.8, 2.3)      # m: a floor that makes someone standing shorter or taller is refused
+HUMAN_STATURE = (1.0, 2.3)      # m: a floor that makes someone standing shorter (a 4-year-old) or taller is refused
 # The pose model's skeleton has one size, whoever the person: the statures of its skeletons (the
 # chain above) over the pedestrians of vtest.avi (tracks of 20 frames and more, each its median)
 # spread by 1.5 % about their median, no more than one 1.72 m adult's do over the 8 lab views of

@@ -296,8 +296,8 @@ def test_the_stage_takes_the_lens_from_the_people_in_place_of_the_default():
 
 def test_a_floor_that_would_make_someone_a_toddler_is_refused(tmp_path):
     """Pose2Sim's cam01, 30 frames: the man balances on a board (his feet off the ground) and a
-    bystander stands cut by the left border. Their 'feet' fit a plane that made the man 0.56 m
-    tall and put him at 1 m instead of about 3 m; no such floor is used."""
+    bystander stands at the left border. Their feet fit a plane that made the man 0.56 m tall
+    (0.85 m with the lab's lens) and put him at 1 m instead of about 3 m; no such floor is used."""
     out = tmp_path / "poses.json"
     run = run_posecam("predict", DATA / "balance_cam01_30f.mp4", "-o", out)
     assert run.returncode == 0 and "no floor: the feet's plane would make person" in run.stderr, run.stderr
