@@ -208,6 +208,23 @@ def test_heights_set_the_metric_scale():
     assert abs(spread(tall) / spread(plain) - 2000 / height(plain)) < 0.02
 
 
+def test_heights_that_disagree_with_the_rig_are_warned_about():
+    """Two people, the second 0.8 times the first's size: heights in that ratio fit one scale and
+    pass in silence; a list that makes the second 0.6 times the first cannot, and says so."""
+    from posecam.heights import Heights
+
+    cams = make_rig()
+    adult = skeleton_motion(80, centre=(-900.0, 0.0))
+    child = skeleton_motion(80, seed=3, centre=(900.0, 0.0))
+    child = child[:, :1] + 0.8 * (child - child[:, :1])
+    recs = monocular_views(cams, np.stack([adult, child]))
+    agree = fuse_recordings(recs, FuseOptions(heights=Heights.parse(["1.75,1.40"])))
+    assert not [w for w in agree.warnings if "heights" in w], agree.warnings
+    disagree = fuse_recordings(recs, FuseOptions(heights=Heights.parse(["1.75,1.05"])))
+    said = [w for w in disagree.warnings if "heights given disagree" in w]
+    assert len(said) == 1 and "given 1.05" in said[0] and "given 1.75" in said[0], disagree.warnings
+
+
 def test_camera_spread_counts_a_joint_bias_of_the_detector(estimated):
     """A detector's error for one joint in one view is the same in every frame (a bias): the
     spreads come from a bootstrap over joints and blocks of frames

@@ -138,10 +138,14 @@ def _twins(recordings: list[Recording], max_px: float = 0.5) -> list[tuple[int, 
     return out
 
 
+HEIGHTS_AGREE = 0.10    # given heights whose ratios to the measured ones spread wider disagree with the rig
+
+
 def metric_scale(rig: Rig, people: list[Observations], joints: tuple[str, ...], heights: Heights,
-                 min_conf: float) -> tuple[float, str]:
-    """The factor that brings an estimated rig to the people's given heights, and what the table
-    says of it. The rig gives the people's relative heights exactly (one scale for all): each
+                 min_conf: float) -> tuple[float, str, list[str]]:
+    """The factor that brings an estimated rig to the people's given heights, what the table
+    says of it, and a warning where the heights given disagree with the relative heights the rig
+    measures (given / measured spread by more than HEIGHTS_AGREE: no one scale fits them all). The rig gives the people's relative heights exactly (one scale for all): each
     person's height is the median over frames of posecam.metric.stature of the triangulation of
     its 2D keypoints (the rig's geometry alone, not the monocular skeletons' adult size); a list
     is matched tallest first (posecam.heights) and the factor is the median of given / measured.
@@ -155,10 +159,17 @@ def metric_scale(rig: Rig, people: list[Observations], joints: tuple[str, ...], 
             estimated[pid] = float(np.nanmedian(h)) / 1000.0
     given = heights.assign(estimated) if heights else {}
     if not given:
-        return 1.0, "the pose model's bone lengths (an adult's; --height gives it)"
+        return 1.0, "the pose model's bone lengths (an adult's; --height gives it)", []
     ratios = [m / estimated[pid] for pid, (m, _) in given.items()]
+    factor = float(np.median(ratios))
     people_text = ", ".join(f"person {pid} {m:.2f} m ({how})" for pid, (m, how) in sorted(given.items()))
-    return float(np.median(ratios)), f"the heights given: {people_text}"
+    warnings = []
+    if max(ratios) > (1 + HEIGHTS_AGREE) * min(ratios):
+        measured = ", ".join(f"person {pid} {estimated[pid] * factor:.2f} m (given {m:.2f})"
+                             for pid, (m, _) in sorted(given.items()))
+        warnings.append(f"the heights given disagree with the people's relative heights, which the cameras "
+                        f"measure: at the scale used, {measured}; check --height")
+    return factor, f"the heights given: {people_text}", warnings
 
 
 def _to_recording(fused: list[FusedPerson], rig: Rig, ref_index: int, ref: Recording) -> Recording:
@@ -184,15 +195,16 @@ def given_cameras(take: Take, calibration: Rig) -> KeptCameras:
     return KeptCameras(Rig(cams, None), list(range(len(cams))), [note] if note else [])
 
 
-def to_metric(cameras: KeptCameras, people: list[Observations], take: Take, opts: FuseOptions) -> tuple[KeptCameras, str]:
+def to_metric(cameras: KeptCameras, people: list[Observations], take: Take,
+              opts: FuseOptions) -> tuple[KeptCameras, str, list[str]]:
     """Estimated cameras at the people's given heights (`metric_scale`: one similarity about the
-    reference camera, reprojection unchanged), and what fixes the scale."""
-    factor, source = metric_scale(cameras.rig, people, take.joints, opts.heights, opts.min_conf)
+    reference camera, reprojection unchanged), what fixes the scale and its warnings."""
+    factor, source, warnings = metric_scale(cameras.rig, people, take.joints, opts.heights, opts.min_conf)
     if factor == 1.0:
-        return cameras, source
+        return cameras, source, warnings
     rig = Rig([replace(c, translation=c.translation * factor) for c in cameras.rig.cameras], cameras.rig.reference)
     spreads = cameras.spreads and [replace(c, position_mm=c.position_mm * factor) for c in cameras.spreads]
-    return replace(cameras, rig=rig, spreads=spreads), source
+    return replace(cameras, rig=rig, spreads=spreads), source, warnings
 
 
 def _offsets(take: Take, association: Association, rig: Rig | None, start: list[float], opts: FuseOptions,
@@ -257,9 +269,13 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
     if not given and opts.bundle:
         say("bootstrapping the cameras' spreads")
         cameras = bootstrap_spreads(cameras, people, take.joints, opts.min_conf, opts.bundle_options)
-    cameras, scale_source = (given, "the calibration") if given else to_metric(cameras, people, take, opts)
-    if given and opts.heights:
-        warnings.append("the calibration fixes the metric scale; --height is not used")
+    if given:
+        scale_source = "the calibration"
+        if opts.heights:
+            warnings.append("the calibration fixes the metric scale; --height is not used")
+    else:
+        cameras, scale_source, scale_warnings = to_metric(cameras, people, take, opts)
+        warnings += scale_warnings
 
     say("fusing")
     rig, views = cameras.rig, cameras.views
