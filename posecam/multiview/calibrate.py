@@ -10,7 +10,11 @@ The quality gate drops, with one warning line each, a camera that the data canno
 too few frames shared with the others, a reprojection error too high, geometry that tells
 nothing (its rays meet the others' at a tiny angle) or fused points behind it, a focal
 length out of any lens's range, or a spread of its rotation or focal length (from the bundle
-adjustment's Jacobian) too wide to trust. What is left is estimated again without it.
+adjustment's Jacobian) too wide to trust. What is left is estimated again without it. Once
+the bootstrap has measured the spreads that fusion reports (`bootstrap_spreads`), a camera whose
+rotation it moves by more than MAX_BOOT_ROTATION_DEG is dropped too (`without_loose_cameras`):
+the Jacobian's spreads are a fifth to an eighth of the real error, and a rig bent to fit
+unrelated people can pass them.
 """
 
 from __future__ import annotations
@@ -57,6 +61,10 @@ BOOT_REPLICATES = 12
 BOOT_BLOCK = 10
 BOOT_FRAMES = 50
 BOOT_FTOL = 1e-4
+# a bootstrap spread of a camera's rotation above this: the people do not pin it at all (1.1 to
+# 3.0 deg on Pose2Sim's takes with their four cameras, up to 3.6 with two of them; vtest.avi
+# against itself 40 s later, a rig bent to fit unrelated people, 26 deg)
+MAX_BOOT_ROTATION_DEG = 10.0
 
 
 @dataclass
@@ -296,6 +304,31 @@ def bootstrap_spreads(cameras: KeptCameras, people: list[Observations], joints: 
         spreads = [CameraSpread(float(np.degrees(_largest_sd(rot[:, v]))), float(100 * np.std(focal[:, v], ddof=1)),
                                 float(_largest_sd(centre[:, v]))) for v in range(len(rig.cameras))]
     return replace(cameras, spreads=spreads)
+
+
+def without_loose_cameras(cameras: KeptCameras, people: list[Observations], swaps: np.ndarray, names: list[str],
+                          reference: int) -> tuple[KeptCameras, list[Observations], np.ndarray]:
+    """The cameras whose bootstrap rotation spread (`bootstrap_spreads`) stays within
+    MAX_BOOT_ROTATION_DEG, with the people and swaps (V,) of their views; a warning line for each
+    camera dropped, FusionError when fewer than two are left. The others keep the rig they were
+    estimated in: a camera the people do not pin pulls little on the rest."""
+    keep, lines = [], []
+    for i, (v, spread) in enumerate(zip(cameras.views, cameras.spreads or [])):
+        if v != reference and not spread.rotation_deg <= MAX_BOOT_ROTATION_DEG:
+            lines.append(f"camera {names[v]} dropped: a bootstrap over its joints and frames moves its rotation "
+                         f"by ±{spread.rotation_deg:.0f} deg (the people do not pin it: not the same scene?)")
+        else:
+            keep.append(i)
+    if not lines:
+        return cameras, people, swaps
+    if len(keep) < 2:
+        raise FusionError("fewer than two cameras can be estimated from the poses: " + "; ".join(lines))
+    rig = Rig([cameras.rig.cameras[i] for i in keep], cameras.rig.reference)
+    kept = replace(cameras, rig=rig, views=[cameras.views[i] for i in keep], warnings=cameras.warnings + lines,
+                   spreads=[cameras.spreads[i] for i in keep],
+                   offsets=cameras.offsets and [cameras.offsets[i] for i in keep],
+                   offset_spreads=cameras.offset_spreads and [cameras.offset_spreads[i] for i in keep])
+    return kept, [p.take(keep) for p in people], swaps[keep]
 
 
 def _largest_sd(x: np.ndarray) -> float:

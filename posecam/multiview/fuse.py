@@ -36,7 +36,8 @@ from posecam.heights import Heights
 from posecam.metric import stature
 from posecam.multiview.associate import Association, associate_people
 from posecam.multiview.bundle import BundleOptions
-from posecam.multiview.calibrate import KeptCameras, bootstrap_spreads, cameras_from_people, cameras_without_swaps
+from posecam.multiview.calibrate import (KeptCameras, bootstrap_spreads, cameras_from_people, cameras_without_swaps,
+                                          without_loose_cameras)
 from posecam.multiview.fuse_people import FusedPerson, fuse_person
 from posecam.multiview.left_right import fix_people
 from posecam.multiview.observations import Observations, Take
@@ -269,6 +270,8 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
     if not given and opts.bundle:
         say("bootstrapping the cameras' spreads")
         cameras = bootstrap_spreads(cameras, people, take.joints, opts.min_conf, opts.bundle_options)
+        cameras, people, swaps = without_loose_cameras(cameras, people, swaps, take.names, take.reference)
+        warnings += cameras.warnings
     if given:
         scale_source = "the calibration"
         if opts.heights:
