@@ -309,9 +309,9 @@ def bootstrap_spreads(cameras: KeptCameras, people: list[Observations], joints: 
 def without_loose_cameras(cameras: KeptCameras, people: list[Observations], swaps: np.ndarray, names: list[str],
                           reference: int) -> tuple[KeptCameras, list[Observations], np.ndarray]:
     """The cameras whose bootstrap rotation spread (`bootstrap_spreads`) stays within
-    MAX_BOOT_ROTATION_DEG, with the people and swaps (V,) of their views; a warning line for each
-    camera dropped, FusionError when fewer than two are left. The others keep the rig they were
-    estimated in: a camera the people do not pin pulls little on the rest."""
+    MAX_BOOT_ROTATION_DEG, with the people and swaps (V,) of their views, and as its warnings
+    one line for each camera dropped; FusionError when fewer than two are left. The others keep
+    the rig they were estimated in: a camera the people do not pin pulls little on the rest."""
     keep, lines = [], []
     for i, (v, spread) in enumerate(zip(cameras.views, cameras.spreads or [])):
         if v != reference and not spread.rotation_deg <= MAX_BOOT_ROTATION_DEG:
@@ -320,11 +320,11 @@ def without_loose_cameras(cameras: KeptCameras, people: list[Observations], swap
         else:
             keep.append(i)
     if not lines:
-        return cameras, people, swaps
+        return replace(cameras, warnings=[]), people, swaps
     if len(keep) < 2:
         raise FusionError("fewer than two cameras can be estimated from the poses: " + "; ".join(lines))
     rig = Rig([cameras.rig.cameras[i] for i in keep], cameras.rig.reference)
-    kept = replace(cameras, rig=rig, views=[cameras.views[i] for i in keep], warnings=cameras.warnings + lines,
+    kept = replace(cameras, rig=rig, views=[cameras.views[i] for i in keep], warnings=lines,
                    spreads=[cameras.spreads[i] for i in keep],
                    offsets=cameras.offsets and [cameras.offsets[i] for i in keep],
                    offset_spreads=cameras.offset_spreads and [cameras.offset_spreads[i] for i in keep])

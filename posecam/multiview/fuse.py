@@ -146,10 +146,11 @@ def metric_scale(rig: Rig, people: list[Observations], joints: tuple[str, ...], 
                  min_conf: float) -> tuple[float, str, list[str]]:
     """The factor that brings an estimated rig to the people's given heights, what the table
     says of it, and a warning where the heights given disagree with the relative heights the rig
-    measures (given / measured spread by more than HEIGHTS_AGREE: no one scale fits them all). The rig gives the people's relative heights exactly (one scale for all): each
-    person's height is the median over frames of posecam.metric.stature of the triangulation of
-    its 2D keypoints (the rig's geometry alone, not the monocular skeletons' adult size); a list
-    is matched tallest first (posecam.heights) and the factor is the median of given / measured.
+    measures (given / measured spread by more than HEIGHTS_AGREE: no one scale fits them all).
+    The rig gives the people's relative heights exactly (one scale for all): each person's
+    height is the median over frames of posecam.metric.stature of the triangulation of its 2D
+    keypoints (the rig's geometry alone, not the monocular skeletons' adult size); a list is
+    matched tallest first (posecam.heights) and the factor is the median of given / measured.
     Without heights: 1 (the bundle adjustment's scale, from the monocular bone lengths)."""
     estimated = {}
     for pid, obs in enumerate(people):
