@@ -1,6 +1,7 @@
 """People followed over the frames of a video: ByteTrack-style multi-object tracking.
 
-Each track keeps a key, a constant-velocity Kalman filter on its box (centre, size), its last
+Each track keeps a key, a constant-velocity Kalman filter on its box (centre, size; the size
+stops changing while the person is unseen), its last
 keypoints and the ROI where the pose model looks next; the person's id (`Track.number`) is
 numbered only once the track is confirmed (`confirm_hits`, `confirm_frames`): a track lost
 before that is a false start and forgotten at once, and `ConfirmedIds` holds a video's frames
@@ -147,7 +148,11 @@ class BoxKalman:
         self.f = np.eye(8)
         self.f[:4, 4:] = np.eye(4)
 
-    def predict(self) -> None:
+    def predict(self, keep_size: bool = False) -> None:
+        """Move the box on a frame; `keep_size`: its size stops changing (someone unseen: a box
+        shrinking or growing on its last velocity would soon be no one's; ByteTrack does the same)."""
+        if keep_size:
+            self.x[6:] = 0.0
         h = self.x[3]
         q = np.diag(np.square([self.POS * h] * 4 + [self.VEL * h] * 4))
         self.x = self.f @ self.x
@@ -346,7 +351,7 @@ class Tracker:
         self._frame += 1
         for t in self.tracks:
             if t.lost <= o.max_lost:   # a person lost longer is looked for by appearance only
-                t.kalman.predict()
+                t.kalman.predict(keep_size=t.lost > 0)
             t.detection = None
         self.refused = []
         if detections is None:

@@ -138,6 +138,19 @@ def test_ids_survive_a_short_occlusion():
     assert len({t for i in ids for t in i.values()}) == 2
 
 
+def test_someone_hidden_while_walking_away_is_found_again_at_their_last_size():
+    """A person walking away (the box shrinking 3 px a frame) hidden for 28 frames, then seen
+    again at the size they had when hidden, where their walk took them: the same track (a box
+    that went on shrinking while unseen would be under half as tall and match nobody)."""
+    def walking(f):
+        h = 200 - 3 * f
+        return [100 + 4 * f, 300 - h, 100 + 4 * f + h / 2.5, 300]
+    frames = [[_det(walking(f))] for f in range(20)] + [[] for _ in range(28)] + \
+             [[_det(np.array(walking(19)) + [4 * (f - 19), 0, 4 * (f - 19), 0])] for f in range(48, 52)]
+    ids = _run(Tracker(), frames)
+    assert ids[-1] == {0: ids[0][0]}, ids[-5:]
+
+
 def test_a_weak_detection_keeps_a_track_but_does_not_start_one():
     tracker = Tracker(TrackerOptions(high_score=0.5, low_score=0.1))
     ids = _run(tracker, [[_det([0, 0, 100, 200], 0.9)], [_det([5, 0, 105, 200], 0.2)]])
