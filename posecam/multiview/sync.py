@@ -8,8 +8,8 @@ Two ways, both sub-frame. Without a rig (`motion_offset`, what `fuse --sync auto
 calibration): each view's own joint speeds about the root from its monocular metric poses,
 cross-correlated against the reference's (Pose2Sim's synchronisation correlates 2D vertical
 speeds, in whole frames), on a tenth-of-a-frame grid refined by a parabola, with a spread from
-a block bootstrap over frames; people too still, a weak correlation or a wide spread keep 0
-with a warning. With a rig (`estimate_offsets`): the offsets under
+a bootstrap over blocks of frames and over joints; people too still, a weak correlation or a
+wide spread keep 0 with a warning. With a rig (`estimate_offsets`): the offsets under
 which the 2D keypoints of all views, triangulated together, reproject with the smallest median
 error (coordinate descent over whole frames, then a parabola through the errors around the best); several people are several
 sets of points, each the same person in every view (associated first). The motion of the
@@ -194,7 +194,7 @@ def motion_offset(ref: np.ndarray, other: np.ndarray, max_offset: float, seed: i
     resamples of blocks of frames (a tenth of the take each) and of the joints: a monocular
     pose's errors depend on where the camera stands, so joints whose motion two views see
     differently pull the peak apart, and resampling the frames alone would hide it (Pose2Sim's
-    single take: cam03 -0.4 +- 0.8 frames over frames alone, +- 2.2 over frames and joints, where
+    single take: cam03 -0.4 +- 0.8 frames over frames alone, +- 1.2 over frames and joints, where
     the lab rig puts it at +4.2)."""
     lags = np.round(np.arange(-max_offset, max_offset + LAG_STEP / 2, LAG_STEP), 6)
     corr = np.array([motion_correlation(ref, other, o) for o in lags])
