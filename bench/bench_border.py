@@ -1,4 +1,4 @@
-"""What the checks at the border cost and what they save (issue 21).
+"""What the checks at the border cost and what they save.
 
 1. Reading a pose file: `read_poses` (streamed, every field checked) against `json.loads` of
    the same file (a parse that checks nothing and builds no arrays: the floor any reader pays),

@@ -30,7 +30,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 CAMERAS = ("cam01", "cam02", "cam03", "cam04")
 OFFSETS = {"cam01": 0, "cam02": -1, "cam03": 4, "cam04": 0}   # frames, vs cam01 (bench_people.py)
-HEIGHTS = {"single": ("1.72",), "multi": ("1.72,1.21",)}   # the issue's (the second person's measured one is added)
+HEIGHTS = {"single": ("1.72",), "multi": ("1.72,1.21",)}   # as first assumed (the second person's measured one is added)
 TRUTH_M = {"adult": 1.72, "child": 1.21}
 ADULT_MM = 1720.0           # the adult's height (both takes), which the lab's statures are scaled by
 GATE_PX = 40.0
@@ -257,7 +257,7 @@ def take_bench(take: str, cache: Path) -> None:
     if "child" in statures:
         child = np.mean([v for v, _ in statures["child"].values()]) / 1000
         measured = f"1.72,{child:.2f}"
-        print(f"lab: the second person's stature, mean of the three: {child:.2f} m (the issue gives 1.21)")
+        print(f"lab: the second person's stature, mean of the three: {child:.2f} m (1.21 was first assumed)")
     print(f"{'':40s}" + "".join(f"{c:>8s}" for c in (*CAMERAS, "all")) + " |" + "".join(f"{c:>8s}" for c in (*CAMERAS, "all")))
     for label, opts in variants(take, measured).items():
         scaled = [scale_recording(r, opts) for r in recs] if opts else recs

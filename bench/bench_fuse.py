@@ -55,7 +55,7 @@ import cv2
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-# per take: folder, the heights as given (the issue), the heights the lab triangulation measures
+# per take: folder, the heights first assumed, the heights the lab triangulation measures
 # (bench/bench_depth.py: statures from the lab DLT; the second person is 1.41 m, not 1.21)
 TAKES = {"single": ("examples/demo/single", "1.72", "1.72"),
          "multi": ("examples/demo/multi", "1.72,1.21", "1.72,1.41")}

@@ -1,4 +1,4 @@
-"""Would an int8 pose model make posecam faster at the same accuracy? (issue 18: speed)
+"""Would an int8 pose model make posecam faster at the same accuracy?
 
     python bench/bench_quantize.py [--vtest vtest.avi] [--calibration 200] [--repeat 15]
 

@@ -1,4 +1,4 @@
-"""What limits the rig posecam estimates from the people (issue 17), per take and per keypoint
+"""What limits the rig posecam estimates from the people (no calibration), per take and per keypoint
 set, on Pose2Sim's two demo takes (bench/bench_fuse.py describes them and its yardstick: the
 lab's Qualisys rig, the truth offsets from the bench's own scan, a plain DLT).
 

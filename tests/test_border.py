@@ -1,4 +1,4 @@
-"""Checked at the border (issue 21): every file read is validated, every number bounded, every
+"""Checked at the border: every file read is validated, every number bounded, every
 resource capped, every output committed all or none. Rows of hostile input, like
 tests/test_hostile.py: each a command, the exit code it must give, a word its one stderr line
 must hold; and the promise: no traceback, no file left behind, no input touched. Bombs (huge

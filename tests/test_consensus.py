@@ -267,7 +267,7 @@ def test_principal_point_free_only_where_the_people_pin_it():
     one halves the rotation error that a fixed one leaves (measured 2.6 -> 1.8 deg). A person
     standing in place does not: with the principal points at the centre and a 4 px bias per
     joint and view, a free one drifts (36 px) and the rotation error grows (1.9 -> 2.7 deg), so
-    BundleOptions keeps it fixed by default (on Pose2Sim's takes a free one is worse too: README)."""
+    BundleOptions keeps it fixed by default (on Pose2Sim's takes a free one is worse too: docs/benchmarks.md)."""
     world = skeleton_motion(150)
     off_centre = make_rig(principal_noise=0.03)
     assert _principal_point_case(off_centre, world, fix=False) < 0.8 * _principal_point_case(off_centre, world, fix=True)

@@ -43,7 +43,7 @@ def _with(base: ModelContract, **changes) -> dict:
     (_with(ROOT_DEPTH, train_focal=None), pytest.raises(ModelError, match="train_focal")),
     (_with(ROOT_DEPTH, box_input=None), pytest.raises(ModelError, match="box_input")),
     (_with(ROOT_DEPTH, train_focal="wide"), pytest.raises(ModelError, match="train_focal: must be a number")),
-    # sizes bounded before anything is allocated from them (issue 21)
+    # sizes bounded before anything is allocated from them
     (_with(LANDMARKS, input=json.dumps({"name": "x", "layout": "NHWC", "size": [40000, 40000]})),
      pytest.raises(ModelError, match=r"posecam.input.size: must hold numbers in 1..2048, got 40000")),
     (_with(LANDMARKS, input=json.dumps({"name": "x", "layout": "NHWC", "size": []})),

@@ -156,7 +156,7 @@ def test_cli_refusals(exported, tmp_path):
 
 
 def test_paper_default_model_exports_and_verifies_on_the_bundled_photos(tmp_path):
-    """The issue's own check: save_checkpoint(ResNetU(), ...), then export --verify with no --images."""
+    """The first thing a user tries: save_checkpoint(ResNetU(), ...), then export --verify with no --images."""
     save_checkpoint(ResNetU(), tmp_path / "ck.pt")
     r = run_posecam("export", tmp_path / "ck.pt", "-o", tmp_path / "m.onnx", "--verify")
     assert r.returncode == 0, r.stderr

@@ -1,4 +1,4 @@
-"""Hostile and broken input (issue 10), as a table: each row is a command, the exit code it must
+"""Hostile and broken input, as a table: each row is a command, the exit code it must
 give, a word its one stderr line must hold, and the promise: no traceback, no file left behind,
 no input touched. Rows marked `slow` (full disk, huge headers) run with `pytest -m slow`."""
 

@@ -21,7 +21,7 @@ lab's 5.2 / 2.8; one focal length for all 6.0 / 5.9; a plain (non-robust) loss 1
 at 5 sigma 7.6 / 7.4, 2 sigma 6.1 / 6.2, 1 sigma 5.4 / 5.6; per joint and view weights from the
 residuals (reweighted 3 times) 8.3 / 6.6, worse: the residuals at the drifted rig reward the drift;
 without the hips and pelvis 4.0 / 4.6, and with soft-L1 at 1 sigma 3.5 / 4.1; what is kept (the
-hips out, soft-L1 graduated from 2 to 1 sigma) 4.0 / 4.9 (README has the bench's figures). The
+hips out, soft-L1 graduated from 2 to 1 sigma) 4.0 / 4.9 (docs/benchmarks.md has the bench's figures). The
 hip joint centre lies inside the body, so a detector's hip keypoint is not one 3D point from
 every side: `left_out` keeps the hips out of the adjustment (they are fused as usual afterwards,
 and triangulated through the refined rig for its bone-length scale).
@@ -31,7 +31,7 @@ TimedKeypoints) each camera's time offset but the reference's is one more slot o
 its keypoints are interpolated at it between whole frames (Catmull-Rom), the keypoint's speed
 its exact derivative. Not the default: on Pose2Sim's takes the minimum over rig and offsets
 together lies frames from the lab's offsets (started at them, cam03 of the single take goes
-from 4.2 to 0.8 frames) and the two-person rig's rotation worsens (README, Benchmarks).
+from 4.2 to 0.8 frames) and the two-person rig's rotation worsens (docs/benchmarks.md).
 
 The spreads (`CameraSpread`) are cluster-robust: a joint's errors in one view are correlated
 over every frame (the detector's bias for that joint there), so the covariance is a sandwich
