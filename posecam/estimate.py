@@ -155,15 +155,15 @@ class PoseEstimator:
         (their ids are numbered once the tracks are confirmed: `number_people`, `ConfirmedIds`)."""
         _check_image(image_rgb)
         h, w = image_rgb.shape[:2]
-        detections = None
-        if tracker.needs_detection(w, h):
+        detections, search, run = None, None, tracker.detector_run(w, h)
+        if run is not None:
             person_px = max(tracker.person_px() or MIN_PERSON_PX, MIN_PERSON_PX)
             if tracker.active():   # where the tracker asks for: everywhere (every tile), or around some people
-                search = tracker.search(self.detector.tiles(w, h, person_px), w, h)
+                search = tracker.search(run, self.detector.tiles(w, h, person_px), w, h)
                 detections = self.detector(image_rgb, tiles=search.regions, whole=search.whole)
             else:                  # nobody followed: every tile, and people in any orientation
                 detections = detect_any_turn(self.detector, image_rgb, person_px)
-        tracks = tracker.begin_frame(detections, image_rgb)
+        tracks = tracker.begin_frame(detections, image_rgb, search)
         if not tracks:
             return Frame(0, 0.0, [], dropped=list(tracker.refused)), []
         candidates = self.pose_model(image_rgb, [t.roi for t in tracks], k)

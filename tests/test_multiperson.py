@@ -202,9 +202,9 @@ def _follow(tracker, dets, frames, width=1000, height=800):
     tracked person; the frames on which the tracker asked for the detector."""
     asked = []
     for f in range(frames):
-        run = tracker.needs_detection(width, height)
-        asked.append(run)
-        tracks = tracker.begin_frame((dets(f) if callable(dets) else dets) if run else None)
+        run = tracker.detector_run(width, height)
+        asked.append(run is not None)
+        tracks = tracker.begin_frame((dets(f) if callable(dets) else dets) if run is not None else None)
         tracker.end_frame(tracks, [True] * len(tracks), [None] * len(tracks), [None] * len(tracks),
                           [t.roi for t in tracks])
     return [f for f, run in enumerate(asked) if run]
@@ -240,22 +240,25 @@ def test_a_run_for_an_overlap_alone_searches_only_around_those_people():
     apart = _det([800, 500, 880, 700])                                  # alone, bottom right
     asked = _follow(tracker, pair + [apart], 9)
     assert asked == list(range(9))                              # the overlap asks on every frame
-    assert tracker.needs_detection(1000, 800)
-    search = tracker.search(tiles, 1000, 800)
+    run = tracker.detector_run(1000, 800)
+    assert run is not None
+    search = tracker.search(run, tiles, 1000, 800)
     assert not search.whole and len(search.regions) == 1        # one region, not the whole image nor a tile
     (x0, y0, x1, y1) = search.regions[0]
     assert x0 <= 100 and y0 <= 100 and x1 >= 230 and y1 >= 310   # holding the pair ...
     assert max(x1 - x0, y1 - y0) <= 4 * 200 and x1 < 800         # ... at their scale, not the one apart
-    tracks = tracker.begin_frame(pair)                          # the region finds the pair only
+    tracks = tracker.begin_frame(pair, search=search)           # the region finds the pair only
     assert {t.detection is None for t in tracks} == {False, True}
     (alone,) = [t for t in tracks if t.detection is None]
     assert alone.unseen == 0 and alone.lost == 0                # not searched there: not missed either
     for _ in range(5):                                          # frames the pose model alone follows (0.5 s)
         tracker.end_frame(tracks, [True] * 3, [None] * 3, [None] * 3, [t.roi for t in tracks])
         tracks = tracker.begin_frame(None)
-    assert tracker.needs_detection(1000, 800)                   # a crowd's scheduled run: everywhere
-    assert tracker.search(tiles, 1000, 800).whole and tracker.search(tiles, 1000, 800).regions == tiles
-    tracks = tracker.begin_frame(pair)                          # searched everywhere, missed
+    run = tracker.detector_run(1000, 800)                       # a crowd's scheduled run: everywhere
+    assert run is not None and run.asking == []
+    search = tracker.search(run, tiles, 1000, 800)
+    assert search.whole and search.regions == tiles
+    tracks = tracker.begin_frame(pair, search=search)           # searched everywhere, missed
     assert alone.unseen == 1 and alone in tracks
 
 
@@ -263,11 +266,12 @@ def test_someone_just_lost_is_searched_for_where_they_were():
     tracker = Tracker()
     a, b = _det([100, 100, 180, 300]), _det([700, 100, 780, 300])
     _follow(tracker, [a, b], 30)                                # both followed and confirmed
-    assert not tracker.needs_detection(1000, 800)               # nobody missing, no run due
+    assert tracker.detector_run(1000, 800) is None              # nobody missing, no run due
     tracks = tracker.begin_frame(None)
     tracker.end_frame(tracks, [t.roi.cx < 500 for t in tracks], [None] * 2, [None] * 2, [t.roi for t in tracks])
-    assert tracker.needs_detection(1000, 800)                   # b's pose lost: a run at once ...
-    (region,) = tracker.search([(0, 0, 1000, 800)], 1000, 800).regions
+    run = tracker.detector_run(1000, 800)                       # b's pose lost: a run at once ...
+    assert run is not None
+    (region,) = tracker.search(run, [(0, 0, 1000, 800)], 1000, 800).regions
     assert region[0] <= 700 and region[2] >= 780 and region[0] > 180   # ... around b only
 
 

@@ -1,0 +1,214 @@
+"""The tracker: the people followed in one video, frame by frame.
+
+On each frame the caller asks whether and where to run the detector (`detector_run`, `search`),
+hands its detections and that search to `begin_frame`, runs the pose model on the tracks it
+returns and hands the poses back to `end_frame`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from posecam.geometry.boxes import box_iou
+from posecam.inference.detector import MIN_KEYPOINT_SCORE, Detection
+from posecam.inference.embedder import AppearanceEmbedder
+from posecam.inference.roi import Roi
+from posecam.results import Dropped
+from posecam.tracking import reid, schedule
+from posecam.tracking.assignment import gated_assignment, motion_cost, same_pose
+from posecam.tracking.motion import BoxKalman
+from posecam.tracking.reid import Looks
+from posecam.tracking.schedule import DetectorRun, Search
+from posecam.tracking.track import Track, TrackerOptions
+
+DEFAULT_FPS = 10.0   # a video's frame rate when none is given
+
+
+class Tracker:
+    """Ids, motion and ROIs of the people followed in one video."""
+
+    def __init__(self, options: TrackerOptions | None = None, embedder: AppearanceEmbedder | None = None,
+                 fps: float | None = None):
+        self.options = options or TrackerOptions()
+        self.embedder = embedder             # None: ids from motion alone
+        self.fps = fps or DEFAULT_FPS        # the video's frame rate: the searches' schedule, the re-id memory and reach
+        self.tracks: list[Track] = []
+        self._frame = -1
+        self._next_id = 0
+        self._next_number = 0
+        self._since_detection = 0
+        self.refused: list[Dropped] = []     # this frame's confident detections over max_people
+        self._smallest: float | None = None  # height (px) of the smallest confirmed person so far
+        self._lost_now: set[int] = set()     # ids of people followed whom the pose model lost since the last detector run
+
+    def detector_run(self, width: int, height: int) -> DetectorRun | None:
+        """Whether to run the detector on this frame (a `width` x `height` image), and for
+        whom (None: no run; see `schedule.detector_run`)."""
+        return schedule.detector_run(self.tracks, self._lost_now, self._since_detection, self.fps,
+                                     width, height, self.options)
+
+    def search(self, run: DetectorRun, tiles: list[tuple[int, int, int, int]], width: int, height: int) -> Search:
+        """Where `run` looks: around the people who alone ask for it, else the whole image and
+        the detector's `tiles` (see `schedule.search`); hand it to `begin_frame` with the
+        detections."""
+        return schedule.search(run, tiles, width, height, self.options)
+
+    def person_px(self) -> float | None:
+        """The height (px) of the smallest person confirmed so far in this video (None: nobody yet)."""
+        return self._smallest
+
+    def active(self) -> list[Track]:
+        return [t for t in self.tracks if t.lost == 0]
+
+    def begin_frame(self, detections: list[Detection] | None, image_rgb: np.ndarray | None = None,
+                    search: Search | None = None) -> list[Track]:
+        """Move every track on and, on a detector frame, match the detections (`image_rgb`, the
+        frame, gives their looks to the embedder; `search`: where the detector looked, None:
+        everywhere); returns the tracks the pose model must run on now (each with its ROI, and
+        its detection if any): those matched, those recognised, those born, and those the
+        detector missed while the pose model still follows them (for up to `coast` detector
+        runs in a row; only the people where it looked count as missed)."""
+        o = self.options
+        self._frame += 1
+        for t in self.tracks:
+            if t.lost <= o.max_lost:   # a person lost longer is looked for by appearance only
+                t.kalman.predict(keep_size=t.lost > 0)
+            t.detection = None
+        self.refused = []
+        if detections is None:
+            for t in self.tracks:
+                t.lost += t.lost > 0
+            self._forget()
+            self._since_detection += 1
+            return self.active()
+        self._since_detection, self._lost_now = 1, set()
+        looks = Looks(self.embedder, image_rgb) if self.embedder is not None and image_rgb is not None else None
+        high = [d for d in detections if d.score >= o.high_score]
+        low = [d for d in detections if o.low_score <= d.score < o.high_score]
+        pool = [t for t in self.tracks if t.lost <= o.max_lost]
+        left = self._match(pool, high, o.match_cost, looks)
+        pool = [t for t in pool if t.detection is None]
+        self._match(pool, low, o.low_match_cost, looks)
+        searched = schedule.searched(self.tracks, search)
+        # a person overlapping another followed person is often merged with them by the
+        # detector: such a miss does not count (the pose model still follows both; end_frame
+        # drops a pose that duplicates the other's)
+        followed = np.array([t.lost == 0 for t in self.tracks], bool)
+        boxes = np.array([t.box for t in self.tracks]).reshape(-1, 4)
+        overlap = np.triu(box_iou(boxes, boxes), 1) > 0
+        overlap &= followed[:, None] & followed[None, :]
+        overlap = overlap.any(axis=0) | overlap.any(axis=1)
+        for t, looked, merged in zip(self.tracks, searched, overlap):
+            if t.detection is not None:
+                t.unseen = 0
+            elif t.lost == 0 and t.shown and (t.unseen < o.coast or not looked or merged):
+                t.unseen += int(looked and not merged)   # the detector missed someone the pose model still follows
+            else:
+                t.lost += 1
+        self._forget()
+        left = self._recognise(left, looks)
+        # births, the tallest (nearest) first, while there is room: the people in front get the first ids
+        for d in sorted(left, key=lambda d: d.box[1] - d.box[3]):
+            if len(self.active()) >= o.max_people:
+                self.refused.append(Dropped("max_people", d.score, d.box))
+                continue
+            self.tracks.append(Track(self._next_id, d.roi, BoxKalman(d.box), d.keypoints, d.keypoint_scores, detection=d))
+            self._next_id += 1
+        if looks is not None:
+            reid.refresh_looks(self.tracks, detections, looks, self._frame, o)
+        return self.active()
+
+    def _forget(self) -> None:
+        """Drop the tracks unseen for longer than they are remembered, and the tentative ones
+        as soon as they are lost: a track that was never confirmed is a false start."""
+        self.tracks = [t for t in self.tracks if t.lost <= self._remembered(t) and (t.lost == 0 or t.number is not None)]
+
+    def _remembered(self, track: Track) -> int:
+        """Frames an unseen track is kept: `reid_seconds` if its looks are known, else `max_lost`."""
+        o = self.options
+        return max(round(o.reid_seconds * self.fps), o.max_lost) if self.embedder is not None and track.gallery else o.max_lost
+
+    def _match(self, tracks: list[Track], detections: list[Detection], max_cost: float,
+               looks: Looks | None) -> list[Detection]:
+        """Hungarian matching on the motion cost (`motion_cost`), gated at `max_cost`; where the
+        match is ambiguous and the looks are known, the cost mixes them in (`reid.with_looks`).
+        Matched tracks take their detection. Returns the detections left unmatched."""
+        if not tracks or not detections:
+            return list(detections)
+        motion = motion_cost(tracks, detections)
+        cost = reid.with_looks(tracks, detections, motion, max_cost, looks, self.options)
+        used = set()
+        for i, j in gated_assignment(cost, motion, max_cost):
+            tracks[i].take(detections[j])
+            used.add(j)
+        return [d for j, d in enumerate(detections) if j not in used]
+
+    def _recognise(self, detections: list[Detection], looks: Looks | None) -> list[Detection]:
+        """Confident detections no motion took, against the people lost (unseen, remembered, with
+        a gallery): a person whom one resembles clearly more than anyone else
+        (`reid.recognised`) takes it with their id, their motion started afresh there. Returns
+        the detections left to start new tracks."""
+        lost = [t for t in self.tracks if t.detection is None and t.lost > 0 and t.gallery]
+        if looks is None or not lost or not detections:
+            return detections
+        used = set()
+        for i, j in reid.recognised(lost, detections, looks, self.fps, self.options):
+            t, d = lost[i], detections[j]
+            t.kalman = BoxKalman(d.box)
+            t.unseen = 0
+            t.take(d)
+            used.add(j)
+        return [d for j, d in enumerate(detections) if j not in used]
+
+    def end_frame(self, tracks: list[Track], found: list[bool], keypoints: list[np.ndarray | None],
+                  keypoint_scores: list[np.ndarray | None], next_rois: list[Roi]) -> list[int]:
+        """After the pose model ran on `tracks`: the found ones move to their next ROI (and, off
+        detector frames, their pose updates the motion model); the others count as lost.
+        A track whose pose duplicates an older track's is lost too. Returns the indices (into
+        `tracks`) of the people to report."""
+        kept: list[int] = []
+        order = sorted(range(len(tracks)), key=lambda i: -tracks[i].hits)
+        for i in order:
+            t = tracks[i]
+            kp, sc = keypoints[i], keypoint_scores[i]
+            if not found[i] or (kp is not None and any(same_pose(kp, sc, tracks[j]) for j in kept)):
+                t.lost = max(t.lost, 1)
+                if t.shown > 0:   # someone followed is lost (not a false start)
+                    self._lost_now.add(t.id)
+                continue
+            if t.detection is None and kp is not None:
+                seen = kp[sc >= MIN_KEYPOINT_SCORE]
+                if len(seen) >= 2:
+                    lo, hi = seen.min(axis=0), seen.max(axis=0)
+                    t.kalman.update(np.concatenate([lo, hi]))
+                t.keypoints, t.keypoint_scores = kp, sc
+            t.roi = next_rois[i]
+            t.shown += 1
+            kept.append(i)
+            if t.hits >= self.options.confirm_hits:
+                h = float(t.box[3] - t.box[1])
+                self._smallest = h if self._smallest is None else min(self._smallest, h)
+            if t.number is None and t.shown >= self.options.confirm_frames and \
+                    (t.hits >= self.options.confirm_hits or t.unseen == 0):
+                t.number = self._number_of(t)
+        self._forget()
+        return sorted(kept)
+
+    def confirm_followed(self) -> None:
+        """Number every track still followed that is not confirmed yet (at a video's end)."""
+        for t in self.tracks:
+            if t.number is None and t.lost == 0 and t.shown:
+                t.number = self._number_of(t)
+
+    def _number_of(self, track: Track) -> int:
+        """The id of a track being confirmed: that of a person lost whom the looks of its first
+        frames recognise (`reid.returning`), else a new one."""
+        o = self.options
+        lost = [t for t in self.tracks if t.number is not None and t.lost > 0 and t.gallery]
+        found = reid.returning(lost, track, self.fps, o) if lost and track.gallery else None
+        if found is not None:
+            track.gallery = (found.gallery + track.gallery)[-o.gallery:]
+            self.tracks.remove(found)
+            return found.number
+        number, self._next_number = self._next_number, self._next_number + 1
+        return number
