@@ -33,14 +33,30 @@ A segment's direction `phi(v)` is its angle anticlockwise from the view's horizo
 Sports2D measures a front view by mirroring the right side's keypoints (`visible_side = front`),
 which turns its hip and shoulder flexion into abduction; posecam does the same in the frontal
 plane, mirroring the trunk with the right side's limbs so that abduction stays relative to the
-trunk when it leans sideways (Sports2D's right-side value differs from it by twice that lean). Hip and shoulder flexion are sagittal: an arm raised out to the side is foreshortened in
-that view, so its flexion swings (and wraps at +-180) while its abduction tells where it is.
+trunk when it leans sideways (Sports2D's right-side value differs from it by twice that lean).
 Knee and elbow are hinges: their flexion is measured in the plane of their two segments (as
 Pose2Sim's `points_to_angles` does with 3D points), so it has no sign (no hyperextension), but
 is right however far the limb is turned out of the sagittal plane. The neck is the 17 joints'
 thorax (the 33 landmarks' shoulder midpoint), the mid hip the pelvis (the hips' midpoint). The
-17-joint skeleton has no heel or toe: ankle dorsiflexion needs `--skeleton 33`. Angles are in
-(-180, 180]; a joint that is missing (NaN) leaves its angles NaN.
+17-joint skeleton has no heel or toe: ankle dorsiflexion needs `--skeleton 33`.
+
+Ranges: each angle is a direction on a circle, so it must wrap somewhere; it wraps where the
+body cannot go, so that a movement gives a continuous curve without knowing the frames before
+(the same pose has the same value in every frame, clip and person, which an unwrapping along
+time would not give; it would also pile up turns where a limb is seen end-on, below):
+hip and shoulder flexion and abduction are in (-90, 270] (the wrap: the limb pointing
+horizontally backwards, or across the midline, from the trunk, beyond any hip or shoulder's
+extension or adduction; an arm raised overhead reads 180 and on past it); the trunk's segment
+angles too (upright 90, the wrap upside down); ankle dorsiflexion in (-180, 180]; the pelvis and
+shoulders lines in (-90, 90]; knee and elbow flexion in [0, 180].
+
+A planar angle is only defined for a segment that shows in its view: a limb pointing along the
+view's normal (an arm raised out to the side, seen by the sagittal view; an arm reaching forward,
+by the frontal one) is a dot there, and its direction turns half a turn when it passes through
+(a 20 mm joint error on a 300 mm arm moves it 15 degrees at a quarter of its length). So an
+angle whose segment shows less than `FORESHORTENED` of its length in its view is NaN (the
+curve breaks: the other view's angle tells where the limb is), as is an angle of a missing
+joint.
 """
 
 from __future__ import annotations
@@ -63,6 +79,8 @@ _ROLES = {
 _JOINT_ANGLES = ("ankle_dorsiflexion", "knee_flexion", "hip_flexion", "shoulder_flexion", "elbow_flexion",
                  "hip_abduction", "shoulder_abduction")
 _SEGMENT_ANGLES = ("trunk_sagittal", "trunk_frontal", "pelvis_frontal", "shoulders_frontal")
+FORESHORTENED = 0.25   # a segment shorter than this share of its length in its view has no planar angle
+_CENTRE = {"ankle_dorsiflexion": 0.0, "pelvis_frontal": 0.0, "shoulders_frontal": 0.0}   # else 90: see the doc
 
 
 def _roles(joints: tuple[str, ...]) -> dict[str, tuple[int, ...]]:
@@ -79,15 +97,18 @@ def angle_names(joints: tuple[str, ...]) -> tuple[str, ...]:
         + _SEGMENT_ANGLES
 
 
-def _wrap(deg: np.ndarray, half_turn: float = 180.0) -> np.ndarray:
-    """Into (-half_turn, half_turn] (180: a full turn; 90: a line's direction, as Sports2D's pelvis)."""
-    period = 2 * half_turn
-    return half_turn - np.mod(half_turn - deg, period)
+def _wrap(deg: np.ndarray, centre: float = 0.0, half_turn: float = 180.0) -> np.ndarray:
+    """Into (centre - half_turn, centre + half_turn] (half_turn 180: a full turn; 90: a line's
+    direction, as Sports2D's pelvis)."""
+    return centre + half_turn - np.mod(centre + half_turn - deg, 2 * half_turn)
 
 
 def _direction(v: np.ndarray, horizontal: np.ndarray, up: np.ndarray) -> np.ndarray:
-    """phi(v): the angle of (..., 3) `v` anticlockwise from `horizontal` in the view (horizontal, up)."""
-    return np.degrees(np.arctan2(np.sum(v * up, -1), np.sum(v * horizontal, -1)))
+    """phi(v): the angle of (..., 3) `v` anticlockwise from `horizontal` in the view (horizontal, up);
+    NaN where `v` shows less than FORESHORTENED of its length in that view."""
+    x, y = np.sum(v * horizontal, -1), np.sum(v * up, -1)
+    shown = np.hypot(x, y) >= FORESHORTENED * np.linalg.norm(v, axis=-1)
+    return np.where(shown, np.degrees(np.arctan2(y, x)), np.nan)
 
 
 def _flexion_3d(a: np.ndarray, joint: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -136,9 +157,14 @@ def angles_of(xyz: np.ndarray, joints: tuple[str, ...], frame_of_reference: str 
         out[f"{s}_shoulder_abduction"] = outward * (frontal(j["shoulder"] - j["elbow"]) - trunk_frontal)
     out["trunk_sagittal"] = trunk
     out["trunk_frontal"] = trunk_frontal
-    out["pelvis_frontal"] = _wrap(frontal(at["l_hip"] - at["r_hip"]), 90.0)
-    out["shoulders_frontal"] = _wrap(frontal(at["l_shoulder"] - at["r_shoulder"]), 90.0)
-    return np.stack([_wrap(out[name]) for name in angle_names(joints)], axis=-1)
+    out["pelvis_frontal"] = _wrap(frontal(at["l_hip"] - at["r_hip"]), half_turn=90.0)
+    out["shoulders_frontal"] = _wrap(frontal(at["l_shoulder"] - at["r_shoulder"]), half_turn=90.0)
+    return np.stack([_wrap(out[name], _centre(name)) for name in angle_names(joints)], axis=-1)
+
+
+def _centre(name: str) -> float:
+    """The middle of the angle's range (see the module doc): 0 or 90 degrees."""
+    return _CENTRE.get(name.removeprefix("r_").removeprefix("l_"), 90.0)
 
 
 def add_angles(frame: Frame, rec: Recording) -> Frame:
