@@ -355,3 +355,55 @@ def test_fused_angles_follow_the_true_motion(tmp_path):
     assert np.isnan(want).any() and (np.isnan(got) == np.isnan(want)).mean() > 0.98, (np.isnan(got) != np.isnan(want)).mean()
     assert np.ptp(want[:, names.index("r_knee_flexion")]) > 10     # the motion does bend the knees
     assert (tmp_path / "fused.png").stat().st_size > 10_000
+
+
+def _two_people_series():
+    """Two people seen at different times (0-1 s and 0.5-2 s), angles and depths crossing zero."""
+    from posecam.results import Frame, Person
+    from posecam.viz.plot import AngleSeries
+
+    names = angle_names(H36M_JOINTS)
+    series = AngleSeries(H36M_JOINTS)
+    for i in range(61):
+        t = i / 30
+        people = []
+        for pid, (start, end) in ((0, (0.0, 1.0)), (1, (0.5, 2.0))):
+            if start <= t <= end:
+                xyz = np.zeros((17, 3))
+                xyz[:, 2] = 300.0 * np.sin(3 * t)                                      # depth -0.3 to 0.3 m
+                p = Person(pid, 1.0, np.zeros(4), np.zeros((17, 2)), xyz, np.ones(17))
+                p.angles = {n: 200 * np.sin(2 * t + k) if "shoulder" in n else 30 * np.sin(2 * t + k) + 25
+                            for k, n in enumerate(names)}
+                people.append(p)
+        series.add(Frame(i, t, people))
+    return series
+
+
+def test_plot_shares_one_time_axis_and_writes_no_minus_zero():
+    from posecam.viz.plot import layout
+
+    (width, _), primitives = layout(_two_people_series(), "two people")
+    texts = [(where, what) for kind, where, what, *_ in primitives if kind == "text"]
+    assert not [what for _, what in texts if what.startswith("-") and float(what) == 0]
+    assert {"-0.2", "0", "0.2", "-100", "100"} <= {what for _, what in texts}
+    # the time tick labelled 1 (s) sits at the same place in both columns
+    ones = sorted(where[0] for where, what in texts if what == "1")
+    column = width / 2
+    left, right = [x for x in ones if x < column], [x - column for x in ones if x >= column]
+    assert left and sorted(left) == pytest.approx(sorted(right))
+
+
+def test_plot_labels_overlap_neither_each_other_nor_the_curves():
+    """Every text box (OpenCV's measure of it) is clear of the other texts and of every curve."""
+    from posecam.viz.plot import layout, text_width
+
+    _, primitives = layout(_two_people_series(), "two people")
+    boxes = [(x, y - px * 0.75, x + text_width(what, px), y + px * 0.25)
+             for kind, (x, y), what, _, px in (p for p in primitives if p[0] == "text")]
+    for i, (x0, y0, x1, y1) in enumerate(boxes):
+        for a0, b0, a1, b1 in boxes[:i]:
+            assert x1 <= a0 or a1 <= x0 or y1 <= b0 or b1 <= y0, ((x0, y0, x1, y1), (a0, b0, a1, b1))
+    curves = np.vstack([where for kind, where, *_ in primitives if kind == "poly"])
+    for x0, y0, x1, y1 in boxes:
+        inside = (curves[:, 0] >= x0) & (curves[:, 0] <= x1) & (curves[:, 1] >= y0 - 2) & (curves[:, 1] <= y1 + 2)
+        assert not inside.any(), (x0, y0, x1, y1)

@@ -8,7 +8,10 @@ HTML page (the same figure as inline SVG), no plotting library needed.
 
 One column per person, one panel per joint (right side orange, left side blue, as the overlays
 draw them), the trunk and pelvis segment angles together, and the root's depth z (m) from the
-camera at the bottom (in a fused world: its Z). The figure is laid out once as lines and labels; each format draws those.
+camera at the bottom (in a fused world: its Z); every column on the same time axis, so that
+people are compared at the same instants. The figure is laid out once as lines and labels
+(each label's width measured with OpenCV's font, which the SVG text is fitted to); each format
+draws those.
 """
 
 from __future__ import annotations
@@ -34,13 +37,14 @@ PANELS = (   # title, series (angle names, or "depth"), unit
     ("ankle dorsiflexion", ("r_ankle_dorsiflexion", "l_ankle_dorsiflexion"), "deg"),
     ("shoulder flexion", ("r_shoulder_flexion", "l_shoulder_flexion"), "deg"),
     ("elbow flexion", ("r_elbow_flexion", "l_elbow_flexion"), "deg"),
-    ("hip and shoulder abduction", ("r_hip_abduction", "l_hip_abduction", "r_shoulder_abduction",
-                                    "l_shoulder_abduction"), "deg"),
+    ("hip abduction", ("r_hip_abduction", "l_hip_abduction"), "deg"),
+    ("shoulder abduction", ("r_shoulder_abduction", "l_shoulder_abduction"), "deg"),
     ("trunk and pelvis", ("trunk_sagittal", "trunk_frontal", "pelvis_frontal", "shoulders_frontal"), "deg"),
     ("root z", ("depth",), "m"),   # depth from the camera (camera frames); a fused world: its Z
 )
 EXTRA_COLOURS = (CENTRE, (200, 80, 200), (150, 150, 150), (230, 200, 40))
-COLUMN_W, PANEL_H, TITLE_H, MARGIN_L, MARGIN_B = 620, 150, 52, 56, 22
+COLUMN_W, PANEL_H, TITLE_H, MARGIN_L, MARGIN_B = 620, 160, 52, 56, 22
+HEADING_H = 26      # each panel's title and legend, above its plotting area
 LABELS = {"trunk_sagittal": "trunk (side)", "trunk_frontal": "trunk (front)", "pelvis_frontal": "pelvis",
           "shoulders_frontal": "shoulders", "depth": "z"}
 
@@ -72,12 +76,27 @@ def _series(series: AngleSeries, pid: int) -> tuple[np.ndarray, dict[str, np.nda
     return np.array(times, float), by_name
 
 
-def _ticks(lo: float, hi: float, most: int = 5) -> np.ndarray:
-    """Round tick values covering [lo, hi]."""
-    raw = (hi - lo) / most
+def _ticks(lo: float, hi: float, about: int = 5) -> list[tuple[float, str]]:
+    """Round tick values in [lo, hi], `about` of them, each with its label (as many decimals as
+    the step needs; never "-0")."""
+    raw = (hi - lo) / about
     step = 10 ** np.floor(np.log10(raw))
-    step *= next(m for m in (1, 2, 5, 10) if raw <= m * step)
-    return np.arange(np.ceil(lo / step) * step, hi + step * 1e-9, step)
+    step *= min((1, 2, 5, 10), key=lambda m: abs(np.log(m * step / raw)))     # the round step nearest raw
+    decimals = max(0, -int(np.floor(np.log10(step) + 1e-9)))
+    first, last = int(np.ceil(lo / step - 1e-9)), int(np.floor(hi / step + 1e-9))
+    return [(k * step, f"{round(k * step, decimals) + 0.0:g}") for k in range(first, last + 1)]
+
+
+def text_width(text: str, px: float) -> int:
+    """The width in pixels of `text` drawn `px` high (OpenCV's simplex font, as render_png draws it)."""
+    return cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, px / 30, 1)[0][0]
+
+
+def _time_range(series: AngleSeries) -> tuple[float, float]:
+    """The time axis every column shares: from the first frame anybody is in to the last."""
+    times = np.concatenate([np.asarray(t, float) for t, _, _ in series.people.values()] or [np.zeros(0)])
+    lo, hi = (float(times.min()), float(times.max())) if len(times) else (0.0, 1.0)
+    return lo, hi if hi > lo else lo + 1.0
 
 
 def layout(series: AngleSeries, title: str) -> tuple[tuple[int, int], list[tuple]]:
@@ -88,15 +107,15 @@ def layout(series: AngleSeries, title: str) -> tuple[tuple[int, int], list[tuple
     width = max(1, len(ids)) * COLUMN_W
     height = TITLE_H + len(panels) * PANEL_H + 8
     out: list[tuple] = [("text", (8, 20), title + ("" if ids else ": nobody found"), (20, 20, 20), 16)]
+    t_lo, t_hi = _time_range(series)
     for col, pid in enumerate(ids):
         t, values = _series(series, pid)
         x0 = col * COLUMN_W + MARGIN_L
         x1 = (col + 1) * COLUMN_W - 12
-        t_lo, t_hi = (float(t.min()), float(t.max())) if len(t) else (0.0, 1.0)
-        t_hi = t_hi if t_hi > t_lo else t_lo + 1.0
         out.append(("text", (x0, TITLE_H - 4), f"person #{pid}", (20, 20, 20), 14))
         for row, (name, keys, unit) in enumerate(panels):
-            y0, y1 = TITLE_H + row * PANEL_H + 14, TITLE_H + (row + 1) * PANEL_H - MARGIN_B
+            top = TITLE_H + row * PANEL_H
+            y0, y1 = top + HEADING_H, top + PANEL_H - MARGIN_B
             keys = [k for k in keys if k in values]
             data = np.concatenate([values[k] for k in keys])
             data = data[np.isfinite(data)]
@@ -107,19 +126,19 @@ def layout(series: AngleSeries, title: str) -> tuple[tuple[int, int], list[tuple
             def to_px(tt, vv):
                 return np.stack([x0 + (tt - t_lo) / (t_hi - t_lo) * (x1 - x0), y1 - (vv - lo) / (hi - lo) * (y1 - y0)], -1)
 
-            for v in _ticks(lo, hi, 4):
+            for v, label in _ticks(lo, hi, 4):
                 y = float(to_px(np.array(t_lo), np.array(v))[1])
                 out.append(("line", (x0, y, x1, y), (225, 225, 225), 1))
-                out.append(("text", (x0 - 50, y + 4), f"{v:g}", (90, 90, 90), 11))
-            for v in _ticks(t_lo, t_hi, 6):
+                out.append(("text", (x0 - 6 - text_width(label, 11), y + 4), label, (90, 90, 90), 11))
+            for v, label in _ticks(t_lo, t_hi, 6):
                 x = float(to_px(np.array(v), np.array(lo))[0])
                 out.append(("line", (x, y1, x, y1 + 4), (90, 90, 90), 1))
-                out.append(("text", (x - 8, y1 + 16), f"{v:g}", (90, 90, 90), 11))
+                out.append(("text", (x - text_width(label, 11) / 2, y1 + 16), label, (90, 90, 90), 11))
             out.append(("line", (x0, y1, x1, y1), (90, 90, 90), 1))
             out.append(("line", (x0, y0, x0, y1), (90, 90, 90), 1))
-            out.append(("text", (x0 + 6, y0 + 2), f"{name} ({unit}); time (s)" if row == len(panels) - 1
-                        else f"{name} ({unit})", (40, 40, 40), 12))
-            legend_x = x0 + 180
+            heading = f"{name} ({unit}); time (s)" if row == len(panels) - 1 else f"{name} ({unit})"
+            out.append(("text", (x0 + 6, top + 16), heading, (40, 40, 40), 12))
+            legend_x = x0 + 6 + max(174, text_width(heading, 12) + 24)      # after the panel's title
             for i, key in enumerate(keys):
                 colour = RIGHT if key.startswith("r_") else LEFT if key.startswith("l_") else EXTRA_COLOURS[i % 4]
                 for run in _pieces(values[key]):
@@ -129,9 +148,9 @@ def layout(series: AngleSeries, title: str) -> tuple[tuple[int, int], list[tuple
                         p = to_px(t[run], values[key][run])[0]
                         out.append(("line", (p[0] - 1, p[1], p[0] + 1, p[1]), colour, 3))
                 label = LABELS.get(key, key.replace("_dorsiflexion", "").replace("_flexion", "").replace("_abduction", ""))
-                out.append(("line", (legend_x, y0 - 2, legend_x + 16, y0 - 2), colour, 2))
-                out.append(("text", (legend_x + 20, y0 + 2), label, (40, 40, 40), 11))
-                legend_x += 26 + 6 * len(label)
+                out.append(("line", (legend_x, top + 12, legend_x + 16, top + 12), colour, 2))
+                out.append(("text", (legend_x + 20, top + 16), label, (40, 40, 40), 11))
+                legend_x += 30 + text_width(label, 11)
     return (width, height), out
 
 
@@ -175,7 +194,8 @@ def render_html(size: tuple[int, int], primitives: list[tuple], title: str) -> s
             parts.append(f'<polyline points="{points}" fill="none" stroke="{rgb(what)}" stroke-width="{rest[0]}"/>')
         else:
             parts.append(f'<text x="{where[0]:.1f}" y="{where[1]:.1f}" fill="{rgb(rest[0])}" '
-                         f'font-size="{rest[1]}">{html.escape(what)}</text>')
+                         f'font-size="{rest[1]}" textLength="{text_width(what, rest[1])}" '
+                         f'lengthAdjust="spacingAndGlyphs">{html.escape(what)}</text>')
     w, h = size
     return (f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>{html.escape(title)}</title>'
             '<style>body{margin:0;background:#fff;font-family:sans-serif}</style></head><body>\n'
