@@ -9,6 +9,7 @@ import cv2
 import numpy as np
 
 from conftest import DATA, run_posecam
+from posecam.viz.fusion_grid import TILE_SIDE
 
 
 def _synthetic_views(tmp_path, n_frames=25):
@@ -26,11 +27,12 @@ def test_fused_video_has_every_frame_and_names_it(tmp_path):
     cap = cv2.VideoCapture(str(video))
     assert int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) == len(frames) == 20
     ok, first = cap.read()
-    tile_w = first.shape[1] // len(cams)
-    assert ok and first.shape[0] == 480 and len(cams) <= 4
+    # landscape and portrait views: square cells of TILE_SIDE, two to a row
+    assert ok and len(cams) == 4 and first.shape[:2] == (2 * TILE_SIDE, 2 * TILE_SIDE)
     # black tiles (the synthetic views have no video) with the skeletons drawn in every view
     for v in range(len(cams)):
-        tile = first[60:, v * tile_w:(v + 1) * tile_w]
+        row, col = divmod(v, 2)
+        tile = first[row * TILE_SIDE + 60:(row + 1) * TILE_SIDE, col * TILE_SIDE:(col + 1) * TILE_SIDE]
         assert (tile.max(axis=2) > 100).sum() > 200, v
     run = run_posecam("fuse", *paths, "--calibration", calib, "--start", "5", "--viz", still)
     assert run.returncode == 0, run.stderr
@@ -115,4 +117,33 @@ def test_joints_a_view_cannot_see_are_not_drawn():
     assert _in_view(cam, behind) is None
     rec = Recording("v", cam.size[0], cam.size[1], cam.intrinsics, H36M_JOINTS)
     tile = _tile(cam, rec, Frame(0, 0.0, [person, behind]), np.zeros((cam.size[1], cam.size[0], 3), np.uint8))
-    assert tile.shape[0] == 480 and tile.max() > 0
+    assert max(tile.shape[:2]) == TILE_SIDE and tile.max() > 0
+
+
+def test_each_view_is_large_and_its_labels_readable():
+    """Four portrait views (Pose2Sim's 1088x1920 cameras) make one row of 405x720 tiles, and
+    each person's label is drawn at the tile's size: its letters at least 10 px high (drawn at
+    full size and shrunk with the view, they were 6 px in a 480 px high tile)."""
+    from synth_rig import CameraSpec, make_rig, skeleton_motion
+
+    from posecam.results import Frame, Person, Recording
+    from posecam.skeleton import H36M_JOINTS
+    from posecam.viz.draw import draw_people
+    from posecam.viz.fusion_grid import _grid, _tile
+
+    cams = make_rig([CameraSpec(f"cam{i}", (1088, 1920), 1400.0, 90.0 * i, 3500.0, 1200.0) for i in range(4)])
+    person = Person(0, 1.0, np.zeros(4), np.zeros((17, 2)), skeleton_motion(1)[0], np.ones(17))
+    rec = Recording("v", 1088, 1920, cams[0].intrinsics, H36M_JOINTS)
+    black = np.zeros((1920, 1088, 3), np.uint8)
+    tiles = [_tile(cam, rec, Frame(0, 0.0, [person]), black) for cam in cams]
+    assert all(t.shape == (TILE_SIDE, round(1088 * TILE_SIDE / 1920), 3) for t in tiles)
+    mosaic = _grid(tiles, Frame(0, 0.0, [person]))
+    assert mosaic.shape[:2] == (TILE_SIDE, 4 * tiles[0].shape[1])
+    label = np.argwhere((tiles[0][..., 0] > 200) & (tiles[0][..., 1] > 200) & (tiles[0][..., 2] < 60))  # yellow
+    assert len(label) and np.ptp(label[:, 0]) + 1 >= 10, np.ptp(label[:, 0]) + 1
+    # the yardstick: the same label drawn on the full-size view, then shrunk as the old mosaic did
+    from posecam.viz.fusion_grid import _in_view
+
+    full = cv2.resize(draw_people(black, [_in_view(cams[0], person)], H36M_JOINTS), (272, 480))
+    old = np.argwhere((full[..., 0] > 150) & (full[..., 1] > 150) & (full[..., 2] < 90))
+    assert np.ptp(old[:, 0]) + 1 < np.ptp(label[:, 0]) + 1

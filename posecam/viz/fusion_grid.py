@@ -1,6 +1,11 @@
 """Draw fused poses projected into every view, side by side: one PNG/JPEG still, or a video of
 every fused frame (`fuse --viz FILE.png|FILE.mp4`). Each picture names its frame.
 
+Each view is scaled so that its longer side is TILE_SIDE pixels, and the skeletons and labels are
+drawn on it at that size (so they read as on a picture of that size, not shrunk with the view);
+the views sit in cells of the largest tile's size, four to a row when the cells are portrait,
+two when they are not.
+
 Each view's video is read forward once (from the first frame needed, seeking where it can);
 a view whose video cannot be read (a pose file whose source is elsewhere) gets a black tile.
 """
@@ -22,8 +27,7 @@ from posecam.results import Frame, Person, Recording
 from posecam.viz.draw import draw_people
 from posecam.viz.sinks import PICTURE_SUFFIXES, VideoSink, write_image
 
-TILE_HEIGHT = 480
-COLUMNS = 4          # views per row of the grid
+TILE_SIDE = 720      # each view's longer side in the mosaic, px
 
 
 class _ViewReader:
@@ -62,18 +66,23 @@ def _in_view(cam, person) -> Person | None:
 
 
 def _tile(cam, rec: Recording, frame: Frame, image: np.ndarray) -> np.ndarray:
-    people = [q for q in (_in_view(cam, p) for p in frame.people) if q is not None]
-    img = draw_people(image, people, rec.joints)
-    scale = TILE_HEIGHT / img.shape[0]
-    return cv2.resize(img, (round(img.shape[1] * scale), TILE_HEIGHT))
+    """The view scaled to TILE_SIDE, with the fused people drawn on it at that size."""
+    scale = TILE_SIDE / max(image.shape[:2])
+    tile = cv2.resize(image, (round(image.shape[1] * scale), round(image.shape[0] * scale)),
+                      interpolation=cv2.INTER_AREA)
+    people = [dataclasses.replace(q, keypoints_2d=q.keypoints_2d * scale, bbox=q.bbox * scale)
+              for q in (_in_view(cam, p) for p in frame.people) if q is not None]
+    return draw_people(tile, people, rec.joints)
 
 
 def _grid(tiles: list[np.ndarray], frame: Frame) -> np.ndarray:
-    """The tiles in rows of COLUMNS (padded black), with the frame's index and time on top."""
-    width = max(t.shape[1] for t in tiles)
-    tiles = [np.pad(t, ((0, 0), (0, width - t.shape[1]), (0, 0))) for t in tiles]
-    tiles += [np.zeros_like(tiles[0])] * (-len(tiles) % min(COLUMNS, len(tiles)))
-    rows = [np.hstack(tiles[i:i + COLUMNS]) for i in range(0, len(tiles), COLUMNS)]
+    """The tiles in cells of the largest one's size (padded black), four to a row for portrait
+    cells and two otherwise, with the frame's index and time on top."""
+    height, width = max(t.shape[0] for t in tiles), max(t.shape[1] for t in tiles)
+    columns = min(4 if height > width else 2, len(tiles))
+    tiles = [np.pad(t, ((0, height - t.shape[0]), (0, width - t.shape[1]), (0, 0))) for t in tiles]
+    tiles += [np.zeros_like(tiles[0])] * (-len(tiles) % columns)
+    rows = [np.hstack(tiles[i:i + columns]) for i in range(0, len(tiles), columns)]
     picture = np.ascontiguousarray(np.vstack(rows))
     label = f"frame {frame.index}  {frame.time:.2f} s"
     for colour, thick in (((0, 0, 0), 5), ((255, 255, 255), 2)):
