@@ -83,3 +83,28 @@ def test_viz3d_refuses_several_inputs_and_other_suffixes(tmp_path):
     r = run_posecam("predict", DATA / "messi5.jpg", "--out-dir", tmp_path / "many", "--viz3d", tmp_path / "v.html")
     assert r.returncode == 2 and "--viz3d" in r.stderr and r.stderr.startswith("posecam: error:")
     assert not list(tmp_path.iterdir())
+
+
+def test_rendered_labels_are_clear_of_the_lines():
+    """--viz3d FILE.mp4: in every frame no camera name or person id sits on a frustum's or a
+    skeleton's line (each line sampled every few pixels), and no two labels overlap."""
+    from posecam.viz.render3d import SIZE, _OrbitCamera, frame_labels
+    from posecam.viz.view3d import scene
+
+    rec, rig = two_people_world()
+    data = scene(rec, rig)
+    view = _OrbitCamera(data, SIZE)
+    edges = [(c["c"], c["corners"][i]) for c in data["cameras"] for i in range(4)]
+    edges += [(c["corners"][i], c["corners"][(i + 1) % 4]) for c in data["cameras"] for i in range(4)]
+    edges += [(c["corners"][k], c["up"]) for c in data["cameras"] for k in (0, 1)]
+    for f in data["frames"]:
+        lines = edges + [(p["p"][a], p["p"][b]) for p in f["people"] for a, b in data["bones"]]
+        ends = np.array([[view.project(a), view.project(b)] for a, b in lines], float)      # (L, 2, 2) px
+        samples = (ends[:, :1] + np.linspace(0, 1, 60)[None, :, None] * (ends[:, 1:] - ends[:, :1])).reshape(-1, 2)
+        boxes = [box for _, box, _ in frame_labels(data, view, f)]
+        assert len(boxes) == len(f["people"]) + len(data["cameras"])
+        for i, (x, y, w, h) in enumerate(boxes):
+            inside = (samples[:, 0] > x) & (samples[:, 0] < x + w) & (samples[:, 1] > y) & (samples[:, 1] < y + h)
+            assert not inside.any(), (f["i"], i, (x, y, w, h))
+            for a, b, c, d in boxes[:i]:
+                assert x + w <= a or a + c <= x or y + h <= b or b + d <= y

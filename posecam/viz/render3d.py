@@ -8,7 +8,9 @@ It draws the data of the HTML page (`posecam.viz.view3d.scene`: display axes, Y 
 as the page first shows it: the same orbit camera (the people's centre, yaw 0.5 rad or 0.6 in a
 world frame, pitch 0.35, a distance that frames people and cameras), the floor grid (or the
 fitted ground plane), the cameras as frustums with their names, each person's skeleton in the
-page's colour with its id, and the frame's index and time.
+page's colour with its id, and the frame's index and time. The names sit beside what they name
+(a camera's right of its frustum, a person's above the head), clear of each other
+(`posecam.viz.draw.place_labels`), outlined in the background colour where a line runs under.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from posecam.geometry.camera import Rig
 from posecam.media import DEFAULT_FPS
 from posecam.results import Recording
 from posecam.media import VIDEO_SUFFIXES
+from posecam.viz.draw import place_labels
 from posecam.viz.sinks import VideoSink
 from posecam.viz.view3d import scene, write_view3d
 
@@ -65,8 +68,44 @@ def _line(image: np.ndarray, view: _OrbitCamera, a, b, colour, thick: int = 1) -
 
 
 def _text(image: np.ndarray, at, label: str, colour, scale: float = 0.5) -> None:
-    if at:
-        cv2.putText(image, label, at, cv2.FONT_HERSHEY_SIMPLEX, scale, colour, 1, cv2.LINE_AA)
+    """`label` with its baseline's left end at `at`, outlined in the background colour."""
+    for c, thick in ((BACKGROUND, 4), (colour, 1)):
+        cv2.putText(image, label, at, cv2.FONT_HERSHEY_SIMPLEX, scale, c, thick, cv2.LINE_AA)
+
+
+def label_boxes(labels: list[tuple[str, tuple[float, float], tuple]], size: tuple[int, int]) -> list[tuple]:
+    """(text, wanted bottom-left corner, colour) labels -> (text, (x, y, w, h) box, colour), the
+    boxes inside the picture and clear of each other."""
+    sizes = []
+    for text, _, _ in labels:
+        (w, h), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.5, 1)
+        sizes.append((w + 4, h + base + 4))
+    corners = place_labels(sizes, [at for _, at, _ in labels], *size)
+    return [(text, (x, y, w, h), colour) for (text, _, colour), (x, y), (w, h) in zip(labels, corners, sizes)]
+
+
+def frame_labels(data: dict, view: _OrbitCamera, frame: dict) -> list[tuple]:
+    """The frame's labels as `label_boxes` gives them: each person's id above the head, then
+    each camera's name right of its frustum."""
+    labels = []
+    for person in frame["people"]:
+        drawn = [p for p in map(view.project, [q for q in person["p"] if q]) if p]
+        if drawn:
+            xs, ys = zip(*drawn)
+            colour = tuple(int(v) for v in person["rgb"])
+            labels.append((f"id {person['id']}", ((min(xs) + max(xs)) / 2 - 16, min(ys) - 10), colour))
+    return label_boxes(labels + _camera_labels(data, view), view.size)
+
+
+def _camera_labels(data: dict, view: _OrbitCamera) -> list[tuple[str, tuple[float, float], tuple]]:
+    """Each camera's name, wanted just right of its frustum's picture, level with its middle."""
+    out = []
+    for c in data["cameras"]:
+        pts = [p for p in map(view.project, [c["c"], *c["corners"], c["up"]]) if p]
+        if pts:
+            xs, ys = zip(*pts)
+            out.append((c["name"], (max(xs) + 6, (min(ys) + max(ys)) / 2 + 8), CAMERA))
+    return out
 
 
 def _background(data: dict, view: _OrbitCamera) -> np.ndarray:
@@ -88,8 +127,6 @@ def _background(data: dict, view: _OrbitCamera) -> np.ndarray:
             _line(image, view, c["corners"][i], c["corners"][(i + 1) % 4], CAMERA)
         _line(image, view, c["corners"][0], c["up"], CAMERA)
         _line(image, view, c["corners"][1], c["up"], CAMERA)
-        p = view.project(c["c"])
-        _text(image, p and (p[0] + 6, p[1] - 6), c["name"], CAMERA)
     return image
 
 
@@ -110,9 +147,8 @@ def render_frames(rec: Recording, rig: Rig | None = None, size: tuple[int, int] 
                 p = q and view.project(q)
                 if p:
                     cv2.circle(image, p, 3, colour, -1, cv2.LINE_AA)
-            top = max((q for q in pts if q), key=lambda q: q[1])
-            p = view.project(top)
-            _text(image, p and (p[0] + 8, p[1] - 8), f"id {person['id']}", colour)
+        for text, (x, y, _, h), colour in frame_labels(data, view, f):
+            _text(image, (x + 2, y + h - 6), text, colour)
         _text(image, (12, 24), f"{data['title']} | {data['frame']} | frame {f['i']}  {f['t']:.2f} s", (170, 170, 170))
         yield image
 

@@ -172,6 +172,25 @@ function line(a, b) {
   g.beginPath(); g.moveTo(p[0], p[1]); g.lineTo(q[0], q[1]); g.stroke();
 }
 function rgb(c) { return "rgb(" + c[0] + "," + c[1] + "," + c[2] + ")"; }
+// names beside what they name (a camera's right of its frustum, a person's above the head), moved
+// clear of each other a box height at a time as posecam.viz.draw.place_labels does, outlined
+function drawLabels(items) {
+  g.font = "13px sans-serif"; g.lineWidth = 4; g.lineJoin = "round"; g.strokeStyle = "#14161a";
+  const placed = [], h = 16, gap = 2;
+  for (const [text, ax, ay, colour] of items) {
+    const w = g.measureText(text).width + 4, x = Math.max(0, Math.min(ax, cv.width - w));
+    const want = Math.max(0, Math.min(ay - h, cv.height - h));
+    let y = want;
+    for (let k = 0; k <= 2 * items.length; k++) {
+      const tries = k === 0 ? [0] : [k, -k];
+      const free = tries.map(s => Math.max(0, Math.min(want + s * (h + gap), cv.height - h))).find(yy =>
+        placed.every(([x0, y0, w0]) => x + w + gap <= x0 || x0 + w0 + gap <= x || yy + h + gap <= y0 || y0 + h + gap <= yy));
+      if (free !== undefined) { y = free; break; }
+    }
+    placed.push([x, y, w]);
+    g.strokeText(text, x + 2, y + h - 4); g.fillStyle = colour; g.fillText(text, x + 2, y + h - 4);
+  }
+}
 function draw() {
   setView();
   g.fillStyle = "#14161a"; g.fillRect(0, 0, cv.width, cv.height);
@@ -185,11 +204,13 @@ function draw() {
     for (let z = F.z[0]; z <= F.z[1] + 1e-9; z += F.step) line([F.x[0], F.y, z], [F.x[1], F.y, z]);
   }
   g.lineWidth = 1.5; g.strokeStyle = "#c8ccd4"; g.fillStyle = "#c8ccd4";
+  const cams = [], labels = [];
   for (const c of D.cameras) {
     for (let i = 0; i < 4; i++) { line(c.c, c.corners[i]); line(c.corners[i], c.corners[(i + 1) % 4]); }
     line(c.corners[0], c.up); line(c.corners[1], c.up);
-    const p = proj(c.c);
-    if (p) g.fillText(c.name, p[0] + 6, p[1] - 6);
+    const ps = [c.c, ...c.corners, c.up].map(proj).filter(p => p);
+    if (ps.length) cams.push([c.name, Math.max(...ps.map(p => p[0])) + 6,
+                              (Math.min(...ps.map(p => p[1])) + Math.max(...ps.map(p => p[1]))) / 2 + 8, "#c8ccd4"]);
   }
   const f = D.frames[cur];
   if (f) {
@@ -198,11 +219,13 @@ function draw() {
       g.strokeStyle = rgb(person.rgb); g.fillStyle = rgb(person.rgb);
       for (const [a, b] of D.bones) if (person.p[a] && person.p[b]) line(person.p[a], person.p[b]);
       for (const q of person.p) { const s = q && proj(q); if (s) { g.beginPath(); g.arc(s[0], s[1], 3.5, 0, 7); g.fill(); } }
-      const head = person.p.reduce((m, q) => (q && (!m || q[1] > m[1]) ? q : m), null), s = head && proj(head);
-      if (s) g.fillText("id " + person.id, s[0] + 8, s[1] - 8);
+      const ps = person.p.map(q => q && proj(q)).filter(p => p);
+      if (ps.length) labels.push(["id " + person.id, (Math.min(...ps.map(p => p[0])) + Math.max(...ps.map(p => p[0]))) / 2 - 16,
+                                  Math.min(...ps.map(p => p[1])) - 10, rgb(person.rgb)]);
     }
     now.textContent = "frame " + f.i + "  " + f.t.toFixed(2) + " s";
   }
+  drawLabels(labels.concat(cams));
   document.getElementById("info").textContent = D.title + " | " + D.frame + " | drag: orbit, wheel: zoom";
 }
 function resize() { cv.width = window.innerWidth; cv.height = Math.max(window.innerHeight - 44, 100); draw(); }
