@@ -1,0 +1,168 @@
+"""Mutation check: named breakages of posecam's core, each of which its tests must catch.
+
+    python tests/mutants.py               # every mutant, two at a time
+    python tests/mutants.py --jobs 1 -k lift    # the mutants whose name contains "lift"
+    python tests/mutants.py --list
+
+Each mutant is one exact snippet of one source file and its replacement. For each, posecam/ is
+copied to a temporary folder (the models linked, not copied), the snippet replaced there (it
+must occur exactly once: a snippet that moved or changed is an error, so a refactor is noticed
+and the table updated), and the mutant's tests run with that copy first on the path. A mutant
+is killed when its tests fail; one that passes them has survived. The unmutated tests of every
+mutant run once first and must pass. Exit status: 0 when every mutant is killed, 1 otherwise
+(a survivor, a missing snippet, a failing baseline).
+
+Not collected by pytest (not named test_*). The tests of a mutant are pytest node ids or files,
+chosen to be quick: the whole check takes a few minutes on two cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+TIMEOUT_S = 300
+
+
+@dataclass(frozen=True)
+class Mutant:
+    name: str
+    file: str                   # relative to the repository
+    original: str               # exact snippet, found exactly once in the file
+    replacement: str
+    tests: tuple[str, ...]      # pytest node ids or files (relative to the repository) that must fail
+
+
+CAMERA = "tests/test_camera.py"
+CALIB = "tests/test_calibration_io.py"
+
+MUTANTS = (
+    # ---- the lift ----------------------------------------------------------------------------
+    Mutant("lift: fy replaced by fx in the root translation", "posecam/geometry/lift.py",
+           "    a[1::2, 1] = k.fy\n    a[1::2, 2] = -dv\n    b[1::2] = dv * relative[:, 2] - k.fy * relative[:, 1]",
+           "    a[1::2, 1] = k.fx\n    a[1::2, 2] = -dv\n    b[1::2] = dv * relative[:, 2] - k.fx * relative[:, 1]",
+           (f"{CAMERA}::test_root_translation_uses_each_axis_own_focal_length",
+            "tests/test_predict.py::test_non_square_pixels_put_the_person_on_the_keypoints_rays")),
+    Mutant("lift: cx for cy in the root translation", "posecam/geometry/lift.py",
+           "dv = uv[:, 1] - k.cy", "dv = uv[:, 1] - k.cx",
+           (f"{CAMERA}::test_root_translation_uses_each_axis_own_focal_length",)),
+    Mutant("lift: weights misaligned with the joints' equations", "posecam/geometry/lift.py",
+           "np.repeat(np.clip(weights, 0.0, None), 2)", "np.tile(np.clip(weights, 0.0, None), 2)",
+           (f"{CAMERA}::test_root_translation_weighs_each_joint_with_its_own_weight",)),
+    Mutant("lift: back-projection divides y by fx", "posecam/geometry/lift.py",
+           "y = (uv[..., 1] - k.cy) * z / k.fy", "y = (uv[..., 1] - k.cy) * z / k.fx",
+           (f"{CAMERA}::test_a_pinhole_example_worked_by_hand",)),
+)
+
+
+def _check_snippets(mutants: tuple[Mutant, ...]) -> list[str]:
+    """One line per mutant whose snippet is not found exactly once."""
+    problems = []
+    for m in mutants:
+        path = ROOT / m.file
+        count = path.read_text().count(m.original) if path.exists() else -1
+        if count != 1:
+            where = "file missing" if count < 0 else f"found {count} times"
+            problems.append(f"{m.name}: snippet in {m.file} {where} (update the table in tests/mutants.py)")
+    return problems
+
+
+def _copy(dest: Path, mutant: Mutant | None) -> None:
+    """posecam/ into dest (its models linked), with the mutant's replacement applied."""
+    shutil.copytree(ROOT / "posecam", dest / "posecam", ignore=shutil.ignore_patterns("__pycache__", "models"))
+    (dest / "posecam" / "models").symlink_to(ROOT / "posecam" / "models")
+    if mutant is not None:
+        path = dest / mutant.file
+        path.write_text(path.read_text().replace(mutant.original, mutant.replacement, 1))
+
+
+def _pytest(copy: Path, tests: tuple[str, ...], stop_first: bool) -> tuple[int, str, float]:
+    """Run the tests against the copy (run from it: the copy comes first on the path, for the
+    subprocesses the tests start too); return code, the last line of interest, seconds."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(copy), str(ROOT)]), "PYTHONDONTWRITEBYTECODE": "1"}
+    args = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--rootdir", str(ROOT),
+            "-c", str(ROOT / "pyproject.toml"), *(["-x"] if stop_first else []), *(str(ROOT / t) for t in tests)]
+    start = time.monotonic()
+    try:
+        run = subprocess.run(args, cwd=copy, env=env, capture_output=True, text=True, timeout=TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        return -1, f"timed out after {TIMEOUT_S} s", time.monotonic() - start
+    lines = [ln for ln in run.stdout.splitlines() if ln.startswith(("FAILED", "ERROR"))] or run.stdout.splitlines()[-1:]
+    line = lines[0] if lines else run.stderr.strip()[-200:]
+    if "tests/" in line:                   # the node id, as the table names it
+        line = line.split(None, 1)[0] + " tests/" + line.split("tests/", 1)[1]
+    return run.returncode, line, time.monotonic() - start
+
+
+def _imports_the_copy(copy: Path) -> bool:
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(copy), str(ROOT)])}
+    out = subprocess.run([sys.executable, "-c", "import posecam; print(posecam.__file__)"], cwd=copy, env=env,
+                         capture_output=True, text=True)
+    return Path(out.stdout.strip()).resolve().is_relative_to(copy.resolve())
+
+
+def run(mutants: tuple[Mutant, ...], jobs: int) -> int:
+    problems = _check_snippets(mutants)
+    for p in problems:
+        print(f"MISSING  {p}", file=sys.stderr)
+    live = [m for m in mutants if not any(p.startswith(f"{m.name}:") for p in problems)]
+    with tempfile.TemporaryDirectory(prefix="posecam-mutants-") as tmp:
+        base = Path(tmp) / "unmutated"
+        _copy(base, None)
+        if not _imports_the_copy(base):
+            print("the copy of posecam is not the one imported: check PYTHONPATH", file=sys.stderr)
+            return 1
+        tests = tuple(dict.fromkeys(t for m in live for t in m.tests))
+        code, line, seconds = _pytest(base, tests, stop_first=False)
+        print(f"unmutated: {len(tests)} test selections {'pass' if code == 0 else 'FAIL'} ({seconds:.0f} s)")
+        if code != 0:
+            print(f"  {line}", file=sys.stderr)
+            return 1
+
+        def one(i_m: tuple[int, Mutant]) -> tuple[Mutant, int, str, float]:
+            i, m = i_m
+            copy = Path(tmp) / f"m{i}"
+            _copy(copy, m)
+            code, line, seconds = _pytest(copy, m.tests, stop_first=True)
+            shutil.rmtree(copy, ignore_errors=True)
+            return m, code, line, seconds
+
+        with ThreadPoolExecutor(max_workers=jobs) as pool:
+            results = list(pool.map(one, enumerate(live)))
+    width = max(len(m.name) for m in mutants)
+    print(f"\n{'mutant':<{width}}  {'result':<8}  {'s':>4}  caught by")
+    survived = 0
+    for m, code, line, seconds in results:
+        killed = code != 0
+        survived += not killed
+        print(f"{m.name:<{width}}  {'killed' if killed else 'SURVIVED':<8}  {seconds:4.0f}  "
+              f"{line if killed else ', '.join(m.tests)}")
+    print(f"\n{len(results) - survived} killed, {survived} survived, {len(problems)} snippets missing")
+    return 1 if survived or problems else 0
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--jobs", type=int, default=2, help="mutants tested at once (default 2)")
+    parser.add_argument("-k", default="", help="only the mutants whose name contains this")
+    parser.add_argument("--list", action="store_true", help="list the mutants and exit")
+    args = parser.parse_args()
+    chosen = tuple(m for m in MUTANTS if args.k in m.name)
+    if args.list:
+        for m in chosen:
+            print(f"{m.name}  [{m.file}]  <- {', '.join(m.tests)}")
+        return
+    sys.exit(run(chosen, max(1, args.jobs)))
+
+
+if __name__ == "__main__":
+    main()
