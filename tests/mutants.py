@@ -44,6 +44,7 @@ class Mutant:
 
 CAMERA = "tests/test_camera.py"
 CALIB = "tests/test_calibration_io.py"
+CONSENSUS = "tests/test_consensus.py"
 
 MUTANTS = (
     # ---- the lift ----------------------------------------------------------------------------
@@ -61,6 +62,30 @@ MUTANTS = (
     Mutant("lift: back-projection divides y by fx", "posecam/geometry/lift.py",
            "y = (uv[..., 1] - k.cy) * z / k.fy", "y = (uv[..., 1] - k.cy) * z / k.fx",
            (f"{CAMERA}::test_a_pinhole_example_worked_by_hand",)),
+    # ---- consensus and the fusion of points -------------------------------------------------
+    Mutant("consensus: Procrustes reflection guard removed", "posecam/multiview/consensus.py",
+           "d = np.sign(np.linalg.det(vt.T @ u.T))", "d = 1.0",
+           (f"{CONSENSUS}::test_procrustes_finds_a_rotation_and_never_a_reflection",)),
+    Mutant("consensus: fused points weighted alike on every axis", "posecam/multiview/consensus.py",
+           "[1.0, 1.0, depth_ratio ** -2]", "[1.0, 1.0, 1.0]",
+           (f"{CONSENSUS}::test_fused_points_trust_each_views_depth_less_than_its_image_plane",
+            f"{CONSENSUS}::test_a_person_fused_from_two_views_keeps_the_better_axis_of_each")),
+    Mutant("fusion: a person's views fused alike on every axis", "posecam/multiview/fuse_people.py",
+           "fused = fuse_points(pts, rot, w)", "fused = fuse_points(pts, rot, w, depth_ratio=1.0)",
+           (f"{CONSENSUS}::test_a_person_fused_from_two_views_keeps_the_better_axis_of_each",)),
+    Mutant("fusion: views not moved onto the triangulation", "posecam/multiview/fuse_people.py",
+           "z = z + np.where((wa > 0).sum(axis=-1, keepdims=True) >= 3, shift, 0.0)", "z = z + 0.0 * shift",
+           (f"{CONSENSUS}::test_a_person_fused_from_two_views_keeps_the_better_axis_of_each",)),
+    Mutant("consensus: leave-one-out keeps the view itself", "posecam/multiview/consensus.py",
+           "m, b, n = m_all - wi, b_all - wx, w.sum(axis=0) - w", "m, b, n = m_all, b_all, w.sum(axis=0)",
+           (f"{CONSENSUS}::test_fused_points_trust_each_views_depth_less_than_its_image_plane",)),
+    Mutant("consensus: every depth scaled with the focal length", "posecam/multiview/consensus.py",
+           "return xyz[..., 2] + (g - 1.0) * root[..., None]", "return g * xyz[..., 2]",
+           (f"{CONSENSUS}::test_a_focal_scale_moves_the_root_depth_and_keeps_the_metric_skeleton",)),
+    Mutant("consensus: fy refitted from fx", "posecam/multiview/consensus.py",
+           "out[0], out[1] = g * assumed.intrinsics.fx, g * assumed.intrinsics.fy",
+           "out[0], out[1] = g * assumed.intrinsics.fx, g * assumed.intrinsics.fx",
+           (f"{CONSENSUS}::test_a_focal_scale_moves_the_root_depth_and_keeps_the_metric_skeleton",)),
 )
 
 
