@@ -45,6 +45,7 @@ class Mutant:
 CAMERA = "tests/test_camera.py"
 CALIB = "tests/test_calibration_io.py"
 CONSENSUS = "tests/test_consensus.py"
+FUSION = "tests/test_fusion.py"
 
 MUTANTS = (
     # ---- the lift ----------------------------------------------------------------------------
@@ -86,6 +87,21 @@ MUTANTS = (
            "out[0], out[1] = g * assumed.intrinsics.fx, g * assumed.intrinsics.fy",
            "out[0], out[1] = g * assumed.intrinsics.fx, g * assumed.intrinsics.fx",
            (f"{CONSENSUS}::test_a_focal_scale_moves_the_root_depth_and_keeps_the_metric_skeleton",)),
+    # ---- synchronisation -------------------------------------------------------------------
+    Mutant("sync: calibrated sub-frame step's sign flipped", "posecam/multiview/sync.py",
+           "return round(float(o + np.clip(", "return round(float(o - np.clip(",
+           (f"{FUSION}::test_calibrated_sync_finds_sub_frame_offsets",)),
+    Mutant("sync: calibrated views shifted the wrong way", "posecam/multiview/sync.py",
+           "u = np.stack([shift(a, o, n) for a, o in zip(uv, offsets)])",
+           "u = np.stack([shift(a, -o, n) for a, o in zip(uv, offsets)])",
+           (f"{FUSION}::test_calibrated_sync_finds_sub_frame_offsets",)),
+    Mutant("sync: motion correlation's lag flipped", "posecam/multiview/sync.py",
+           "a, b = shift(ref, -lag / 2, n), shift(other, lag / 2, n)",
+           "a, b = shift(ref, lag / 2, n), shift(other, -lag / 2, n)",
+           (f"{FUSION}::test_motion_offset_of_signals_shifted_by_a_known_fraction",)),
+    Mutant("sync: motion peak's parabola sign flipped", "posecam/multiview/sync.py",
+           "return float(lags[k] + 0.5 * (c0 - c2) / den", "return float(lags[k] - 0.5 * (c0 - c2) / den",
+           (f"{FUSION}::test_motion_offset_of_signals_shifted_by_a_known_fraction",)),
 )
 
 
