@@ -46,6 +46,7 @@ CAMERA = "tests/test_camera.py"
 CALIB = "tests/test_calibration_io.py"
 CONSENSUS = "tests/test_consensus.py"
 FUSION = "tests/test_fusion.py"
+TRACKING = "tests/test_multiperson.py"
 
 MUTANTS = (
     # ---- the lift ----------------------------------------------------------------------------
@@ -102,6 +103,19 @@ MUTANTS = (
     Mutant("sync: motion peak's parabola sign flipped", "posecam/multiview/sync.py",
            "return float(lags[k] + 0.5 * (c0 - c2) / den", "return float(lags[k] - 0.5 * (c0 - c2) / den",
            (f"{FUSION}::test_motion_offset_of_signals_shifted_by_a_known_fraction",)),
+    # ---- the tracker -----------------------------------------------------------------------
+    Mutant("tracker: matching-cost gate removed", "posecam/tracking.py",
+           "if motion[i, j] <= max_cost and np.isfinite(cost[i, j]):", "if np.isfinite(cost[i, j]):",
+           (f"{TRACKING}::test_a_track_is_not_matched_to_someone_who_does_not_overlap_it",)),
+    Mutant("tracker: weak detections gated like confident ones", "posecam/tracking.py",
+           "self._match(pool, low, o.low_match_cost)", "self._match(pool, low, o.match_cost)",
+           (f"{TRACKING}::test_weak_detections_are_matched_under_a_tighter_gate",)),
+    Mutant("tracker: the box filter has no velocity", "posecam/tracking.py",
+           "self.f[:4, 4:] = np.eye(4)", "self.f[:4, 4:] = 0.0",
+           (f"{TRACKING}::test_a_track_moves_on_with_its_speed_while_unseen",)),
+    Mutant("tracker: assignment of a tall matrix not transposed back", "posecam/tracking.py",
+           "    if transposed:\n        rows, cols = cols, rows", "    if False:\n        rows, cols = cols, rows",
+           (f"{TRACKING}::test_min_cost_assignment_matches_scipy_on_random_matrices",)),
 )
 
 
