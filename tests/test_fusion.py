@@ -89,12 +89,13 @@ def _pair(cam_index: int, offset: float):
 def test_calibrated_sync_finds_sub_frame_offsets():
     """With the rig known, a camera 2.35 frames ahead and one 1.65 frames behind the reference:
     the whole frame is found by the triangulation's error, the fraction by the parabola through
-    it and its neighbours, each within 0.1 frame (measured 2.36 and -1.71)."""
+    it and its neighbours, each within 0.15 frame (measured 2.36 and -1.71; the step's sign
+    flipped gives 1.64 and -2.29)."""
     from posecam.multiview.sync import estimate_offsets
 
     for cam, offset in ((1, 2.35), (2, -1.65)):
         result = estimate_offsets(*_pair(cam, offset), max_offset=5)
-        assert result.offsets[0] == 0 and abs(result.offsets[1] - offset) < 0.1, (offset, result.offsets)
+        assert result.offsets[0] == 0 and abs(result.offsets[1] - offset) < 0.15, (offset, result.offsets)
 
 
 def test_motion_offset_of_signals_shifted_by_a_known_fraction():
