@@ -8,8 +8,9 @@ Each mutant is one exact snippet of one source file and its replacement. For eac
 copied to a temporary folder (the models linked, not copied), the snippet replaced there (it
 must occur exactly once: a snippet that moved or changed is an error, so a refactor is noticed
 and the table updated), and the mutant's tests run with that copy first on the path. A mutant
-is killed when its tests fail; one that passes them has survived. The unmutated tests of every
-mutant run once first and must pass. Exit status: 0 when every mutant is killed, 1 otherwise
+is killed when its tests fail; one that passes them has survived (and one whose tests collect
+nothing, misspelt or deselected as slow or demo, is not killed either). The unmutated tests of
+every mutant run once first and must pass. Exit status: 0 when every mutant is killed, 1 otherwise
 (a survivor, a missing snippet, a failing baseline).
 
 Not collected by pytest (not named test_*). The tests of a mutant are pytest node ids or files,
@@ -31,6 +32,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 TIMEOUT_S = 300
+NO_TESTS = 5                    # pytest's exit status when it collected nothing
 
 
 @dataclass(frozen=True)
@@ -253,6 +255,8 @@ def run(mutants: tuple[Mutant, ...], jobs: int) -> int:
         tests = tuple(dict.fromkeys(t for m in live for t in m.tests))
         code, line, seconds = _pytest(base, tests, stop_first=False)
         print(f"unmutated: {len(tests)} test selections {'pass' if code == 0 else 'FAIL'} ({seconds:.0f} s)")
+        if code == NO_TESTS:
+            line = "no tests ran: a selection is misspelt or deselected (slow, demo)"
         if code != 0:
             print(f"  {line}", file=sys.stderr)
             return 1
@@ -271,10 +275,10 @@ def run(mutants: tuple[Mutant, ...], jobs: int) -> int:
     print(f"\n{'mutant':<{width}}  {'result':<8}  {'s':>4}  caught by")
     survived = 0
     for m, code, line, seconds in results:
-        killed = code != 0
+        killed = code not in (0, NO_TESTS)
         survived += not killed
-        print(f"{m.name:<{width}}  {'killed' if killed else 'SURVIVED':<8}  {seconds:4.0f}  "
-              f"{line if killed else ', '.join(m.tests)}")
+        print(f"{m.name:<{width}}  {'killed' if killed else 'SURVIVED' if code == 0 else 'NO TESTS':<8}  "
+              f"{seconds:4.0f}  {line if killed else ', '.join(m.tests)}")
     print(f"\n{len(results) - survived} killed, {survived} survived, {len(problems)} snippets missing")
     return 1 if survived or problems else 0
 
