@@ -323,7 +323,7 @@ def test_a_person_fused_from_two_views_keeps_the_better_axis_of_each():
     monocular pose is 400 mm too deep and its depths 80 mm off joint by joint: moved along its
     depth axis onto the triangulation, then fused with depth trusted less, the person is
     within 10 mm (measured 4; an even average keeps half the joints' error, 26 mm, and
-    without the move the person is 24 mm too deep)."""
+    without the move 34 mm)."""
     from posecam.geometry.camera import Rig
     from posecam.multiview.fuse_people import camera_space, fuse_person
     from posecam.multiview.observations import Observations
