@@ -76,3 +76,29 @@ def the_subject(recording):
     first = max(recording.frames[0].people, key=lambda p: p.bbox[3] - p.bbox[1])
     return dataclasses.replace(recording, frames=[
         dataclasses.replace(f, people=[p for p in f.people if p.id == first.id]) for f in recording.frames])
+
+
+def assert_same_onnx_model(rebuilt: Path, bundled: Path, ulps: int = 1) -> None:
+    """Two ONNX files hold the same model: the same graph (nodes, inputs, outputs), opsets and
+    metadata, and the same initializers, floating-point ones within `ulps` units in the last
+    place of their own type (a rebuild on another machine rounds a few float16 weights the
+    other way), others equal. Not bytes: a fresh machine's rebuild differs in three weights."""
+    import numpy as np
+    import onnx
+    from onnx import numpy_helper
+
+    a, b = onnx.load(str(rebuilt)), onnx.load(str(bundled))
+    weights = [{t.name: numpy_helper.to_array(t) for t in m.graph.initializer} for m in (a, b)]
+    assert list(weights[0]) == list(weights[1]), "the initializers differ in name or order"
+    for name, x in weights[0].items():
+        y = weights[1][name]
+        assert (x.dtype, x.shape) == (y.dtype, y.shape), (name, x.dtype, x.shape, y.dtype, y.shape)
+        if np.issubdtype(x.dtype, np.floating):
+            unit = np.spacing(np.maximum(np.abs(x), np.abs(y)))
+            off = np.abs(x.astype(np.float64) - y.astype(np.float64)) > ulps * unit.astype(np.float64)
+            assert not off.any(), f"{name}: {off.sum()} values differ by more than {ulps} unit(s) in the last place"
+        else:
+            assert np.array_equal(x, y), name
+    for m in (a, b):
+        del m.graph.initializer[:]
+    assert a == b, "the graphs, opsets or metadata differ"

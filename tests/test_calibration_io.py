@@ -1,6 +1,10 @@
+import tomllib
+
+import cv2
 import numpy as np
 import pytest
 
+from conftest import DATA
 from posecam.errors import InputError
 from posecam.geometry.camera import CameraCalibration, Intrinsics, Rig
 from posecam.io.calibration import read_calibration, read_toml, write_toml
@@ -128,3 +132,64 @@ def test_the_lab_qualisys_file_reads_as_worked_out_by_hand():
     cropped = {c.name: c for c in read_qualisys(assets.pose2sim_demo_path("calibration/Calib.qca.txt"),
                                                 image_widths={"cam01": 1080})}["cam01"]
     assert cropped.size == (1080, 1920) and cropped.intrinsics.cx == pytest.approx(k.cx - 4)   # a centred crop
+
+
+# ---- calibration files that other tools wrote (tests/data/SOURCE.md) ---------------------------
+
+FOREIGN = ("pose2sim_Calib_scene.toml", "aniposelib_7cam_calibration.toml")
+
+
+def _raw_cameras(name: str) -> list[dict]:
+    """The camera tables of a calibration TOML as plain tomllib reads them, in file order."""
+    return [t for key, t in tomllib.loads((DATA / name).read_text()).items() if key != "metadata"]
+
+
+def _scene(tables: list[dict]) -> tuple[np.ndarray, float]:
+    """The point nearest every camera's optical axis (least squares) and the cameras' median
+    distance to it, from the raw values: x_cam = R(rvec) x + t, the axis the third row of R."""
+    rotations = [cv2.Rodrigues(np.array(t["rotation"], float))[0] for t in tables]
+    centres = np.array([-r.T @ np.array(t["translation"], float) for r, t in zip(rotations, tables)])
+    across = np.array([np.eye(3) - np.outer(r[2], r[2]) for r in rotations])
+    scene = np.linalg.solve(across.sum(axis=0), np.einsum("vij,vj->i", across, centres))
+    return scene, float(np.median(np.linalg.norm(centres - scene, axis=1)))
+
+
+@pytest.mark.parametrize("name", FOREIGN)
+def test_foreign_calibration_projects_as_opencv_does(name):
+    """Pose2Sim's own calibration of its demo's four cameras (checkerboard intrinsics, scene
+    extrinsics) and a seven-camera rig adjusted by aniposelib, read by posecam: points around
+    the scene the cameras look at project where OpenCV's projectPoints puts them with the
+    file's raw values (read here by tomllib), distortion included, and come back to their
+    rays through posecam's undistortion; the scene is in every camera's picture."""
+    tables = _raw_cameras(name)
+    rig = read_calibration(DATA / name)
+    assert rig.names == [t["name"] for t in tables]
+    scene, distance = _scene(tables)
+    points = scene + np.random.default_rng(0).uniform(-0.15, 0.15, (40, 3)) * distance   # file units
+    for t, cam in zip(tables, rig.cameras):
+        rvec, tvec = np.array(t["rotation"], float), np.array(t["translation"], float)
+        matrix, dist = np.array(t["matrix"], float), np.array(t["distortions"], float)
+        assert cam.size == tuple(int(v) for v in t["size"])
+        uv = cv2.projectPoints(points, rvec, tvec, matrix, dist)[0][:, 0]
+        np.testing.assert_allclose(cam.project(points * 1000.0), uv, atol=1e-6)   # posecam: mm, the file: m
+        local = points @ cv2.Rodrigues(rvec)[0].T + tvec
+        np.testing.assert_allclose(cam.normalise(uv), local[:, :2] / local[:, 2:], atol=1e-5)
+        u, v = cam.project(scene * 1000.0)
+        assert 0 < u < cam.size[0] and 0 < v < cam.size[1], (cam.name, u, v)
+
+
+def test_foreign_pose2sim_calibration_agrees_with_the_lab_qualisys_one():
+    """The same four cameras calibrated twice, by two tools: Pose2Sim (its TOML) and the lab's
+    Qualisys (the .qca.txt Pose2Sim ships), each read by its own posecam reader: the camera
+    centres within 150 mm (measured 54-144), the rotations within 3 deg (0.9-2.7), the focal
+    lengths within 1.5 % (0.6-0.9)."""
+    assets = pytest.importorskip("export.assets", reason="the Pose2Sim wheel comes with the export extra")
+    from posecam.io.calibration import read_qualisys
+
+    lab = {c.name: c for c in read_qualisys(assets.pose2sim_demo_path("calibration/Calib.qca.txt"))}
+    for cam in read_calibration(DATA / "pose2sim_Calib_scene.toml").cameras:
+        other = lab[cam.name.removeprefix("int_").removesuffix("_img")]
+        turn = other.rotation @ cam.rotation.T
+        assert np.linalg.norm(other.centre - cam.centre) < 150, cam.name
+        assert np.degrees(np.arccos((np.trace(turn) - 1) / 2)) < 3, cam.name
+        assert abs(cam.intrinsics.fx / other.intrinsics.fx - 1) < 0.015, cam.name

@@ -35,3 +35,47 @@ def test_focal_from_35mm_equivalent():
 def test_nonsense_focal_lengths_are_refused(fx, fy):
     with pytest.raises(InputError):
         Intrinsics(fx, fy, 10, 10)
+
+
+def test_root_translation_uses_each_axis_own_focal_length():
+    """Non-square pixels (fy = 1.2 fx): the vertical equations take fy. A pose seen exactly
+    is placed exactly; fx in their place puts this person 428 mm off in depth."""
+    k = Intrinsics(1000.0, 1200.0, 600.0, 380.0)
+    relative = np.random.default_rng(2).normal(0, 300, size=(17, 3))
+    truth = np.array([150.0, -400.0, 4200.0])
+    uv = pinhole(relative + truth, k.fx, k.fy, k.cx, k.cy)
+    t = solve_root_translation(relative, uv, np.ones(17), k)
+    np.testing.assert_allclose(t, truth, atol=1e-6)
+
+
+def test_root_translation_weighs_each_joint_with_its_own_weight():
+    """A joint of weight 0 does not count, whichever of its two equations: the other joints,
+    seen exactly, place the pose exactly even with the zero-weight ones 300 px off."""
+    k = Intrinsics(1500.0, 1450.0, 540.0, 960.0)
+    rng = np.random.default_rng(3)
+    relative = rng.normal(0, 300, size=(17, 3))
+    truth = np.array([-300.0, 250.0, 3000.0])
+    uv = pinhole(relative + truth, k.fx, k.fy, k.cx, k.cy)
+    weights = rng.uniform(0.5, 1.0, 17)
+    weights[[1, 4, 9]] = 0.0
+    uv[[1, 4, 9]] += 300.0
+    np.testing.assert_allclose(solve_root_translation(relative, uv, weights, k), truth, atol=1e-6)
+
+
+def test_a_pinhole_example_worked_by_hand():
+    """fx = 1000, fy = 1250, (cx, cy) = (600, 400): the point (300, -200, 5000) mm is seen at
+    u = 1000 * 300 / 5000 + 600 = 660, v = 1250 * -200 / 5000 + 400 = 350; back at 5 m it is
+    that point again, and a pose whose root sits there is placed there from those pixels."""
+    k = Intrinsics(1000.0, 1250.0, 600.0, 400.0)
+    point = np.array([300.0, -200.0, 5000.0])
+    np.testing.assert_allclose(project(point, k), [660.0, 350.0])
+    np.testing.assert_allclose(back_project(np.array([660.0, 350.0]), np.array(5000.0), k), point)
+    # root, +100 mm along x, y, z: (300, -200, 5000) (400, -200, 5000) (300, -100, 5000) (300, -200, 5100)
+    relative = np.array([[0, 0, 0], [100, 0, 0], [0, 100, 0], [0, 0, 100.0]])
+    uv = np.array([[660.0, 350.0], [680.0, 350.0], [660.0, 375.0], [600 + 300000 / 5100, 400 - 250000 / 5100]])
+    np.testing.assert_allclose(solve_root_translation(relative, uv, np.ones(4), k), point, atol=1e-9)
+
+
+def pinhole(points: np.ndarray, fx: float, fy: float, cx: float, cy: float) -> np.ndarray:
+    """(N, 3) camera-space points -> (N, 2) pixels, the pinhole model written out here."""
+    return np.stack([fx * points[:, 0] / points[:, 2] + cx, fy * points[:, 1] / points[:, 2] + cy], axis=1)

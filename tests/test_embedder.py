@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from conftest import DATA, run_posecam
+from conftest import DATA, assert_same_onnx_model, run_posecam
 from posecam.inference.embedder import colour_histograms, load_embedder
 from posecam.media import read_image
 from posecam.tracking import Tracker, TrackerOptions, unambiguous_pairs
@@ -139,6 +139,6 @@ def test_a_match_that_another_nearly_shares_is_left_unpaired():
 def test_the_build_is_reproducible_and_the_runtime_refuses_it_as_a_pose_model(tmp_path):
     build = pytest.importorskip("export.convert.build_models", reason="install the export extra")
     rebuilt = build.build("mobilenetv2", tmp_path)
-    assert rebuilt.read_bytes() == (build.MODELS_DIR / "appearance_mobilenetv2.onnx").read_bytes()
+    assert_same_onnx_model(rebuilt, build.MODELS_DIR / "appearance_mobilenetv2.onnx")
     r = run_posecam("predict", DATA / "messi5.jpg", "--model", rebuilt)
     assert r.returncode == 3 and "appearance embedder, not a pose model" in r.stderr

@@ -279,19 +279,36 @@ def test_the_lens_from_people_walking_on_a_floor():
     assert level.focal is None and "parallel" in level.reason
 
 
-def test_the_stage_takes_the_lens_from_the_people_in_place_of_the_default():
-    poses = walkers(frames=30)
+def _through_the_default_lens(frames: int) -> tuple[Recording, dict]:
+    """Walkers as the pose model gives them with the default lens (700 px, K's is 1400): the
+    right shape, placed through the wrong lens; and the true poses."""
+    poses = walkers(frames=frames)
     default = Intrinsics(700.0, 700.0, K.cx, K.cy, "default")
-    rec = Recording("walk.mp4", 1920, 1080, default, H36M_JOINTS, fps=30.0, frames=[Frame(i, i / 30) for i in range(30)])
-    for (t, i), true in poses.items():      # the pose model: the right shape, placed through the default lens
+    rec = Recording("walk.mp4", 1920, 1080, default, H36M_JOINTS, fps=30.0, frames=[Frame(i, i / 30) for i in range(frames)])
+    for (t, i), true in poses.items():
         uv, rel = project(true, K), true - true[0]
         xyz = rel + solve_root_translation(rel, uv, np.ones(17), default)
         rec.frames[i].people.append(Person(t, 0.9, np.r_[uv.min(0), uv.max(0)], uv, xyz, np.full(17, 0.9)))
+    return rec, poses
+
+
+def test_the_stage_takes_the_lens_from_the_people_in_place_of_the_default():
+    rec, poses = _through_the_default_lens(30)
     assert np.median([p.root[2] / poses[(p.id, f.index)][0, 2] for f in rec.frames for p in f.people]) < 0.6
     out = scale_recording(rec, MetricOptions(floor=False))
     assert out.intrinsics.source.startswith("people") and out.intrinsics.fx == pytest.approx(K.fx, rel=0.05)
     ratio = [p.root[2] / poses[(p.id, f.index)][0, 2] for f in out.frames for p in f.people]
     assert np.median(ratio) == pytest.approx(1.0, abs=0.05)
+
+
+def test_frames_after_the_lens_is_decided_are_placed_through_it_too():
+    """The lens is decided on the first `delay` frames; the frames that come after are solved
+    through it as they come: every frame's people at their depth, not only the first ones."""
+    rec, poses = _through_the_default_lens(60)
+    out = scale_recording(rec, MetricOptions(floor=False, delay=15))
+    assert out.intrinsics.source.startswith("people")
+    per_frame = [np.median([p.root[2] / poses[(p.id, f.index)][0, 2] for p in f.people]) for f in out.frames]
+    assert len(per_frame) == 60 and np.abs(np.array(per_frame) - 1).max() < 0.02, np.round(per_frame, 2)
 
 
 def test_a_floor_that_would_make_someone_a_toddler_is_refused(tmp_path):

@@ -151,6 +151,39 @@ def test_someone_hidden_while_walking_away_is_found_again_at_their_last_size():
     assert ids[-1] == {0: ids[0][0]}, ids[-5:]
 
 
+def test_a_track_is_not_matched_to_someone_who_does_not_overlap_it():
+    """Someone followed for 10 frames leaves, and in the next frame a person appears at the
+    other side of the image (their boxes share nothing: cost 1, above the gate): a new track,
+    not the old one's id; a weak detection there does not keep the old track either."""
+    walk = [[_det([100 + 5 * f, 100, 180 + 5 * f, 300])] for f in range(10)]
+    far = [900, 120, 980, 320]
+    ids = _run(Tracker(), walk + [[_det(far)]])
+    assert ids[-1] == {0: ids[0][0] + 1}, ids[-2:]
+    tracker = Tracker(TrackerOptions(high_score=0.5, low_score=0.1))
+    _run(tracker, walk + [[_det(far, 0.2)]])
+    assert tracker.tracks[0].lost == 1 and len(tracker.tracks) == 1
+
+
+def test_weak_detections_are_matched_under_a_tighter_gate():
+    """A person standing still, then only a weak detection half a box to the side (IoU 1/3:
+    cost 0.67, within the first stage's gate of 0.8, not the weak ones' 0.5): the track is
+    not kept by it; a weak one a tenth of a box to the side (cost 0.18) keeps it."""
+    still = [[_det([100, 100, 180, 300])] for _ in range(10)]
+    for dx, kept in ((40, False), (8, True)):
+        tracker = Tracker(TrackerOptions(high_score=0.5, low_score=0.1))
+        ids = _run(tracker, still + [[_det([100 + dx, 100, 180 + dx, 300], 0.2)]])
+        assert (ids[-1] == {0: ids[0][0]}) is kept and (tracker.tracks[0].lost == 0) is kept, (dx, ids[-1])
+
+
+def test_a_track_moves_on_with_its_speed_while_unseen():
+    """The box filter's prediction: someone walking 8 px a frame, unseen for 6 frames, is
+    predicted near where the walk took them (not where they were last seen)."""
+    tracker = Tracker()
+    _run(tracker, [[_det([100 + 8 * f, 100, 180 + 8 * f, 300])] for f in range(15)] + [[] for _ in range(6)])
+    (track,) = tracker.tracks
+    assert abs(track.box[0] - (100 + 8 * 20)) < 12, track.box
+
+
 def test_a_weak_detection_keeps_a_track_but_does_not_start_one():
     tracker = Tracker(TrackerOptions(high_score=0.5, low_score=0.1))
     ids = _run(tracker, [[_det([0, 0, 100, 200], 0.9)], [_det([5, 0, 105, 200], 0.2)]])

@@ -16,7 +16,7 @@ def _recording() -> Recording:
     rng = np.random.default_rng(0)
     people = [Person(i, 0.9, np.array([1, 2, 300, 400.0]), rng.uniform(0, 500, (17, 2)),
                      rng.uniform(-900, 4000, (17, 3)), rng.uniform(0, 1, 17)) for i in range(2)]
-    return Recording("clip.mp4", 1080, 1920, Intrinsics(1677, 1677, 540, 960, "flags"), H36M_JOINTS,
+    return Recording("clip.mp4", 1080, 1920, Intrinsics(1677, 1690, 541, 958, "flags"), H36M_JOINTS,
                      [Frame(0, 0.0, people), Frame(1, 1 / 60, people[:1])], model="blazepose-full", fps=60.0)
 
 
@@ -33,6 +33,7 @@ def test_json_has_the_documented_keys_and_round_trips(tmp_path):
     back = read_poses(path)[0]
     orig = _recording()
     assert back.joints == orig.joints and len(back.frames) == 2
+    assert back.intrinsics == orig.intrinsics
     assert np.allclose(back.frames[0].people[1].keypoints_3d, orig.frames[0].people[1].keypoints_3d, atol=0.05)
 
 

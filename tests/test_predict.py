@@ -120,3 +120,28 @@ def test_api_on_a_numpy_image_with_lite_model():
     est = PoseEstimator(EstimatorOptions(model="lite", max_people=1))
     frame = est.predict_image(read_image(DATA / "basketball2.png"))
     assert len(frame.people) == 1 and frame.people[0].keypoints_3d.shape == (17, 3)
+
+
+def test_non_square_pixels_put_the_person_on_the_keypoints_rays(tmp_path):
+    """A camera-space golden that posecam's code does not compute: with an intrinsics file whose
+    fy is 1.3 fx and whose principal point is off the centre, the root translation places the
+    metric pose so that, over the joints weighted by their confidence (as the least-squares
+    solve weighs them, 33 landmarks all written), the horizontal and vertical offsets of each
+    joint from the ray of its own 2D keypoint cancel: sum w z (x / z - (u - cx) / fx) = 0 and
+    sum w z (y / z - (v - cy) / fy) = 0, worked out here from the file's numbers (the pinhole
+    model). fx in the place of fy leaves a mean vertical offset of 19 px (and the person
+    280 mm nearer)."""
+    fx, fy, cx, cy = 500.0, 650.0, 300.0, 100.0
+    k = tmp_path / "k.json"
+    k.write_text(json.dumps({"fx": fx, "fy": fy, "cx": cx, "cy": cy}))
+    out = tmp_path / "messi.json"
+    r = run_posecam("predict", DATA / "messi5.jpg", "--intrinsics", k, "--skeleton", "33", "-o", out)
+    assert r.returncode == 0, r.stderr
+    inp = json.loads(out.read_text())["inputs"][0]
+    assert [inp["intrinsics"][n] for n in ("fx", "fy", "cx", "cy")] == [fx, fy, cx, cy]
+    (person,) = inp["frames"][0]["people"]
+    xyz, uv, w = (np.array(person[n]) for n in ("keypoints_3d", "keypoints_2d", "confidence"))
+    assert len(xyz) == 33 and (xyz[:, 2] > 0).all() and (w > 0.5).sum() >= 20
+    off = (xyz[:, :2] / xyz[:, 2:] - np.stack([(uv[:, 0] - cx) / fx, (uv[:, 1] - cy) / fy], axis=1)) * [fx, fy]
+    mean_off = (w * xyz[:, 2]) @ off / (w * xyz[:, 2]).sum()              # px, horizontal and vertical
+    assert np.abs(mean_off).max() < 0.5, mean_off

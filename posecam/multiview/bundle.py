@@ -151,6 +151,7 @@ class _Problem:
     obs_uv: np.ndarray      # (N, 2) pixels (at the start offsets)
     obs_w: np.ndarray       # (N,) sqrt(confidence) / pixel_sigma
     n_points: int
+    axes: np.ndarray        # (V, 2) fx / f and fy / f of each camera: its aspect, kept
     # with offsets among the unknowns: each observation's keypoint at S whole-frame offsets
     # (TimedKeypoints, gaps held), sample s at offset base[camera] + s
     samples: np.ndarray | None = None   # (N, S, 2)
@@ -177,7 +178,7 @@ class _Problem:
         rot = rodrigues(p[:, :3])
         pc = np.einsum("nij,nj->ni", rot[self.obs_v], pts[self.obs_m]) + p[self.obs_v, 3:6]
         z = np.maximum(pc[:, 2], 1.0)
-        proj = p[self.obs_v, 6:7] * pc[:, :2] / z[:, None] + p[self.obs_v, 7:9]
+        proj = p[self.obs_v, 6:7] * self.axes[self.obs_v] * pc[:, :2] / z[:, None] + p[self.obs_v, 7:9]
         return ((proj - self.observed(p)[0]) * self.obs_w[:, None]).ravel()
 
     def blocks(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -190,17 +191,17 @@ class _Problem:
         rx = np.einsum("nij,nj->ni", rot[v], X)
         pc = rx + p[v, 3:6]
         z = np.maximum(pc[:, 2], 1.0)
-        f = p[v, 6]
+        f = p[v, 6:7] * self.axes[v]                                      # (N, 2) fx, fy
         dproj = np.zeros((len(v), 2, 3))                                 # d(f xy / z) / d pc, weighted
-        dproj[:, 0, 0] = dproj[:, 1, 1] = f / z
-        dproj[:, :, 2] = -f[:, None] * pc[:, :2] / z[:, None] ** 2
+        dproj[:, 0, 0], dproj[:, 1, 1] = f[:, 0] / z, f[:, 1] / z
+        dproj[:, :, 2] = -f * pc[:, :2] / z[:, None] ** 2
         dproj *= self.obs_w[:, None, None]
         cam = np.zeros((len(v), 2, p.shape[1]))
         # d(R X)/dr = -R [X]x J = -[R X]x R J: column k is (R J)_k x (R X)
         d_rot = np.cross(np.swapaxes(rj, 1, 2)[v], rx[:, None, :])        # (N, k, 3)
         cam[:, :, 0:3] = np.einsum("nai,nki->nak", dproj, d_rot)           # rotation vector
         cam[:, :, 3:6] = dproj                                            # translation
-        cam[:, :, 6] = f[:, None] * pc[:, :2] / z[:, None] * self.obs_w[:, None]   # log f
+        cam[:, :, 6] = f * pc[:, :2] / z[:, None] * self.obs_w[:, None]          # log f
         cam[:, 0, 7] = cam[:, 1, 8] = self.obs_w                          # cx, cy
         speed = self.observed(p)[1]
         if speed is not None:                                             # the keypoint moves with the offset
@@ -225,6 +226,12 @@ class _Problem:
         r = np.concatenate([rows[keep], rows[..., :3].ravel()])
         c = np.concatenate([cols[keep], pcols.ravel()])
         return csr_matrix((data, (r, c)), shape=(2 * len(self.obs_v), len(x)))
+
+
+def _axes(rig: Rig) -> np.ndarray:
+    """(V, 2) fx / f and fy / f of each camera, f = sqrt(fx fy) (`CameraCalibration.params`)."""
+    k = np.array([[c.intrinsics.fx, c.intrinsics.fy] for c in rig.cameras])
+    return np.sqrt(k / k[:, ::-1])
 
 
 def camera_covariance(problem: _Problem, x: np.ndarray, loss_weights: np.ndarray,
@@ -329,7 +336,7 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     if refine:
         samples = held(timed.frames(frames).uv.transpose(0, 2, 3, 1, 4)[obs_v, obs_f, obs_j])   # (N, S, 2)
     problem = _Problem(p0, free, obs_v, obs_m, uv[obs_v, obs_f, obs_j],
-                       np.sqrt(w[obs_v, obs_f, obs_j]) / opts.pixel_sigma, n_m, samples,
+                       np.sqrt(w[obs_v, obs_f, obs_j]) / opts.pixel_sigma, n_m, _axes(rig), samples,
                        timed.base if refine else None)
     x0 = np.concatenate([p0[free], points[used].ravel()])
     bounds = (-np.inf, np.inf)

@@ -1,0 +1,301 @@
+"""Mutation check: named breakages of posecam's core, each of which its tests must catch.
+
+    python tests/mutants.py               # every mutant, two at a time
+    python tests/mutants.py --jobs 1 -k lift    # the mutants whose name contains "lift"
+    python tests/mutants.py --list
+
+Each mutant is one exact snippet of one source file and its replacement. For each, posecam/ is
+copied to a temporary folder (the models linked, not copied), the snippet replaced there (it
+must occur exactly once: a snippet that moved or changed is an error, so a refactor is noticed
+and the table updated), and the mutant's tests run with that copy first on the path. A mutant
+is killed when its tests fail; one that passes them has survived (and one whose tests collect
+nothing, misspelt or deselected as slow or demo, is not killed either). The unmutated tests of
+every mutant run once first and must pass. Exit status: 0 when every mutant is killed, 1 otherwise
+(a survivor, a missing snippet, a failing baseline).
+
+Not collected by pytest (not named test_*). The tests of a mutant are pytest node ids or files,
+chosen to be quick: the whole check takes a few minutes on two cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+TIMEOUT_S = 300
+NO_TESTS = 5                    # pytest's exit status when it collected nothing
+
+
+@dataclass(frozen=True)
+class Mutant:
+    name: str
+    file: str                   # relative to the repository
+    original: str               # exact snippet, found exactly once in the file
+    replacement: str
+    tests: tuple[str, ...]      # pytest node ids or files (relative to the repository) that must fail
+
+
+CAMERA = "tests/test_camera.py"
+CALIB = "tests/test_calibration_io.py"
+CONSENSUS = "tests/test_consensus.py"
+FUSION = "tests/test_fusion.py"
+TRACKING = "tests/test_multiperson.py"
+METRIC = "tests/test_metric.py"
+
+MUTANTS = (
+    # ---- the lift ----------------------------------------------------------------------------
+    Mutant("lift: fy replaced by fx in the root translation", "posecam/geometry/lift.py",
+           "    a[1::2, 1] = k.fy\n    a[1::2, 2] = -dv\n    b[1::2] = dv * relative[:, 2] - k.fy * relative[:, 1]",
+           "    a[1::2, 1] = k.fx\n    a[1::2, 2] = -dv\n    b[1::2] = dv * relative[:, 2] - k.fx * relative[:, 1]",
+           (f"{CAMERA}::test_root_translation_uses_each_axis_own_focal_length",
+            "tests/test_predict.py::test_non_square_pixels_put_the_person_on_the_keypoints_rays")),
+    Mutant("lift: cx for cy in the root translation", "posecam/geometry/lift.py",
+           "dv = uv[:, 1] - k.cy", "dv = uv[:, 1] - k.cx",
+           (f"{CAMERA}::test_root_translation_uses_each_axis_own_focal_length",)),
+    Mutant("lift: weights misaligned with the joints' equations", "posecam/geometry/lift.py",
+           "np.repeat(np.clip(weights, 0.0, None), 2)", "np.tile(np.clip(weights, 0.0, None), 2)",
+           (f"{CAMERA}::test_root_translation_weighs_each_joint_with_its_own_weight",)),
+    Mutant("lift: back-projection divides y by fx", "posecam/geometry/lift.py",
+           "y = (uv[..., 1] - k.cy) * z / k.fy", "y = (uv[..., 1] - k.cy) * z / k.fx",
+           (f"{CAMERA}::test_a_pinhole_example_worked_by_hand",)),
+    # ---- cameras and the readers -------------------------------------------------------------
+    Mutant("toml: rotation transposed", "posecam/io/calibration.py",
+           'rotation = check.rotation(table["rotation"], "rotation")',
+           'rotation = check.rotation(table["rotation"], "rotation").T',
+           (f"{CALIB}::test_foreign_calibration_projects_as_opencv_does",)),
+    Mutant("toml: Rodrigues vector's sign flipped", "posecam/validate.py",
+           "return cv2.Rodrigues(a)[0]", "return cv2.Rodrigues(-a)[0]",
+           (f"{CALIB}::test_foreign_calibration_projects_as_opencv_does",)),
+    Mutant("toml: translation taken as mm", "posecam/io/calibration.py",
+           "translation * 1000.0, dist)", "translation, dist)",
+           (f"{CALIB}::test_foreign_calibration_projects_as_opencv_does",)),
+    Mutant("camera: cy read from cx's cell", "posecam/geometry/camera.py",
+           "float(k[0, 2]), float(k[1, 2]), source)", "float(k[0, 2]), float(k[0, 2]), source)",
+           (f"{CALIB}::test_foreign_calibration_projects_as_opencv_does",)),
+    Mutant("camera: tangential distortion's terms swapped", "posecam/geometry/camera.py",
+           "xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)",
+           "xd = x * radial + 2 * p2 * x * y + p1 * (r2 + 2 * x * x)",
+           (f"{CALIB}::test_foreign_calibration_projects_as_opencv_does",)),
+    Mutant("camera: undistortion skipped", "posecam/geometry/camera.py",
+           "if not np.any(self.distortion):", "if True:",
+           (f"{CALIB}::test_foreign_calibration_projects_as_opencv_does",)),
+    Mutant("qualisys: rotation read by row", "posecam/io/calibration.py",
+           '.reshape(3, 3).T,\n', '.reshape(3, 3),\n',
+           (f"{CALIB}::test_qca_read_and_dispatch",)),
+    Mutant("intrinsics: a JSON's fy ignored", "posecam/io/intrinsics.py",
+           '"fy": doc.get("fy", doc["fx"])', '"fy": doc["fx"]',
+           ("tests/test_intrinsics.py::test_json_file_with_values_or_matrix",)),
+    Mutant("intrinsics: a matrix's cy from the wrong cell", "posecam/io/intrinsics.py",
+           '"cy": m[1, 2]', '"cy": m[0, 2]',
+           ("tests/test_intrinsics.py::test_json_file_with_values_or_matrix",)),
+    Mutant("poses: fy read as fx", "posecam/io/poses.py",
+           'for n in ("fx", "fy", "cx", "cy")),', 'for n in ("fx", "fx", "cx", "cy")),',
+           ("tests/test_pose_files.py::test_json_has_the_documented_keys_and_round_trips",)),
+    # ---- metric scale ------------------------------------------------------------------------
+    Mutant("metric: people scaled about their root, not the camera", "posecam/metric.py",
+           "p, keypoints_3d=p.keypoints_3d * s,", "p, keypoints_3d=(p.keypoints_3d - p.root) * s + p.root,",
+           (f"{METRIC}::test_the_floor_puts_people_of_different_sizes_at_their_depths",)),
+    Mutant("metric: frames not brought to their track's height", "posecam/metric.py",
+           "s = ts.scale * (ts.stature / h if np.isfinite(h) else 1.0)", "s = ts.scale",
+           (f"{METRIC}::test_each_track_keeps_one_size_across_frames",)),
+    Mutant("metric: the chain's share of the stature inverted", "posecam/metric.py",
+           "(leg + torso) / CHAIN_OF_STATURE", "(leg + torso) * CHAIN_OF_STATURE",
+           (f"{METRIC}::test_stature_of_a_skeleton_whatever_its_pose",)),
+    Mutant("metric: children in the floor's adult gauge", "posecam/metric.py",
+           "adults = [tid for tid in size if size[tid] >= ADULT_CLUSTER * max(size.values())]",
+           "adults = list(size)",
+           (f"{METRIC}::test_the_floor_puts_people_of_different_sizes_at_their_depths",)),
+    Mutant("metric: a given height's scale inverted", "posecam/metric.py",
+           "metres * 1000.0 / h,", "h / (metres * 1000.0),",
+           (f"{METRIC}::test_given_heights_by_rank_and_by_id",)),
+    Mutant("metric: the people's lens not used on later frames", "posecam/metric.py",
+           "            frame = self._relensed(frame)\n", "            pass\n",
+           (f"{METRIC}::test_frames_after_the_lens_is_decided_are_placed_through_it_too",)),
+    # ---- consensus and the fusion of points -------------------------------------------------
+    Mutant("consensus: Procrustes reflection guard removed", "posecam/multiview/consensus.py",
+           "d = np.sign(np.linalg.det(vt.T @ u.T))", "d = 1.0",
+           (f"{CONSENSUS}::test_procrustes_finds_a_rotation_and_never_a_reflection",)),
+    Mutant("consensus: fused points weighted alike on every axis", "posecam/multiview/consensus.py",
+           "[1.0, 1.0, depth_ratio ** -2]", "[1.0, 1.0, 1.0]",
+           (f"{CONSENSUS}::test_fused_points_trust_each_views_depth_less_than_its_image_plane",
+            f"{CONSENSUS}::test_a_person_fused_from_two_views_keeps_the_better_axis_of_each")),
+    Mutant("fusion: a person's views fused alike on every axis", "posecam/multiview/fuse_people.py",
+           "fused = fuse_points(pts, rot, w)", "fused = fuse_points(pts, rot, w, depth_ratio=1.0)",
+           (f"{CONSENSUS}::test_a_person_fused_from_two_views_keeps_the_better_axis_of_each",)),
+    Mutant("fusion: views not moved onto the triangulation", "posecam/multiview/fuse_people.py",
+           "z = z + np.where((wa > 0).sum(axis=-1, keepdims=True) >= 3, shift, 0.0)", "z = z + 0.0 * shift",
+           (f"{CONSENSUS}::test_a_person_fused_from_two_views_keeps_the_better_axis_of_each",)),
+    Mutant("consensus: leave-one-out keeps the view itself", "posecam/multiview/consensus.py",
+           "m, b, n = m_all - wi, b_all - wx, w.sum(axis=0) - w", "m, b, n = m_all, b_all, w.sum(axis=0)",
+           (f"{CONSENSUS}::test_fused_points_trust_each_views_depth_less_than_its_image_plane",)),
+    Mutant("consensus: every depth scaled with the focal length", "posecam/multiview/consensus.py",
+           "return xyz[..., 2] + (g - 1.0) * root[..., None]", "return g * xyz[..., 2]",
+           (f"{CONSENSUS}::test_a_focal_scale_moves_the_root_depth_and_keeps_the_metric_skeleton",)),
+    Mutant("consensus: fy refitted from fx", "posecam/multiview/consensus.py",
+           "out[0], out[1] = g * assumed.intrinsics.fx, g * assumed.intrinsics.fy",
+           "out[0], out[1] = g * assumed.intrinsics.fx, g * assumed.intrinsics.fx",
+           (f"{CONSENSUS}::test_a_focal_scale_moves_the_root_depth_and_keeps_the_metric_skeleton",)),
+    # ---- bundle adjustment -----------------------------------------------------------------
+    Mutant("bundle: Rodrigues rotation's sign flipped", "posecam/multiview/bundle.py",
+           "np.eye(3) + np.sin(theta) * kx", "np.eye(3) - np.sin(theta) * kx",
+           (f"{CONSENSUS}::test_bundle_adjustment_recovers_a_perturbed_rig_and_its_metric_scale",)),
+    Mutant("bundle: square pixels assumed in the residuals", "posecam/multiview/bundle.py",
+           "proj = p[self.obs_v, 6:7] * self.axes[self.obs_v] * pc[:, :2]", "proj = p[self.obs_v, 6:7] * pc[:, :2]",
+           (f"{CONSENSUS}::test_bundle_adjustment_recovers_a_perturbed_rig_and_its_metric_scale",)),
+    Mutant("bundle: bones' scale inverted", "posecam/multiview/bundle.py",
+           "ratio = bones_mm[None] / lengths", "ratio = lengths / bones_mm[None]",
+           (f"{CONSENSUS}::test_bundle_adjustment_recovers_a_perturbed_rig_and_its_metric_scale",)),
+    Mutant("bundle: the reference camera free", "posecam/multiview/bundle.py",
+           "others = [i for i in range(n_v) if i != ref]", "others = list(range(n_v))",
+           (f"{CONSENSUS}::test_bundle_adjustment_recovers_a_perturbed_rig_and_its_metric_scale",)),
+    Mutant("bundle: log focal length's derivative not times f", "posecam/multiview/bundle.py",
+           "cam[:, :, 6] = f * pc[:, :2]", "cam[:, :, 6] = pc[:, :2]",
+           (f"{CONSENSUS}::test_bundle_adjustment_derivatives_are_the_residuals_own",)),
+    Mutant("bundle: rotation's derivative with its sign flipped", "posecam/multiview/bundle.py",
+           "d_rot = np.cross(np.swapaxes(rj, 1, 2)[v], rx[:, None, :])",
+           "d_rot = np.cross(rx[:, None, :], np.swapaxes(rj, 1, 2)[v])",
+           (f"{CONSENSUS}::test_bundle_adjustment_derivatives_are_the_residuals_own",)),
+    # ---- synchronisation -------------------------------------------------------------------
+    Mutant("sync: calibrated sub-frame step's sign flipped", "posecam/multiview/sync.py",
+           "return round(float(o + np.clip(", "return round(float(o - np.clip(",
+           (f"{FUSION}::test_calibrated_sync_finds_sub_frame_offsets",)),
+    Mutant("sync: calibrated views shifted the wrong way", "posecam/multiview/sync.py",
+           "u = np.stack([shift(a, o, n) for a, o in zip(uv, offsets)])",
+           "u = np.stack([shift(a, -o, n) for a, o in zip(uv, offsets)])",
+           (f"{FUSION}::test_calibrated_sync_finds_sub_frame_offsets",)),
+    Mutant("sync: motion correlation's lag flipped", "posecam/multiview/sync.py",
+           "a, b = shift(ref, -lag / 2, n), shift(other, lag / 2, n)",
+           "a, b = shift(ref, lag / 2, n), shift(other, -lag / 2, n)",
+           (f"{FUSION}::test_motion_offset_of_signals_shifted_by_a_known_fraction",)),
+    Mutant("sync: motion peak's parabola sign flipped", "posecam/multiview/sync.py",
+           "return float(lags[k] + 0.5 * (c0 - c2) / den", "return float(lags[k] - 0.5 * (c0 - c2) / den",
+           (f"{FUSION}::test_motion_offset_of_signals_shifted_by_a_known_fraction",)),
+    # ---- the tracker -----------------------------------------------------------------------
+    Mutant("tracker: matching-cost gate removed", "posecam/tracking/assignment.py",
+           "if motion[i, j] <= max_cost and np.isfinite(cost[i, j])]", "if np.isfinite(cost[i, j])]",
+           (f"{TRACKING}::test_a_track_is_not_matched_to_someone_who_does_not_overlap_it",)),
+    Mutant("tracker: weak detections gated like confident ones", "posecam/tracking/tracker.py",
+           "self._match(pool, low, o.low_match_cost, looks)", "self._match(pool, low, o.match_cost, looks)",
+           (f"{TRACKING}::test_weak_detections_are_matched_under_a_tighter_gate",)),
+    Mutant("tracker: the box filter has no velocity", "posecam/tracking/motion.py",
+           "self.f[:4, 4:] = np.eye(4)", "self.f[:4, 4:] = 0.0",
+           (f"{TRACKING}::test_a_track_moves_on_with_its_speed_while_unseen",)),
+    Mutant("tracker: assignment of a tall matrix not transposed back", "posecam/tracking/assignment.py",
+           "    if transposed:\n        rows, cols = cols, rows", "    if False:\n        rows, cols = cols, rows",
+           (f"{TRACKING}::test_min_cost_assignment_matches_scipy_on_random_matrices",)),
+)
+
+
+def _check_snippets(mutants: tuple[Mutant, ...]) -> list[str]:
+    """One line per mutant whose snippet is not found exactly once."""
+    problems = []
+    for m in mutants:
+        path = ROOT / m.file
+        count = path.read_text().count(m.original) if path.exists() else -1
+        if count != 1:
+            where = "file missing" if count < 0 else f"found {count} times"
+            problems.append(f"{m.name}: snippet in {m.file} {where} (update the table in tests/mutants.py)")
+    return problems
+
+
+def _copy(dest: Path, mutant: Mutant | None) -> None:
+    """posecam/ into dest (its models linked), with the mutant's replacement applied."""
+    shutil.copytree(ROOT / "posecam", dest / "posecam", ignore=shutil.ignore_patterns("__pycache__", "models"))
+    (dest / "posecam" / "models").symlink_to(ROOT / "posecam" / "models")
+    if mutant is not None:
+        path = dest / mutant.file
+        path.write_text(path.read_text().replace(mutant.original, mutant.replacement, 1))
+
+
+def _pytest(copy: Path, tests: tuple[str, ...], stop_first: bool) -> tuple[int, str, float]:
+    """Run the tests against the copy (run from it: the copy comes first on the path, for the
+    subprocesses the tests start too); return code, the last line of interest, seconds."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(copy), str(ROOT)]), "PYTHONDONTWRITEBYTECODE": "1"}
+    args = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--rootdir", str(ROOT),
+            "-c", str(ROOT / "pyproject.toml"), *(["-x"] if stop_first else []), *(str(ROOT / t) for t in tests)]
+    start = time.monotonic()
+    try:
+        run = subprocess.run(args, cwd=copy, env=env, capture_output=True, text=True, timeout=TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        return -1, f"timed out after {TIMEOUT_S} s", time.monotonic() - start
+    lines = [ln for ln in run.stdout.splitlines() if ln.startswith(("FAILED", "ERROR"))] or run.stdout.splitlines()[-1:]
+    line = lines[0] if lines else run.stderr.strip()[-200:]
+    if "tests/" in line:                   # the node id, as the table names it
+        line = line.split(None, 1)[0] + " tests/" + line.split("tests/", 1)[1]
+    return run.returncode, line, time.monotonic() - start
+
+
+def _imports_the_copy(copy: Path) -> bool:
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(copy), str(ROOT)])}
+    out = subprocess.run([sys.executable, "-c", "import posecam; print(posecam.__file__)"], cwd=copy, env=env,
+                         capture_output=True, text=True)
+    return Path(out.stdout.strip()).resolve().is_relative_to(copy.resolve())
+
+
+def run(mutants: tuple[Mutant, ...], jobs: int) -> int:
+    problems = _check_snippets(mutants)
+    for p in problems:
+        print(f"MISSING  {p}", file=sys.stderr)
+    live = [m for m in mutants if not any(p.startswith(f"{m.name}:") for p in problems)]
+    with tempfile.TemporaryDirectory(prefix="posecam-mutants-") as tmp:
+        base = Path(tmp) / "unmutated"
+        _copy(base, None)
+        if not _imports_the_copy(base):
+            print("the copy of posecam is not the one imported: check PYTHONPATH", file=sys.stderr)
+            return 1
+        tests = tuple(dict.fromkeys(t for m in live for t in m.tests))
+        code, line, seconds = _pytest(base, tests, stop_first=False)
+        print(f"unmutated: {len(tests)} test selections {'pass' if code == 0 else 'FAIL'} ({seconds:.0f} s)")
+        if code == NO_TESTS:
+            line = "no tests ran: a selection is misspelt or deselected (slow, demo)"
+        if code != 0:
+            print(f"  {line}", file=sys.stderr)
+            return 1
+
+        def one(i_m: tuple[int, Mutant]) -> tuple[Mutant, int, str, float]:
+            i, m = i_m
+            copy = Path(tmp) / f"m{i}"
+            _copy(copy, m)
+            code, line, seconds = _pytest(copy, m.tests, stop_first=True)
+            shutil.rmtree(copy, ignore_errors=True)
+            return m, code, line, seconds
+
+        with ThreadPoolExecutor(max_workers=jobs) as pool:
+            results = list(pool.map(one, enumerate(live)))
+    width = max(len(m.name) for m in mutants)
+    print(f"\n{'mutant':<{width}}  {'result':<8}  {'s':>4}  caught by")
+    survived = 0
+    for m, code, line, seconds in results:
+        killed = code not in (0, NO_TESTS)
+        survived += not killed
+        print(f"{m.name:<{width}}  {'killed' if killed else 'SURVIVED' if code == 0 else 'NO TESTS':<8}  "
+              f"{seconds:4.0f}  {line if killed else ', '.join(m.tests)}")
+    print(f"\n{len(results) - survived} killed, {survived} survived, {len(problems)} snippets missing")
+    return 1 if survived or problems else 0
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--jobs", type=int, default=2, help="mutants tested at once (default 2)")
+    parser.add_argument("-k", default="", help="only the mutants whose name contains this")
+    parser.add_argument("--list", action="store_true", help="list the mutants and exit")
+    args = parser.parse_args()
+    chosen = tuple(m for m in MUTANTS if args.k in m.name)
+    if args.list:
+        for m in chosen:
+            print(f"{m.name}  [{m.file}]  <- {', '.join(m.tests)}")
+        return
+    sys.exit(run(chosen, max(1, args.jobs)))
+
+
+if __name__ == "__main__":
+    main()
