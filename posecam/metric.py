@@ -187,12 +187,13 @@ class MetricStage:
     """Scale each person of a stream of frames by their track's scale: push each frame as it
     comes, take the frames that come back (`delay` frames late), `flush()` at the end. After the
     flush, `floor` is the ground plane (or None, and `floor_refused` says why), `lens` the focal
-    length the people give, and `notes` the warnings for the user.
+    length the people give, and `notes` the warnings for the user. The recording it is given
+    (its header: joints, model, image size, intrinsics) is only read.
 
     With the default lens (`rec.intrinsics.source == "default"`), the people's focal length
     (posecam.geometry.floor.focal_from_people) is tried on the first `delay` frames, before any
-    is given out; where it is pinned, `rec.intrinsics` becomes it (source "people") and every
-    person's root is solved again with it."""
+    is given out; where it is pinned, `intrinsics` (the lens of the frames given out) becomes it
+    (source "people") and every person's root is solved again with it."""
 
     def __init__(self, rec: Recording, options: MetricOptions | None = None):
         self.rec, self.options = rec, options or MetricOptions()
@@ -204,6 +205,7 @@ class MetricStage:
         self.floor_refused = ""
         self.lens: LensFit | None = None
         self.notes: list[str] = []
+        self.intrinsics = rec.intrinsics        # the lens of the frames given out
         self._k: Intrinsics | None = None       # the people's lens, once taken: every pose is solved again with it
         self._frames_seen = 0
         self._measurable = _segments(rec.joints) is not None
@@ -225,7 +227,6 @@ class MetricStage:
     def flush(self) -> list[Frame]:
         self._since_fit = REFIT_EVERY       # the last fit sees every frame
         out = self._emit(len(self._pending))
-        self.rec.floor = self.floor
         if self._k is None:
             self._check_lens()
         if self.floor_refused and self._tracks and self._frames_seen > 1:
@@ -252,8 +253,7 @@ class MetricStage:
         if fit is None or fit.focal is None:
             return
         k = self.rec.intrinsics
-        self._k = Intrinsics(fit.focal, fit.focal, k.cx, k.cy, f"people (+-{fit.sd:.0f} px)")
-        self.rec.intrinsics = self._k
+        self._k = self.intrinsics = Intrinsics(fit.focal, fit.focal, k.cx, k.cy, f"people (+-{fit.sd:.0f} px)")
         self._pending = [self._relensed(f) for f in self._pending]
         self._tracks, self._since_fit = {}, REFIT_EVERY
         for f in self._pending:
@@ -396,10 +396,9 @@ class MetricStage:
 
 def scale_recording(rec: Recording, options: MetricOptions | None = None) -> Recording:
     """A copy of `rec` with every person at their track's metric scale (and `floor` set when
-    the feet support one): MetricStage over the whole recording."""
-    out = dataclasses.replace(rec, frames=[])
-    stage = MetricStage(out, options)
-    for f in rec.frames:
-        out.frames.extend(stage.push(f))
-    out.frames.extend(stage.flush())
-    return out
+    the feet support one, `intrinsics` the people's lens where they pin it): MetricStage over
+    the whole recording."""
+    stage = MetricStage(rec, options)
+    frames = [out for f in rec.frames for out in stage.push(f)]
+    frames += stage.flush()
+    return dataclasses.replace(rec, frames=frames, floor=stage.floor, intrinsics=stage.intrinsics)
