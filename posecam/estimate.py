@@ -18,6 +18,7 @@ from __future__ import annotations
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -27,11 +28,10 @@ from posecam.filters import StreamingSmoother
 from posecam.metric import MetricOptions, MetricStage
 from posecam.geometry.boxes import boxes_overlap
 from posecam.geometry.camera import Intrinsics
-from posecam.geometry.lift import solve_root_translation
 from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.inference.detector import Detection, detect_any_turn, load_detector
 from posecam.inference.embedder import load_embedder
-from posecam.inference.pose_model import PoseCandidate, make_pose_model
+from posecam.inference.pose_model import PoseCandidate, make_lifter, make_pose_model
 from posecam.inference.roi import Roi
 from posecam.inference.session import load_model
 from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
@@ -75,7 +75,8 @@ OnFrame = Callable[[Frame, np.ndarray, Media], None]
 IntrinsicsSource = Intrinsics | IntrinsicsOptions | None
 
 # Every input goes through one chain of stages, declared here once: decode, then (per frame)
-# detect and track, lift into camera space, confirm the ids (`PoseEstimator._confirmed`), then
+# detect and track (`_track`), lift into camera space (`_lifted`: the lifter of the pose model's
+# kind, where a predicted pose meets its lens), confirm the ids (`PoseEstimator._confirmed`), then
 # metric scale and smoothing over time (`FileStream.poses`), then the sinks (pose files, tables:
 # whoever reads the poses). No stage changes what it is handed. A tap sees each frame as it
 # leaves one of these stages: "confirm" as soon as its ids are known (progress bars), "metric"
@@ -180,6 +181,7 @@ class PoseEstimator:
             raise ModelError(f"{pose.path} is {'a detector' if pose.contract.kind == 'detector' else 'an appearance embedder'}, "
                              "not a pose model")
         self.pose_model = make_pose_model(pose)
+        self.lifter = make_lifter(pose.contract)
         self.model_name = pose.contract.name
         self.joints = self._output_joints()
         self.skeleton = skeleton_of(self.joints)
@@ -198,19 +200,28 @@ class PoseEstimator:
             raise ModelError(f"model {self.model_name} outputs joints posecam cannot map to the 17-joint skeleton")
         return H36M_JOINTS
 
-    def _to_person(self, track_id: int, c: PoseCandidate) -> Person:
-        uv, xyz, conf = c.keypoints_2d, c.keypoints_3d, c.confidence
+    def _lift(self, c: PoseCandidate, k: Intrinsics, width: int) -> np.ndarray:
+        """The candidate's joints in camera space through the lens `k` (the image `width` px
+        wide): its model kind's lifter, then the output joints."""
+        xyz = self.lifter(c, k, width)
+        return blazepose_to_h36m(xyz, c.confidence)[0] if self.joints == H36M_JOINTS and len(xyz) != len(H36M_JOINTS) else xyz
+
+    def _lifted(self, c: PoseCandidate, k: Intrinsics, width: int) -> Person:
+        """The lift stage: one person in camera space, who keeps how to be lifted through
+        another lens (`Person.relift`: the metric stage's people's lens)."""
+        uv, conf = c.keypoints_2d, c.confidence
         if self.joints == H36M_JOINTS and len(uv) != len(H36M_JOINTS):
-            xyz, _ = blazepose_to_h36m(xyz, conf)
             uv, conf = blazepose_to_h36m(uv, conf)
         box = np.concatenate([c.keypoints_2d.min(axis=0), c.keypoints_2d.max(axis=0)])
-        return Person(track_id, c.score, box, uv, xyz, conf, skeleton=self.skeleton)
+        return Person(-1, c.score, box, uv, self._lift(c, k, width), conf, skeleton=self.skeleton,
+                      relift=partial(self._lift, c, width=width))
 
-    def _step(self, image_rgb: np.ndarray, k: Intrinsics, tracker: Tracker) -> tuple[Frame, list[Track]]:
-        """One frame: detect if the tracker asks for it (searching for people as small as the
-        smallest it has seen), run the pose model on every track; the people left out are
-        listed with the stage that dropped them. Returns the frame and each person's track
-        (their ids are numbered once the tracks are confirmed: `number_people`, `ConfirmedIds`)."""
+    def _track(self, image_rgb: np.ndarray, tracker: Tracker) -> tuple[list[PoseCandidate], list[Track], list[Dropped]]:
+        """Detect and track, one frame: detect if the tracker asks for it (searching for people
+        as small as the smallest it has seen), run the pose model on every track. Returns the
+        poses kept and their tracks (their ids are numbered once the tracks are confirmed:
+        `number_people`, `ConfirmedIds`), and the people left out, each with the stage that
+        dropped them."""
         _check_image(image_rgb)
         h, w = image_rgb.shape[:2]
         detections = None
@@ -223,11 +234,11 @@ class PoseEstimator:
                 detections = detect_any_turn(self.detector, image_rgb, person_px)
         tracks = tracker.begin_frame(detections, image_rgb)
         if not tracks:
-            return Frame(0, 0.0, [], dropped=list(tracker.refused)), []
-        candidates = self.pose_model(image_rgb, [t.roi for t in tracks], k)
+            return [], [], list(tracker.refused)
+        candidates = self.pose_model(image_rgb, [t.roi for t in tracks])
         stages: list[str | None] = [None if c.score >= self.options.min_presence else "presence" for c in candidates]
         if detections is not None:
-            checked = [self._own_pose(image_rgb, k, t, c, detections) if t.detection is not None else (c, stage)
+            checked = [self._own_pose(image_rgb, t, c, detections) if t.detection is not None else (c, stage)
                        for t, c, stage in zip(tracks, candidates, stages)]
             candidates, stages = [c for c, _ in checked], [stage for _, stage in checked]
         idx = self._to_detector
@@ -238,18 +249,18 @@ class PoseEstimator:
             [c.next_roi for c in candidates])
         dropped = [Dropped(stage or "duplicate", float(c.score), _box_of(c.keypoints_2d, c.confidence))
                    for i, (c, stage) in enumerate(zip(candidates, stages)) if i not in kept]
-        return (Frame(0, 0.0, [self._to_person(-1, candidates[i]) for i in kept], dropped=list(tracker.refused) + dropped),
-                [tracks[i] for i in kept])
+        return [candidates[i] for i in kept], [tracks[i] for i in kept], list(tracker.refused) + dropped
 
-    def _own_pose(self, image_rgb: np.ndarray, k: Intrinsics, track: Track, c: PoseCandidate,
+    def _own_pose(self, image_rgb: np.ndarray, track: Track, c: PoseCandidate,
                   detections: list[Detection]) -> tuple[PoseCandidate, str | None]:
         """The pose of the track's own person, and why it is dropped (None: kept). A pose the
         pose model doubts (presence below min_presence) or with 3 or more joints on a neighbour
         is tried again: from an upright crop of the person's box, then from the detector's crop
         turned by 90, -90 and 180 degrees (people lying, upside down), the first pose kept
-        winning. Joints that still fall on a neighbour lose their confidence, and the pose is
-        refused ("neighbour") when most of its joints do. A doubted pose is kept when it agrees
-        with the detector's keypoints of the person (OKS >= 0.5)."""
+        winning. Joints that still fall on a neighbour lose their confidence (so the lift places
+        the root without them), and the pose is refused ("neighbour") when most of its joints
+        do. A doubted pose is kept when it agrees with the detector's keypoints of the person
+        (OKS >= 0.5)."""
         own = track.detection
         others = [d for d in detections if d is not own and boxes_overlap(d.box, own.box)]
         idx, min_presence = self._to_detector, self.options.min_presence
@@ -268,7 +279,7 @@ class PoseEstimator:
             retries = [Roi.around_points(own.box.reshape(2, 2))] + \
                 [replace(r, angle=r.angle + turn) for turn in (np.pi / 2, -np.pi / 2, np.pi)]
             for roi in retries:
-                redo = self.pose_model(image_rgb, [roi], k)[0]
+                redo = self.pose_model(image_rgb, [roi])[0]
                 again = foreign_of(redo)
                 if rank(redo, again) > rank(c, foreign):
                     c, foreign = redo, again
@@ -278,11 +289,10 @@ class PoseEstimator:
             return c, None if c.score >= min_presence else "presence"
         if foreign.sum() > (c.confidence[idx] >= MIN_CONFIDENCE).sum() / 2:
             return c, "neighbour"
-        if foreign.any():   # the neighbour's joints leave the pose, and the root is placed without them
+        if foreign.any():   # the neighbour's joints leave the pose
             conf = c.confidence.copy()
             conf[idx[foreign]] = 0.0
-            shift = solve_root_translation(c.keypoints_3d, c.keypoints_2d, conf, k)
-            c = replace(c, confidence=conf, keypoints_3d=c.keypoints_3d + shift)
+            c = replace(c, confidence=conf)
         area = float(np.prod(own.box[2:] - own.box[:2]))
         agrees = oks(c.keypoints_2d[idx], c.confidence[idx], own.keypoints, own.keypoint_scores, area) >= 0.5
         return c, None if c.score >= min_presence or agrees else "presence"
@@ -307,8 +317,8 @@ class PoseEstimator:
         confirmed: ConfirmedIds[tuple[Frame, np.ndarray]] = ConfirmedIds(tracker)
         for index, time, rgb in decoded:
             k = self._intrinsics(rgb, k)
-            frame, tracks = self._step(rgb, k, tracker)
-            frame.index, frame.time = index, time
+            candidates, tracks, dropped = self._track(rgb, tracker)
+            frame = Frame(index, time, [self._lifted(c, k, rgb.shape[1]) for c in candidates], dropped=dropped)
             if still:
                 number_people(frame, tracks)
                 yield frame, rgb

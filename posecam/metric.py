@@ -30,7 +30,7 @@ import numpy as np
 from posecam.errors import InputError
 from posecam.geometry.camera import Intrinsics
 from posecam.geometry.floor import Floor, FloorFit, LensFit, fit_floor, focal_from_people
-from posecam.geometry.lift import solve_root_translation
+from posecam.geometry.lift import place_on_keypoints
 from posecam.heights import Heights
 from posecam.results import Frame, Person, Recording
 from posecam.skeleton import BLAZEPOSE_LANDMARKS, H36M_JOINTS
@@ -277,12 +277,12 @@ class MetricStage:
                               f"depths may be {fit.estimate / k.fx:.1f}x off; give --fx or --intrinsics")
 
     def _relensed(self, frame: Frame) -> Frame:
-        """The frame's people with their roots solved again through the people's lens."""
-        people = []
-        for p in frame.people:
-            rel = p.keypoints_3d - p.root
-            people.append(dataclasses.replace(p, keypoints_3d=rel + solve_root_translation(rel, p.keypoints_2d,
-                                                                                              p.confidence, self._k)))
+        """The frame's people lifted again through the people's lens: by the estimator's lifter
+        (`Person.relift`), else (poses read from a file) their metric pose placed on their 2D
+        keypoints, as the landmark models' lift places it."""
+        people = [dataclasses.replace(p, keypoints_3d=p.relift(self._k) if p.relift else
+                                      place_on_keypoints(p.keypoints_3d, p.keypoints_2d, p.confidence, self._k))
+                  for p in frame.people]
         return dataclasses.replace(frame, people=people)
 
     def _observe(self, p: Person) -> None:
