@@ -37,10 +37,9 @@ from posecam.inference.session import load_model
 from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
 from posecam.media import FrameSelection, Media, open_media
 from posecam.results import Dropped, Frame, Person, Recording
-from posecam.skeleton import BLAZEPOSE_LANDMARKS, H36M_JOINTS, blazepose_to_h36m, skeleton_of
+from posecam.skeleton import BLAZEPOSE33, BLAZEPOSE_LANDMARKS, H36M_JOINTS, SKELETONS, blazepose_to_h36m, skeleton_of
 from posecam.tracking import ConfirmedIds, Track, Tracker, TrackerOptions, foreign_joints, number_people, oks
 
-SKELETONS = ("17", "33")
 MIN_PERSON_PX = 40    # the detector searches for people at least this tall (image pixels)
 
 
@@ -192,9 +191,10 @@ class PoseEstimator:
 
     def _output_joints(self) -> tuple[str, ...]:
         source = tuple(self.pose_model.joints)
-        if self.options.skeleton == "33":
+        if SKELETONS[self.options.skeleton] is BLAZEPOSE33:
             if source != BLAZEPOSE_LANDMARKS:
-                raise InputError(f"--skeleton 33 needs a model with the 33 BlazePose landmarks; {self.model_name} has {len(source)} joints")
+                raise InputError(f"--skeleton {self.options.skeleton} needs a model with the 33 BlazePose landmarks; "
+                                 f"{self.model_name} has {len(source)} joints")
             return BLAZEPOSE_LANDMARKS
         if source not in (BLAZEPOSE_LANDMARKS, H36M_JOINTS):
             raise ModelError(f"model {self.model_name} outputs joints posecam cannot map to the 17-joint skeleton")
