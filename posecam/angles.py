@@ -65,17 +65,10 @@ import numpy as np
 
 from posecam.io.trc import to_y_up
 from posecam.results import Frame, Recording
+from posecam.skeleton import SIDES, SKELETONS
 
-SIDES = ("r", "l")
-# where each role sits in the two skeletons: one joint, or the mean of several
-_ROLES = {
-    "17": {"mid_hip": ("pelvis",), "neck": ("thorax",),
-           **{f"{s}_{j}": (f"{s}_{j}",) for s in SIDES
-              for j in ("hip", "knee", "ankle", "shoulder", "elbow", "wrist")}},
-    "33": {"mid_hip": ("left_hip", "right_hip"), "neck": ("left_shoulder", "right_shoulder"),
-           **{f"{s}_{j}": (f"{side}_{j}",) for s, side in zip(SIDES, ("right", "left"))
-              for j in ("hip", "knee", "ankle", "shoulder", "elbow", "wrist", "heel", "foot_index")}},
-}
+# where each role sits in the two skeletons: one joint, or the mean of several (posecam.skeleton)
+_ROLES = {name: dict(skeleton.roles) for name, skeleton in SKELETONS.items()}
 _JOINT_ANGLES = ("ankle_dorsiflexion", "knee_flexion", "hip_flexion", "shoulder_flexion", "elbow_flexion",
                  "hip_abduction", "shoulder_abduction")
 _SEGMENT_ANGLES = ("trunk_sagittal", "trunk_frontal", "pelvis_frontal", "shoulders_frontal")

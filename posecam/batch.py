@@ -110,7 +110,8 @@ def fuse_task(task: Task, options: FuseOptions, estimator: EstimatorOptions | No
     from posecam.views import load_views
     views = [p for p in task.inputs if Path(p).suffix.lower() != ".json"]
     recordings = load_views(list(task.inputs), intrinsics=intrinsics, calibration=calibration, rig=options.calibration,
-                            fuse=options, estimator=shared_estimator(estimator or EstimatorOptions()) if views else None)
+                            fuse=options, estimator=shared_estimator(estimator or EstimatorOptions()) if views else None,
+                            smooth=smooth)
     fused = fuse_recordings(recordings, options).recording
     with OutputSet([task.output], task.inputs) as staged:
         write_poses(staged.path(task.output), [smooth_recording(fused) if smooth else fused])

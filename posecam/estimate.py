@@ -15,8 +15,10 @@ to each input and are given with each call.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -26,20 +28,18 @@ from posecam.filters import StreamingSmoother
 from posecam.metric import MetricOptions, MetricStage
 from posecam.geometry.boxes import boxes_overlap
 from posecam.geometry.camera import Intrinsics
-from posecam.geometry.lift import solve_root_translation
 from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.inference.detector import Detection, detect_any_turn, load_detector
 from posecam.inference.embedder import load_embedder
-from posecam.inference.pose_model import PoseCandidate, make_pose_model
+from posecam.inference.pose_model import PoseCandidate, make_lifter, make_pose_model
 from posecam.inference.roi import Roi
 from posecam.inference.session import load_model
 from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
 from posecam.media import FrameSelection, Media, open_media
 from posecam.results import Dropped, Frame, Person, Recording
-from posecam.skeleton import BLAZEPOSE_LANDMARKS, H36M_JOINTS, blazepose_to_h36m, skeleton_of
+from posecam.skeleton import BLAZEPOSE33, BLAZEPOSE_LANDMARKS, H36M_JOINTS, SKELETONS, blazepose_to_h36m, skeleton_of
 from posecam.tracking import ConfirmedIds, Track, Tracker, TrackerOptions, foreign_joints, number_people, oks
 
-SKELETONS = ("17", "33")
 MIN_PERSON_PX = 40    # the detector searches for people at least this tall (image pixels)
 
 
@@ -67,45 +67,103 @@ class EstimatorOptions:
                 raise InputError(f"{name} must lie in [0, 1], got {getattr(self, name)}")
 
 
-# Called for each frame as it is predicted: the frame's result, its RGB image, the opened input.
+# A tap: called for each frame as it leaves a stage of the chain, with its RGB image and the
+# opened input (progress bars, overlays).
 OnFrame = Callable[[Frame, np.ndarray, Media], None]
 # An input's intrinsics: given, resolved from options (flags, a file, EXIF), or None (EXIF, else the default lens)
 IntrinsicsSource = Intrinsics | IntrinsicsOptions | None
 
+# Every input goes through one chain of stages, declared here once: decode, then (per frame)
+# detect and track (`_track`), lift into camera space (`_lifted`: the lifter of the pose model's
+# kind, where a predicted pose meets its lens), confirm the ids (`PoseEstimator._confirmed`), then
+# metric scale and smoothing over time (`FileStream.poses`), then the sinks (pose files, tables:
+# whoever reads the poses). No stage changes what it is handed. A tap sees each frame as it
+# leaves one of these stages: "confirm" as soon as its ids are known (progress bars), "metric"
+# at its metric scale, the depth the pose files are given (overlays: a video's frames are
+# smoothed after it, as `--viz` says).
+TAPS = ("confirm", "metric")
+
+
+class _Images:
+    """The RGB image of each frame as it leaves the metric stage, which holds frames back: a
+    file's frames decoded a second time, in step (memory stays flat), a live source's held."""
+
+    def __init__(self, media: Media):
+        self.held: deque[np.ndarray] | None = deque() if media.kind == "stream" else None
+        self.again = None if self.held is not None else media.frames()
+
+    def push(self, rgb: np.ndarray) -> None:
+        if self.held is not None:
+            self.held.append(rgb)
+
+    def pop(self, frame: Frame) -> np.ndarray:
+        if self.held is not None:
+            return self.held.popleft()
+        for index, _, rgb in self.again:
+            if index == frame.index:
+                return rgb
+        raise RuntimeError(f"frame {frame.index} is not in its input the second time it is read")
+
 
 @dataclass
 class FileStream:
-    """An opened input: its Recording's header (no frames), the media, and its frames as they
-    are predicted, each with its RGB image (`frames`, raw) or finished (`poses`)."""
+    """An opened input: its Recording's header (no frames), the media, and its frames, each
+    with its RGB image, as their ids are confirmed (`frames`), or finished (`poses`)."""
 
     recording: Recording
     media: Media
     frames: Iterator[tuple[Frame, np.ndarray]]
     notes: list[str] = field(default_factory=list)   # what `poses(metric=...)` warns of (no floor, the lens)
 
-    def poses(self, smooth: bool = False, on_frame: OnFrame | None = None,
-              metric: MetricOptions | None = None) -> Iterator[Frame]:
-        """The input's frames, finished: each predicted frame goes to `on_frame` (progress bars,
-        overlays) as it comes, then, with `metric`, to its track's metric scale (posecam.metric;
-        afterwards `recording.floor` is set, and `notes` holds its warnings), then, with `smooth`
-        and a video or a sequence, through the streaming smoother (a few seconds late; the whole
-        video's smoothing). Nothing is kept."""
-        smoother = StreamingSmoother(self.recording) if smooth and self.media.kind not in ("image", "stream") else None
-        scaler = MetricStage(self.recording, metric) if metric else None
+    def poses(self, smooth: bool = False, metric: MetricOptions | None = None,
+              taps: Mapping[str, OnFrame | None] | None = None) -> Iterator[Frame]:
+        """The input's frames through the rest of the chain: with `metric`, each track's metric
+        scale (posecam.metric: `recording.intrinsics` is the lens the frames were solved with
+        when the first comes out, `recording.floor` the ground plane at the end, and `notes`
+        holds the warnings), then, with `smooth` and a video or a sequence, the streaming
+        smoother (a few seconds late; the whole video's smoothing). `taps`: stage name (TAPS)
+        -> what sees each frame as it leaves that stage. Nothing is kept."""
+        taps = {stage: tap for stage, tap in (taps or {}).items() if tap}
+        if set(taps) - set(TAPS):
+            raise ValueError(f"taps are at the stages {', '.join(TAPS)}, not {', '.join(sorted(set(taps) - set(TAPS)))}")
+        frames = _tapped(self.frames, taps.get("confirm"), self.media)
+        if metric:
+            frames = self._scaled(frames, metric, "metric" in taps)
+        frames = _tapped(frames, taps.get("metric"), self.media)
+        if not (smooth and self.media.kind not in ("image", "stream")):
+            yield from (frame for frame, _ in frames)
+            return
+        smoother = StreamingSmoother(self.recording)
+        for frame, _ in frames:
+            yield from smoother.push(frame)
+        yield from smoother.flush()
 
-        def finish(frames) -> Iterator[Frame]:
-            for frame in frames:
-                yield from smoother.push(frame) if smoother else (frame,)
+    def _scaled(self, frames: Iterator[tuple[Frame, np.ndarray]], options: MetricOptions,
+                images: bool) -> Iterator[tuple[Frame, np.ndarray | None]]:
+        """The metric stage: frames at their tracks' metric scale, with their images where a
+        tap needs them (None otherwise)."""
+        scaler = MetricStage(replace(self.recording), options)
+        held = _Images(self.media) if images else None
 
-        for frame, rgb in self.frames:
-            if on_frame:
-                on_frame(frame, rgb, self.media)
-            yield from finish(scaler.push(frame) if scaler else (frame,))
-        if scaler:
-            yield from finish(scaler.flush())
-            self.notes = scaler.notes
-        if smoother:
-            yield from smoother.flush()
+        def out(done: list[Frame]) -> Iterator[tuple[Frame, np.ndarray | None]]:
+            self.recording.intrinsics = scaler.intrinsics   # the header tells the lens the poses were solved with
+            for frame in done:
+                yield frame, held.pop(frame) if held else None
+
+        for frame, rgb in frames:
+            if held:
+                held.push(rgb)
+            yield from out(scaler.push(frame))
+        yield from out(scaler.flush())
+        self.recording.floor, self.notes = scaler.floor, scaler.notes
+
+
+def _tapped(frames: Iterator[tuple[Frame, np.ndarray]], tap: OnFrame | None,
+            media: Media) -> Iterator[tuple[Frame, np.ndarray]]:
+    for frame, rgb in frames:
+        if tap:
+            tap(frame, rgb, media)
+        yield frame, rgb
 
 
 class PoseEstimator:
@@ -122,6 +180,7 @@ class PoseEstimator:
             raise ModelError(f"{pose.path} is {'a detector' if pose.contract.kind == 'detector' else 'an appearance embedder'}, "
                              "not a pose model")
         self.pose_model = make_pose_model(pose)
+        self.lifter = make_lifter(pose.contract)
         self.model_name = pose.contract.name
         self.joints = self._output_joints()
         self.skeleton = skeleton_of(self.joints)
@@ -132,27 +191,37 @@ class PoseEstimator:
 
     def _output_joints(self) -> tuple[str, ...]:
         source = tuple(self.pose_model.joints)
-        if self.options.skeleton == "33":
+        if SKELETONS[self.options.skeleton] is BLAZEPOSE33:
             if source != BLAZEPOSE_LANDMARKS:
-                raise InputError(f"--skeleton 33 needs a model with the 33 BlazePose landmarks; {self.model_name} has {len(source)} joints")
+                raise InputError(f"--skeleton {self.options.skeleton} needs a model with the 33 BlazePose landmarks; "
+                                 f"{self.model_name} has {len(source)} joints")
             return BLAZEPOSE_LANDMARKS
         if source not in (BLAZEPOSE_LANDMARKS, H36M_JOINTS):
             raise ModelError(f"model {self.model_name} outputs joints posecam cannot map to the 17-joint skeleton")
         return H36M_JOINTS
 
-    def _to_person(self, track_id: int, c: PoseCandidate) -> Person:
-        uv, xyz, conf = c.keypoints_2d, c.keypoints_3d, c.confidence
+    def _lift(self, c: PoseCandidate, k: Intrinsics, width: int) -> np.ndarray:
+        """The candidate's joints in camera space through the lens `k` (the image `width` px
+        wide): its model kind's lifter, then the output joints."""
+        xyz = self.lifter(c, k, width)
+        return blazepose_to_h36m(xyz, c.confidence)[0] if self.joints == H36M_JOINTS and len(xyz) != len(H36M_JOINTS) else xyz
+
+    def _lifted(self, c: PoseCandidate, k: Intrinsics, width: int) -> Person:
+        """The lift stage: one person in camera space, who keeps how to be lifted through
+        another lens (`Person.relift`: the metric stage's people's lens)."""
+        uv, conf = c.keypoints_2d, c.confidence
         if self.joints == H36M_JOINTS and len(uv) != len(H36M_JOINTS):
-            xyz, _ = blazepose_to_h36m(xyz, conf)
             uv, conf = blazepose_to_h36m(uv, conf)
         box = np.concatenate([c.keypoints_2d.min(axis=0), c.keypoints_2d.max(axis=0)])
-        return Person(track_id, c.score, box, uv, xyz, conf, skeleton=self.skeleton)
+        return Person(-1, c.score, box, uv, self._lift(c, k, width), conf, skeleton=self.skeleton,
+                      relift=partial(self._lift, c, width=width))
 
-    def _step(self, image_rgb: np.ndarray, k: Intrinsics, tracker: Tracker) -> tuple[Frame, list[Track]]:
-        """One frame: detect if the tracker asks for it (searching for people as small as the
-        smallest it has seen), run the pose model on every track; the people left out are
-        listed with the stage that dropped them. Returns the frame and each person's track
-        (their ids are numbered once the tracks are confirmed: `number_people`, `ConfirmedIds`)."""
+    def _track(self, image_rgb: np.ndarray, tracker: Tracker) -> tuple[list[PoseCandidate], list[Track], list[Dropped]]:
+        """Detect and track, one frame: detect if the tracker asks for it (searching for people
+        as small as the smallest it has seen), run the pose model on every track. Returns the
+        poses kept and their tracks (their ids are numbered once the tracks are confirmed:
+        `number_people`, `ConfirmedIds`), and the people left out, each with the stage that
+        dropped them."""
         _check_image(image_rgb)
         h, w = image_rgb.shape[:2]
         detections, search, run = None, None, tracker.detector_run(w, h)
@@ -165,11 +234,11 @@ class PoseEstimator:
                 detections = detect_any_turn(self.detector, image_rgb, person_px)
         tracks = tracker.begin_frame(detections, image_rgb, search)
         if not tracks:
-            return Frame(0, 0.0, [], dropped=list(tracker.refused)), []
-        candidates = self.pose_model(image_rgb, [t.roi for t in tracks], k)
+            return [], [], list(tracker.refused)
+        candidates = self.pose_model(image_rgb, [t.roi for t in tracks])
         stages: list[str | None] = [None if c.score >= self.options.min_presence else "presence" for c in candidates]
         if detections is not None:
-            checked = [self._own_pose(image_rgb, k, t, c, detections) if t.detection is not None else (c, stage)
+            checked = [self._own_pose(image_rgb, t, c, detections) if t.detection is not None else (c, stage)
                        for t, c, stage in zip(tracks, candidates, stages)]
             candidates, stages = [c for c, _ in checked], [stage for _, stage in checked]
         idx = self._to_detector
@@ -180,18 +249,18 @@ class PoseEstimator:
             [c.next_roi for c in candidates])
         dropped = [Dropped(stage or "duplicate", float(c.score), _box_of(c.keypoints_2d, c.confidence))
                    for i, (c, stage) in enumerate(zip(candidates, stages)) if i not in kept]
-        return (Frame(0, 0.0, [self._to_person(-1, candidates[i]) for i in kept], dropped=list(tracker.refused) + dropped),
-                [tracks[i] for i in kept])
+        return [candidates[i] for i in kept], [tracks[i] for i in kept], list(tracker.refused) + dropped
 
-    def _own_pose(self, image_rgb: np.ndarray, k: Intrinsics, track: Track, c: PoseCandidate,
+    def _own_pose(self, image_rgb: np.ndarray, track: Track, c: PoseCandidate,
                   detections: list[Detection]) -> tuple[PoseCandidate, str | None]:
         """The pose of the track's own person, and why it is dropped (None: kept). A pose the
         pose model doubts (presence below min_presence) or with 3 or more joints on a neighbour
         is tried again: from an upright crop of the person's box, then from the detector's crop
         turned by 90, -90 and 180 degrees (people lying, upside down), the first pose kept
-        winning. Joints that still fall on a neighbour lose their confidence, and the pose is
-        refused ("neighbour") when most of its joints do. A doubted pose is kept when it agrees
-        with the detector's keypoints of the person (OKS >= 0.5)."""
+        winning. Joints that still fall on a neighbour lose their confidence (so the lift places
+        the root without them), and the pose is refused ("neighbour") when most of its joints
+        do. A doubted pose is kept when it agrees with the detector's keypoints of the person
+        (OKS >= 0.5)."""
         own = track.detection
         others = [d for d in detections if d is not own and boxes_overlap(d.box, own.box)]
         idx, min_presence = self._to_detector, self.options.min_presence
@@ -210,7 +279,7 @@ class PoseEstimator:
             retries = [Roi.around_points(own.box.reshape(2, 2))] + \
                 [replace(r, angle=r.angle + turn) for turn in (np.pi / 2, -np.pi / 2, np.pi)]
             for roi in retries:
-                redo = self.pose_model(image_rgb, [roi], k)[0]
+                redo = self.pose_model(image_rgb, [roi])[0]
                 again = foreign_of(redo)
                 if rank(redo, again) > rank(c, foreign):
                     c, foreign = redo, again
@@ -220,11 +289,10 @@ class PoseEstimator:
             return c, None if c.score >= min_presence else "presence"
         if foreign.sum() > (c.confidence[idx] >= MIN_CONFIDENCE).sum() / 2:
             return c, "neighbour"
-        if foreign.any():   # the neighbour's joints leave the pose, and the root is placed without them
+        if foreign.any():   # the neighbour's joints leave the pose
             conf = c.confidence.copy()
             conf[idx[foreign]] = 0.0
-            shift = solve_root_translation(c.keypoints_3d, c.keypoints_2d, conf, k)
-            c = replace(c, confidence=conf, keypoints_3d=c.keypoints_3d + shift)
+            c = replace(c, confidence=conf)
         area = float(np.prod(own.box[2:] - own.box[:2]))
         agrees = oks(c.keypoints_2d[idx], c.confidence[idx], own.keypoints, own.keypoint_scores, area) >= 0.5
         return c, None if c.score >= min_presence or agrees else "presence"
@@ -238,10 +306,26 @@ class PoseEstimator:
                                       **({} if video else {"confirm_hits": 1, "confirm_frames": 1})),
                        self.embedder if video else None, fps)
 
-    def _image_frame(self, image_rgb: np.ndarray, k: Intrinsics) -> Frame:
-        frame, tracks = self._step(image_rgb, k, self._tracker(video=False))
-        number_people(frame, tracks)
-        return frame
+    def _confirmed(self, decoded: Iterable[tuple[int, float, np.ndarray]], k: Intrinsics | None,
+                   fps: float | None = None, still: bool = False) -> Iterator[tuple[Frame, np.ndarray]]:
+        """The chain's first stages: each decoded frame (index, time, RGB), its people detected
+        and tracked, lifted into camera space through `k` (None: the default lens of the first
+        frame's size), their ids confirmed (a frame comes out at most `confirm_frames` frames
+        late); each frame with its image, in order. `fps`: the frames' rate (None:
+        tracking.DEFAULT_FPS); `still`: one image, whose people are all confirmed at once."""
+        tracker = self._tracker(video=not still, fps=fps)
+        confirmed: ConfirmedIds[tuple[Frame, np.ndarray]] = ConfirmedIds(tracker)
+        for index, time, rgb in decoded:
+            k = self._intrinsics(rgb, k)
+            candidates, tracks, dropped = self._track(rgb, tracker)
+            frame = Frame(index, time, [self._lifted(c, k, rgb.shape[1]) for c in candidates], dropped=dropped)
+            if still:
+                number_people(frame, tracks)
+                yield frame, rgb
+            else:
+                yield from confirmed.push(frame, tracks, (frame, rgb))
+        if not still:
+            yield from confirmed.flush()
 
     def _intrinsics(self, image_rgb: np.ndarray, k: Intrinsics | None) -> Intrinsics:
         h, w = image_rgb.shape[:2]   # given intrinsics are checked as the CLI checks them
@@ -249,22 +333,16 @@ class PoseEstimator:
 
     def predict_image(self, image_rgb: np.ndarray, intrinsics: Intrinsics | None = None) -> Frame:
         """Poses of every person in one RGB uint8 image; nothing is kept between calls."""
-        return self._image_frame(image_rgb, self._intrinsics(image_rgb, intrinsics))
+        return next(self._confirmed([(0, 0.0, image_rgb)], intrinsics, still=True))[0]
 
     def track(self, frames_rgb: Iterable[np.ndarray], intrinsics: Intrinsics | None = None,
               fps: float | None = None) -> Iterator[Frame]:
         """Poses for the frames of one video (`fps` frames a second; None: DEFAULT_FPS), people
-        followed with stable ids (a frame comes out once the tracks in it are confirmed: at
-        most `confirm_frames` frames late). The tracks live in this generator: each call
-        starts a new video."""
-        tracker, k = self._tracker(fps=fps), intrinsics
-        confirmed: ConfirmedIds[Frame] = ConfirmedIds(tracker)
-        for index, rgb in enumerate(frames_rgb):
-            k = self._intrinsics(rgb, k)
-            frame, tracks = self._step(rgb, k, tracker)
-            frame.index = index
-            yield from confirmed.push(frame, tracks, frame)
-        yield from confirmed.flush()
+        followed with stable ids: the chain's frames as they leave the "confirm" stage (at most
+        `confirm_frames` frames late). The tracks live in this generator: each call starts a
+        new video."""
+        decoded = ((index, 0.0, rgb) for index, rgb in enumerate(frames_rgb))
+        yield from (frame for frame, _ in self._confirmed(decoded, intrinsics, fps))
 
     def stream_file(self, path: str | Path, intrinsics: IntrinsicsSource = None,
                     frames: FrameSelection | None = None) -> FileStream:
@@ -282,30 +360,17 @@ class PoseEstimator:
                                    image_path=media.path if media.kind == "image" else None)
         rec = Recording(str(path), media.width, media.height, k, self.joints, model=self.model_name,
                         fps=media.sample_fps)
-
-        def frames() -> Iterator[tuple[Frame, np.ndarray]]:
-            tracker = self._tracker(fps=media.sample_fps)
-            confirmed: ConfirmedIds[tuple[Frame, np.ndarray]] = ConfirmedIds(tracker)
-            for index, time, rgb in media.frames():
-                if media.kind == "image":
-                    frame = self._image_frame(rgb, k)
-                    frame.index, frame.time = index, time
-                    yield frame, rgb
-                    continue
-                frame, tracks = self._step(rgb, k, tracker)
-                frame.index, frame.time = index, time
-                yield from confirmed.push(frame, tracks, (frame, rgb))
-            yield from confirmed.flush()
-
-        return FileStream(rec, media, frames())
+        return FileStream(rec, media, self._confirmed(media.frames(), k, media.sample_fps, still=media.kind == "image"))
 
     def predict_file(self, path: str | Path, intrinsics: IntrinsicsSource = None, on_frame: OnFrame | None = None,
-                     smooth: bool = False, frames: FrameSelection | None = None) -> Recording:
+                     smooth: bool = False, frames: FrameSelection | None = None,
+                     metric: MetricOptions | None = None) -> Recording:
         """Poses for every frame of an image, a video or a folder of images, held in the
-        Recording (`stream_file(...).poses()` for long videos); each frame is decoded once and
-        handed to `on_frame` (progress bars, overlays) with its result."""
+        Recording (`stream_file(...).poses()` for long videos): the chain, each frame decoded
+        once and handed to `on_frame` (overlays, progress bars) with its result as it leaves
+        the metric stage (with `metric`) or its ids are confirmed (without)."""
         stream = self.stream_file(path, intrinsics, frames)
-        stream.recording.frames = list(stream.poses(smooth, on_frame))
+        stream.recording.frames = list(stream.poses(smooth, metric, {"metric": on_frame}))
         return stream.recording
 
 

@@ -23,17 +23,18 @@ estimate too; the statistics of a track are a bounded, evenly thinned sample of 
 from __future__ import annotations
 
 import dataclasses
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from posecam.errors import InputError
 from posecam.geometry.camera import Intrinsics
-from posecam.geometry.floor import Floor, FloorFit, LensFit, fit_floor, focal_from_people
-from posecam.geometry.lift import solve_root_translation
-from posecam.heights import Heights
+from posecam.geometry.floor import Floor, FloorFit, LensFit, fit_floor, focal_from_people, robust_sd
+from posecam.geometry.lift import place_on_keypoints
+from posecam.heights import FLOOR_STATURE_M, Heights
 from posecam.results import Frame, Person, Recording
-from posecam.skeleton import BLAZEPOSE_LANDMARKS, H36M_JOINTS
+from posecam.skeleton import MIN_CONFIDENCE, SKELETONS
 
 # The keypoint chain ankle-knee-hip, pelvis-thorax-head (mid-ears) as a fraction of the stature.
 # Anthropometry (Drillis & Contini 1966, in Winter, Biomechanics and Motor Control of Human
@@ -42,7 +43,6 @@ from posecam.skeleton import BLAZEPOSE_LANDMARKS, H36M_JOINTS
 # of both Pose2Sim takes measures 0.851 and 0.854 of the stature (bench/bench_depth.py).
 CHAIN_OF_STATURE = 0.85
 ANKLE_OF_STATURE = 0.039        # the ankle's height above the sole
-MIN_CONF = 0.5                  # joints that measure the skeleton must be this confident
 SAMPLES = 512                   # per track: the most frames kept for its statistics
 ADULT_CLUSTER = 0.85            # tracks at least this fraction of the tallest are the adult-sized ones
 MODEL_SD = 0.06                 # relative uncertainty of the pose model's adult size for one person
@@ -52,7 +52,6 @@ GIVEN_SD = 0.035                # relative uncertainty of the scale a given heig
 MIN_TRACK_CONTACTS = 5          # foot contacts a track needs for the floor to scale it
 REFIT_EVERY = 30                # frames between fits of the floor (and at the end)
 LENS_SAMPLES = 64               # per track: upright frames kept for the lens
-HUMAN_STATURE = (1.0, 2.3)      # m: a floor that makes someone standing shorter (a 4-year-old) or taller is refused
 # The pose model's skeleton has one size, whoever the person: the statures of its skeletons (the
 # chain above) over the pedestrians of vtest.avi (tracks of 20 frames and more, each its median)
 # spread by 1.5 % about their median, no more than one 1.72 m adult's do over the 8 lab views of
@@ -64,12 +63,6 @@ HUMAN_STATURE = (1.0, 2.3)      # m: a floor that makes someone standing shorter
 MODEL_STATURE = {"blazepose-full": 1.678, "blazepose-lite": 1.647}
 LENS_DISAGREES = 2.0            # standard uncertainties between the default lens and the people's for a warning
 
-# name -> (legs: (hip, knee, ankle) per side, pelvis, thorax, head) as joint-index tuples to average
-_SEGMENTS = {
-    H36M_JOINTS: {"legs": ((4, 5, 6), (1, 2, 3)), "pelvis": (0,), "thorax": (8,), "head": (10,)},
-    BLAZEPOSE_LANDMARKS: {"legs": ((23, 25, 27), (24, 26, 28)), "pelvis": (23, 24), "thorax": (11, 12),
-                          "head": (7, 8)},
-}
 
 
 @dataclass
@@ -85,7 +78,20 @@ class MetricOptions:
 
 
 def _segments(joints: tuple[str, ...]) -> dict | None:
-    return _SEGMENTS.get(tuple(joints))
+    """The joints that measure a skeleton, by their roles (posecam.skeleton): the legs (hip,
+    knee, ankle per side), pelvis, thorax and head, as joint-index tuples to average; None for
+    joints that are not a posecam skeleton."""
+    return _segments_of(tuple(joints))
+
+
+@functools.lru_cache(maxsize=None)
+def _segments_of(joints: tuple[str, ...]) -> dict | None:
+    skeleton = next((s for s in SKELETONS.values() if s.joints == joints), None)
+    if skeleton is None:
+        return None
+    legs = tuple(tuple(skeleton.role(f"{side}_{j}")[0] for j in ("hip", "knee", "ankle")) for side in ("l", "r"))
+    return {"legs": legs, "pelvis": skeleton.role("mid_hip"), "thorax": skeleton.role("neck"),
+            "head": skeleton.role("head")}
 
 
 def stature(xyz: np.ndarray, conf: np.ndarray, joints: tuple[str, ...]) -> np.ndarray:
@@ -104,13 +110,13 @@ def stature(xyz: np.ndarray, conf: np.ndarray, joints: tuple[str, ...]) -> np.nd
     for hip, knee, ankle in seg["legs"]:
         legs.append(np.linalg.norm(xyz[..., hip, :] - xyz[..., knee, :], axis=-1)
                     + np.linalg.norm(xyz[..., knee, :] - xyz[..., ankle, :], axis=-1))
-        ok.append(conf[..., [hip, knee, ankle]].min(axis=-1) >= MIN_CONF)
+        ok.append(conf[..., [hip, knee, ankle]].min(axis=-1) >= MIN_CONFIDENCE)
     pelvis, c_p = point(seg["pelvis"])
     thorax, c_t = point(seg["thorax"])
     head, c_h = point(seg["head"])
     torso = np.linalg.norm(thorax - pelvis, axis=-1) + np.linalg.norm(head - thorax, axis=-1)
     leg = (legs[0] + legs[1]) / 2
-    good = ok[0] & ok[1] & (np.minimum(np.minimum(c_p, c_t), c_h) >= MIN_CONF)
+    good = ok[0] & ok[1] & (np.minimum(np.minimum(c_p, c_t), c_h) >= MIN_CONFIDENCE)
     return np.where(good, (leg + torso) / CHAIN_OF_STATURE, np.nan)
 
 
@@ -156,7 +162,7 @@ class _Track:
         if self._cache[0] != self.heights.seen:
             h = np.asarray(self.heights.rows)
             mid = float(np.median(h)) if len(h) else np.nan
-            spread = float(1.4826 * np.median(np.abs(h - mid)) / mid) if len(h) >= 3 else MODEL_SD
+            spread = robust_sd(h) / mid if len(h) >= 3 else MODEL_SD
             self._cache = (self.heights.seen, mid, spread)
         return self._cache[1], self._cache[2]
 
@@ -187,12 +193,13 @@ class MetricStage:
     """Scale each person of a stream of frames by their track's scale: push each frame as it
     comes, take the frames that come back (`delay` frames late), `flush()` at the end. After the
     flush, `floor` is the ground plane (or None, and `floor_refused` says why), `lens` the focal
-    length the people give, and `notes` the warnings for the user.
+    length the people give, and `notes` the warnings for the user. The recording it is given
+    (its header: joints, model, image size, intrinsics) is only read.
 
     With the default lens (`rec.intrinsics.source == "default"`), the people's focal length
     (posecam.geometry.floor.focal_from_people) is tried on the first `delay` frames, before any
-    is given out; where it is pinned, `rec.intrinsics` becomes it (source "people") and every
-    person's root is solved again with it."""
+    is given out; where it is pinned, `intrinsics` (the lens of the frames given out) becomes it
+    (source "people") and every person's root is solved again with it."""
 
     def __init__(self, rec: Recording, options: MetricOptions | None = None):
         self.rec, self.options = rec, options or MetricOptions()
@@ -204,6 +211,7 @@ class MetricStage:
         self.floor_refused = ""
         self.lens: LensFit | None = None
         self.notes: list[str] = []
+        self.intrinsics = rec.intrinsics        # the lens of the frames given out
         self._k: Intrinsics | None = None       # the people's lens, once taken: every pose is solved again with it
         self._frames_seen = 0
         self._measurable = _segments(rec.joints) is not None
@@ -225,7 +233,6 @@ class MetricStage:
     def flush(self) -> list[Frame]:
         self._since_fit = REFIT_EVERY       # the last fit sees every frame
         out = self._emit(len(self._pending))
-        self.rec.floor = self.floor
         if self._k is None:
             self._check_lens()
         if self.floor_refused and self._tracks and self._frames_seen > 1:
@@ -252,8 +259,7 @@ class MetricStage:
         if fit is None or fit.focal is None:
             return
         k = self.rec.intrinsics
-        self._k = Intrinsics(fit.focal, fit.focal, k.cx, k.cy, f"people (+-{fit.sd:.0f} px)")
-        self.rec.intrinsics = self._k
+        self._k = self.intrinsics = Intrinsics(fit.focal, fit.focal, k.cx, k.cy, f"people (+-{fit.sd:.0f} px)")
         self._pending = [self._relensed(f) for f in self._pending]
         self._tracks, self._since_fit = {}, REFIT_EVERY
         for f in self._pending:
@@ -277,12 +283,12 @@ class MetricStage:
                               f"depths may be {fit.estimate / k.fx:.1f}x off; give --fx or --intrinsics")
 
     def _relensed(self, frame: Frame) -> Frame:
-        """The frame's people with their roots solved again through the people's lens."""
-        people = []
-        for p in frame.people:
-            rel = p.keypoints_3d - p.root
-            people.append(dataclasses.replace(p, keypoints_3d=rel + solve_root_translation(rel, p.keypoints_2d,
-                                                                                              p.confidence, self._k)))
+        """The frame's people lifted again through the people's lens: by the estimator's lifter
+        (`Person.relift`), else (poses read from a file) their metric pose placed on their 2D
+        keypoints, as the landmark models' lift places it."""
+        people = [dataclasses.replace(p, keypoints_3d=p.relift(self._k) if p.relift else
+                                      place_on_keypoints(p.keypoints_3d, p.keypoints_2d, p.confidence, self._k))
+                  for p in frame.people]
         return dataclasses.replace(frame, people=people)
 
     def _observe(self, p: Person) -> None:
@@ -297,7 +303,7 @@ class MetricStage:
             t.downs.add(down)
             seg = _segments(self.rec.joints)
             ends = [list(seg["head"]), [leg[2] for leg in seg["legs"]]]
-            if min(p.confidence[i].min() for i in ends) >= MIN_CONF:
+            if min(p.confidence[i].min() for i in ends) >= MIN_CONFIDENCE:
                 t.upright.add((p.keypoints_2d[ends[0]].mean(axis=0), p.keypoints_2d[ends[1]].mean(axis=0)))
 
     def _floor_fit(self) -> FloorFit | None:
@@ -340,7 +346,7 @@ class MetricStage:
                           / np.median([size[tid] for tid in adults]))
         estimated = {tid: (relative[tid] * gauge * h if tid in relative else self._model_mm or h) / 1000.0
                      for tid, h in stat.items()}
-        odd = {tid: estimated[tid] for tid in relative if not HUMAN_STATURE[0] <= estimated[tid] <= HUMAN_STATURE[1]}
+        odd = {tid: estimated[tid] for tid in relative if not FLOOR_STATURE_M[0] <= estimated[tid] <= FLOOR_STATURE_M[1]}
         if odd:   # feet out of view or off the ground (someone cut by the border, balancing): not a floor
             tid, metres = next(iter(odd.items()))
             fit = self._fit = FloorFit(None, {}, {}, f"the feet's plane would make person {tid} {metres:.2f} m tall")
@@ -396,10 +402,9 @@ class MetricStage:
 
 def scale_recording(rec: Recording, options: MetricOptions | None = None) -> Recording:
     """A copy of `rec` with every person at their track's metric scale (and `floor` set when
-    the feet support one): MetricStage over the whole recording."""
-    out = dataclasses.replace(rec, frames=[])
-    stage = MetricStage(out, options)
-    for f in rec.frames:
-        out.frames.extend(stage.push(f))
-    out.frames.extend(stage.flush())
-    return out
+    the feet support one, `intrinsics` the people's lens where they pin it): MetricStage over
+    the whole recording."""
+    stage = MetricStage(rec, options)
+    frames = [out for f in rec.frames for out in stage.push(f)]
+    frames += stage.flush()
+    return dataclasses.replace(rec, frames=frames, floor=stage.floor, intrinsics=stage.intrinsics)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,6 +31,9 @@ class Person:
     height_sd: float = float("nan")         # m: its standard uncertainty
     depth_sd: float = float("nan")          # mm: standard uncertainty of the root's depth (z)
     skeleton: Skeleton = field(default=H36M, repr=False, compare=False)
+    # the pose model's output of this person lifted through another lens (the estimator's lifter;
+    # the metric stage's people's lens): (J, 3) mm; None for poses that were not predicted here
+    relift: Callable[[Intrinsics], np.ndarray] | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if np.ndim(self.confidence) != 1:

@@ -13,6 +13,10 @@ import numpy as np
 
 from posecam.errors import InputError
 
+# A pose model's joint counts (measures a skeleton, is triangulated, weighs, bounds a crop) from
+# this confidence up.
+MIN_CONFIDENCE = 0.5
+
 # The 33 BlazePose landmarks, in model output order.
 BLAZEPOSE_LANDMARKS: tuple[str, ...] = (
     "nose", "left_eye_inner", "left_eye", "left_eye_outer", "right_eye_inner",
@@ -80,6 +84,9 @@ class Skeleton:
     bones: tuple[tuple[str, str], ...]
     root: str
     root_of: tuple[str, ...] = ()
+    # what each joint role is in this skeleton: one joint, or the mean of several ("mid_hip",
+    # "neck", "head", then "r_hip", "l_knee", ...: side r or l, then the joint)
+    roles: tuple[tuple[str, tuple[str, ...]], ...] = ()
 
     def index(self, joint: str) -> int:
         return self.joints.index(joint)
@@ -87,6 +94,10 @@ class Skeleton:
     @property
     def root_indices(self) -> tuple[int, ...]:
         return tuple(self.index(j) for j in (self.root_of or (self.root,)))
+
+    def role(self, name: str) -> tuple[int, ...]:
+        """The indices of the joints whose mean plays the role `name` (see `roles`)."""
+        return tuple(self.index(j) for j in dict(self.roles)[name])
 
     def root_point(self, points: np.ndarray) -> np.ndarray:
         """(..., J, D) points -> (..., D) root."""
@@ -113,12 +124,20 @@ def mirror_name(joint: str) -> str:
     return joint
 
 
-H36M = Skeleton("h36m17", H36M_JOINTS, H36M_BONES, root="pelvis")
+SIDES = ("r", "l")
+_LIMBS = ("hip", "knee", "ankle", "shoulder", "elbow", "wrist")
+H36M = Skeleton("h36m17", H36M_JOINTS, H36M_BONES, root="pelvis", roles=(
+    ("mid_hip", ("pelvis",)), ("neck", ("thorax",)), ("head", ("head",)),
+    *((f"{s}_{j}", (f"{s}_{j}",)) for s in SIDES for j in _LIMBS)))
 # BlazePose has no pelvis landmark: its root is the midpoint of the hips, as the 17 joints' pelvis.
 BLAZEPOSE33 = Skeleton("blazepose33", BLAZEPOSE_LANDMARKS, BLAZEPOSE_BONES, root="mid_hip",
-                       root_of=("left_hip", "right_hip"))
+                       root_of=("left_hip", "right_hip"), roles=(
+    ("mid_hip", ("left_hip", "right_hip")), ("neck", ("left_shoulder", "right_shoulder")),
+    ("head", ("left_ear", "right_ear")),
+    *((f"{s}_{j}", (f"{side}_{j}",)) for s, side in zip(SIDES, ("right", "left"))
+      for j in (*_LIMBS, "heel", "foot_index"))))
 
-SKELETONS = {"17": H36M, "33": BLAZEPOSE33}
+SKELETONS = {"17": H36M, "33": BLAZEPOSE33}   # by the name --skeleton takes
 
 
 def skeleton_of(joints: tuple[str, ...]) -> Skeleton:

@@ -1,6 +1,7 @@
 """A take's views as recordings: posecam pose JSON files read as they are; videos and image
-folders predicted by one estimator (the models loaded once for every view), each with its own
-camera's intrinsics: from the calibration (`--calibration`, matched to the views by
+folders predicted by one estimator (the models loaded once for every view) as `posecam predict
+-o` predicts them (the same chain: metric scale, then smoothing), each with its own camera's
+intrinsics: from the calibration (`--calibration`, matched to the views by
 `Rig.match_names`), from `--intrinsics` (a file, or a calibration's camera per view), from the
 flags, or posecam's default lens.
 
@@ -20,6 +21,7 @@ from posecam.io.calibration import read_calibration
 from posecam.io.intrinsics import IntrinsicsOptions, is_calibration
 from posecam.io.poses import read_poses
 from posecam.media import DEFAULT_FPS, FrameSelection, open_media
+from posecam.metric import MetricOptions
 from posecam.multiview.fuse import FuseOptions, check_lengths
 from posecam.results import Recording
 
@@ -53,13 +55,15 @@ def view_intrinsics(videos: list[str], intrinsics: IntrinsicsOptions | None = No
 def load_views(inputs: list[str], options: EstimatorOptions | None = None, intrinsics: IntrinsicsOptions | None = None,
                calibration: str | None = None, rig: Rig | None = None, fuse: FuseOptions | None = None,
                on_frame: OnFrame | None = None, estimator: PoseEstimator | None = None,
-               frames: FrameSelection | None = None) -> list[Recording]:
+               frames: FrameSelection | None = None, smooth: bool = True) -> list[Recording]:
     """One recording per view (a pose JSON file may hold several). Every input is opened, and
     the views' lengths compared from their headers (a warning on any difference; InputError
     past what `fuse`'s offsets allow), before anything is predicted. The videos are predicted
-    by `estimator` (default: one built from `options`); `on_frame(frame, rgb, media)` sees
-    every frame (progress bars). `frames`: the part of every view to fuse (a pose file's
-    frames are picked by their source index)."""
+    by `estimator` (default: one built from `options`) as `posecam predict` predicts them,
+    its default metric scale then, with `smooth`, smoothed: fusing them is fusing the pose
+    files `posecam predict [--no-smooth] -o` writes of them. `on_frame(frame, rgb, media)` sees
+    every frame as its ids are confirmed (progress bars). `frames`: the part of every view to
+    fuse (a pose file's frames are picked by their source index)."""
     videos = [p for p in inputs if Path(p).suffix.lower() != ".json"]
     media = {p: open_media(p, frames) for p in videos}
     ks = dict(zip(videos, view_intrinsics(videos, intrinsics, calibration, rig)))
@@ -76,8 +80,17 @@ def load_views(inputs: list[str], options: EstimatorOptions | None = None, intri
         estimator = shared_estimator(options)
     recordings = []
     for path in inputs:
-        recordings += [estimator.predict_file(path, ks[path], on_frame, frames=frames)] if path in media else poses[path]
+        recordings += [_predicted(estimator, path, ks[path], on_frame, frames, smooth)] if path in media else poses[path]
     return recordings
+
+
+def _predicted(estimator: PoseEstimator, path: str, intrinsics: IntrinsicsOptions, on_frame: OnFrame | None,
+               frames: FrameSelection | None, smooth: bool) -> Recording:
+    stream = estimator.stream_file(path, intrinsics, frames)
+    stream.recording.frames = list(stream.poses(smooth, MetricOptions(), {"confirm": on_frame}))
+    for note in stream.notes:
+        warn(f"{path}: {note}")
+    return stream.recording
 
 
 def select_frames(rec: Recording, frames: FrameSelection | None) -> Recording:

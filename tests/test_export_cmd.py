@@ -26,7 +26,7 @@ from export.convert.onnx_export import (IMAGENET_MEAN, IMAGENET_STD, differences
                                 run_onnx, run_torch)
 from posecam.inference.contract import InputSpec  # noqa: E402
 from posecam.geometry.camera import Intrinsics  # noqa: E402
-from posecam.inference.pose_model import RootDepthPoseModel  # noqa: E402
+from posecam.inference.pose_model import RootDepthPoseModel, make_lifter  # noqa: E402
 from posecam.inference.roi import Roi  # noqa: E402
 from posecam.inference.session import load_model, to_input_tensor  # noqa: E402
 
@@ -98,17 +98,19 @@ def test_runtime_model_back_projects(exported):
     rgb = cv2.cvtColor(cv2.imread(str(DATA / "messi5.jpg")), cv2.COLOR_BGR2RGB)
     h, w = rgb.shape[:2]
     k = Intrinsics(2 * 500.0, 2 * 500.0, w / 2, h / 2)
-    pose = RootDepthPoseModel(load_model(str(exported)))
+    model = load_model(str(exported))
+    pose, lift = RootDepthPoseModel(model), make_lifter(model.contract)
     rois = [Roi(280, 190, 300), Roi(100, 150, 200)]
-    people = pose(rgb, rois, k)
+    people = pose(rgb, rois)
     assert len(people) == 2
     raw = run_onnx(exported, np.stack([r.crop(rgb, SIZE) for r in rois]),
                    np.array([[r.cx / w, r.cy / h, r.size / w, r.size / h] for r in rois], np.float32))
     f_ratio = (1000.0 / w) / (1680.0 / 1088.0)
     for p, uv, d, z in zip(people, raw["uv"], raw["depth"], raw["z_root"]):
-        np.testing.assert_allclose(p.keypoints_3d[:, 2], d + z[0] * f_ratio, rtol=1e-5)   # z_i = d_i + z_a
-        x = (p.keypoints_2d[:, 0] - k.cx) * p.keypoints_3d[:, 2] / k.fx                  # eq. 4
-        np.testing.assert_allclose(p.keypoints_3d[:, 0], x, rtol=1e-6, atol=1e-6)
+        xyz = lift(p, k, w)
+        np.testing.assert_allclose(xyz[:, 2], d + z[0] * f_ratio, rtol=1e-5)   # z_i = d_i + z_a
+        x = (p.keypoints_2d[:, 0] - k.cx) * xyz[:, 2] / k.fx                  # eq. 4
+        np.testing.assert_allclose(xyz[:, 0], x, rtol=1e-6, atol=1e-6)
         assert ((p.confidence >= 0) & (p.confidence <= 1)).all()
 
 

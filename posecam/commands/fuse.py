@@ -184,7 +184,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
                          ray_address, smooth)
     with progress_bar() as progress:
         recordings = load_views(list(inputs), estimator, intrinsics, calibration, rig, opts,
-                                on_frame=frame_progress(progress), frames=selection)
+                                on_frame=frame_progress(progress), frames=selection, smooth=smooth)
     with err.status("fusing") as status:
         result = fuse_recordings(recordings, opts, progress=lambda msg: status.update(msg))
     for line in result.warnings:

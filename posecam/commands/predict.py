@@ -98,22 +98,16 @@ def explain_empty(sm: InputSummary, min_detection_score: float, min_presence: fl
 
 def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=None, draw=None, smooth: bool = True,
                    keep: bool = False, emitted=None, metric=None, frames=None, stop=None) -> tuple[list, list[InputSummary]]:
-    """Predict each input through `FileStream.poses` with a progress bar; every frame is drawn
-    (`draw(frame, rgb, media)`) as it is predicted, put at its track's metric scale (`metric`,
-    MetricOptions), then smoothed (videos), handed to `emitted(frame,
+    """Predict each input through the chain (`FileStream.poses`): a progress bar moves as each
+    frame's ids are confirmed; each frame is drawn (`draw(frame, rgb, media)`) at its track's
+    metric scale (`metric`, MetricOptions), then smoothed (videos), handed to `emitted(frame,
     recording)` (angles, plots), written (`writer`, a PoseWriter) and counted. The recordings
     hold their frames only with `keep` (markers and the 3D view need them); `frames`: the
     FrameSelection of each video or sequence; `stop` (an Event): a live source ends when it is set,
     and its pose file is flushed frame by frame."""
     from posecam.commands.common import frame_progress
 
-    moved = frame_progress(progress)
-
-    def on_frame(frame, rgb, media) -> None:
-        moved(frame, rgb, media)
-        if draw:
-            draw(frame, rgb, media)
-
+    taps = {"confirm": frame_progress(progress), "metric": draw}
     recordings, summaries = [], []
     for path in inputs:
         stream = estimator.stream_file(path, intrinsics, frames)
@@ -121,7 +115,7 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
         summary = InputSummary(stream.recording)
         if writer:
             writer.begin(stream.recording)
-        for frame in stream.poses(smooth, on_frame, metric):
+        for frame in stream.poses(smooth, metric, taps):
             if emitted:
                 emitted(frame, stream.recording)
             summary.add(frame)

@@ -12,6 +12,7 @@ import cv2
 import numpy as np
 
 from posecam.errors import InputError
+from posecam.skeleton import MIN_CONFIDENCE
 
 # 35 mm film diagonal, used to turn 35 mm-equivalent focal lengths into pixels.
 FILM_DIAGONAL_MM = 43.2666
@@ -240,14 +241,14 @@ class Rig:
         """(..., 3) points in the rig's frame -> (V, ..., 2) pixels in every camera."""
         return np.stack([c.project(points) for c in self.cameras])
 
-    def triangulate(self, uv: np.ndarray, conf: np.ndarray, min_conf: float = 0.5) -> np.ndarray:
+    def triangulate(self, uv: np.ndarray, conf: np.ndarray, min_conf: float = MIN_CONFIDENCE) -> np.ndarray:
         """(V, F, J, 2) keypoints and (V, F, J) confidences -> (F, J, 3) points (NaN: < 2 views)."""
         from posecam.geometry.triangulate import triangulate
 
         return triangulate(self.cameras, uv, conf, min_conf)
 
     def reprojection_errors(self, points: np.ndarray, uv: np.ndarray, conf: np.ndarray,
-                            min_conf: float = 0.5) -> np.ndarray:
+                            min_conf: float = MIN_CONFIDENCE) -> np.ndarray:
         """(V, F, J) pixel distance of each keypoint to its projected point; NaN where unused."""
         from posecam.geometry.triangulate import reprojection_errors
 

@@ -56,8 +56,14 @@ class FloorFit:
     reason: str = ""                    # why the feet do not support a plane
 
 
-def _mad(x: np.ndarray) -> float:
-    return float(1.4826 * np.median(np.abs(x - np.median(x))))
+MAD_SD = 1.4826   # a normal distribution's standard deviation over its median absolute deviation
+
+
+def robust_sd(x: np.ndarray, centre: float | None = None) -> float:
+    """The standard deviation of `x` from its median absolute deviation about `centre` (None:
+    the median), as if `x` were normal: robust to a few outliers."""
+    x = np.asarray(x, float)
+    return float(MAD_SD * np.median(np.abs(x - (np.median(x) if centre is None else centre))))
 
 
 def fit_floor(contacts: dict[int, np.ndarray], upright: np.ndarray) -> FloorFit:
@@ -107,13 +113,13 @@ def fit_floor(contacts: dict[int, np.ndarray], upright: np.ndarray) -> FloorFit:
         return FloorFit(None, {}, {}, f"the foot contacts' plane leans {tilt:.0f} deg from the people's vertical "
                                       "(uneven ground, or a moving camera)")
     offsets = np.concatenate([c @ normal * scales[t] - 1.0 for t, c in contacts.items()])
-    spread = _mad(offsets)
+    spread = robust_sd(offsets)
     if spread > MAX_SPREAD:
         return FloorFit(None, {}, {}, f"the foot contacts do not lie on one plane (spread {100 * spread:.0f} % of "
                                       "the camera height; a moving camera, or nobody on the ground)")
     # a track's median contact: its frames' scatter over their number, and the plane's own spread
     # (the feet's offsets from it, shared by the frames of a track: it does not average out)
-    scale_sd = {t: float(np.hypot(_mad(c @ normal * scales[t]) / np.sqrt(len(c)), spread)) for t, c in contacts.items()}
+    scale_sd = {t: float(np.hypot(robust_sd(c @ normal * scales[t]) / np.sqrt(len(c)), spread)) for t, c in contacts.items()}
     return FloorFit(Floor(normal, 1.0, spread, n_contacts, len(contacts)), scales, scale_sd)
 
 

@@ -44,3 +44,9 @@ def solve_root_translation(
         w = np.ones_like(w)
     t, *_ = np.linalg.lstsq(a * w[:, None], b * w, rcond=None)
     return t
+
+
+def place_on_keypoints(relative: np.ndarray, uv: np.ndarray, weights: np.ndarray, k: Intrinsics) -> np.ndarray:
+    """(J, 3) metric pose, in any placement -> the same pose translated onto its (J, 2) pixels
+    through `k` (`solve_root_translation`: the solve does not depend on where it starts)."""
+    return relative + solve_root_translation(relative, uv, weights, k)

@@ -9,8 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from posecam.geometry.camera import CameraCalibration
-
-MIN_CONFIDENCE = 0.5   # a joint counts (is triangulated, weighs, bounds a crop) from this confidence up
+from posecam.skeleton import MIN_CONFIDENCE
 
 
 def observation_weights(uv: np.ndarray, conf: np.ndarray, min_conf: float = MIN_CONFIDENCE) -> np.ndarray:

@@ -1,9 +1,11 @@
-"""Pose models: crops in, camera-space joints out, for both depth kinds of the model contract.
+"""Pose models and their lifters, for both depth kinds of the model contract: a pose model
+turns crops into 2D joints and the model's 3D output, which does not depend on the lens; its
+kind's lifter places that output in camera space through a lens (`make_lifter`).
 
 - `LandmarkPoseModel` (kind "landmarks", BlazePose GHUM 3D): 2D landmarks in the crop plus a
-  metric root-relative pose; the root translation is solved from the pinhole model.
+  metric root-relative pose; `LandmarkLifter` solves the root translation from the pinhole model.
 - `RootDepthPoseModel` (kind "root_depth", the paper's ResNet-U): (u, v), relative depth d_i
-  and absolute root depth z_a; z_i = d_i + z_a, then back-projection (paper eq. 4).
+  and absolute root depth z_a; `RootDepthLifter`: z_i = d_i + z_a, then back-projection (paper eq. 4).
 """
 
 from __future__ import annotations
@@ -13,21 +15,24 @@ from dataclasses import dataclass
 import numpy as np
 
 from posecam.geometry.camera import Intrinsics
-from posecam.geometry.lift import back_project, solve_root_translation
+from posecam.geometry.lift import back_project, place_on_keypoints
 from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.inference.roi import Roi
+from posecam.inference.contract import ModelContract
 from posecam.inference.session import Model, to_input_tensor
 
 
 @dataclass
 class PoseCandidate:
-    """One person's pose in the joints of the model that produced it."""
+    """One person's pose in the joints of the model that produced it, before the lift."""
 
     score: float                # presence of a person in the ROI, [0, 1]
     keypoints_2d: np.ndarray    # (J, 2) image pixels
-    keypoints_3d: np.ndarray    # (J, 3) camera coordinates, mm
+    relative: np.ndarray        # the model's 3D output, mm about the root: (J, 3) the metric pose in the
+                                # image's axes (landmarks), or (J,) the depths d_i (root_depth)
     confidence: np.ndarray      # (J,) [0, 1]
     next_roi: Roi               # where to look for this person in the next frame
+    root_depth: float = float("nan")   # root_depth: z_a (mm) for the training camera's lens
 
 
 def _sigmoid(x: np.ndarray) -> np.ndarray:
@@ -56,7 +61,7 @@ class _CropModel:
 class LandmarkPoseModel(_CropModel):
     """BlazePose GHUM 3D: 33 landmarks (+ 6 ROI helpers) and metric world landmarks."""
 
-    def __call__(self, image_rgb: np.ndarray, rois: list[Roi], k: Intrinsics) -> list[PoseCandidate]:
+    def __call__(self, image_rgb: np.ndarray, rois: list[Roi]) -> list[PoseCandidate]:
         out = self._run(image_rgb, rois)
         n_joints = len(self.joints)
         points = out["landmarks"].shape[-1] // 5   # the joints, then ROI helpers (at least 2)
@@ -69,10 +74,8 @@ class LandmarkPoseModel(_CropModel):
         for roi, lm, rel, score in zip(rois, landmarks, world, presence):
             uv = roi.to_image(lm[:, :2], self.size)
             conf = _sigmoid(lm[:n_joints, 3]) * _sigmoid(lm[:n_joints, 4])
-            rel = roi.rotate_to_image(rel)  # world landmarks come in the crop's axes
-            t = solve_root_translation(rel, uv[:n_joints], conf, k)
             result.append(PoseCandidate(
-                float(score), uv[:n_joints], rel + t, conf,
+                float(score), uv[:n_joints], roi.rotate_to_image(rel), conf,   # world landmarks: the crop's axes
                 # landmarks 33, 34: hip centre and full-body scale point, as for the detector
                 Roi.from_alignment_points(uv[n_joints], uv[n_joints + 1]),
             ))
@@ -82,23 +85,21 @@ class LandmarkPoseModel(_CropModel):
 class RootDepthPoseModel(_CropModel):
     """The paper's ResNet-U: (u, v, d) per joint, z_a per person, confidence per joint."""
 
-    def __call__(self, image_rgb: np.ndarray, rois: list[Roi], k: Intrinsics) -> list[PoseCandidate]:
+    def __call__(self, image_rgb: np.ndarray, rois: list[Roi]) -> list[PoseCandidate]:
         h, w = image_rgb.shape[:2]
         rois = [Roi(r.cx, r.cy, r.size) for r in rois]  # ResNet-U crops are upright
         boxes = np.array([[r.cx / w, r.cy / h, r.size / w, r.size / h] for r in rois], np.float32)
         out = self._run(image_rgb, rois, {self.contract.box_input: boxes})
         n, j = len(rois), len(self.joints)
         self.model.check_shapes(out, {"uv": (n, j, 2), "depth": (n, j), "z_root": (n, 1), "confidence": (n, j)})
-        # z_a was learned for one camera: rescale by the focal length in image widths.
-        f_ratio = ((k.fx + k.fy) / 2 / w) / (self.contract.train_focal / self.contract.train_image_width)
         result = []
         for i, roi in enumerate(rois):
             uv = roi.to_image(out["uv"][i].astype(np.float64), self.size)
-            z = out["depth"][i].astype(np.float64) + float(out["z_root"][i, 0]) * f_ratio  # z_i = d_i + z_a
             conf = np.clip(out["confidence"][i].astype(np.float64), 0.0, 1.0)
             confident = uv[conf >= MIN_CONFIDENCE] if (conf >= MIN_CONFIDENCE).sum() >= 2 else uv
             result.append(PoseCandidate(
-                float(conf.mean()), uv, back_project(uv, z, k), conf, Roi.around_points(confident),
+                float(conf.mean()), uv, out["depth"][i].astype(np.float64), conf, Roi.around_points(confident),
+                float(out["z_root"][i, 0]),
             ))
         return result
 
@@ -107,3 +108,29 @@ def make_pose_model(model: Model) -> LandmarkPoseModel | RootDepthPoseModel:
     if model.contract.kind == "landmarks":
         return LandmarkPoseModel(model)
     return RootDepthPoseModel(model)
+
+
+class LandmarkLifter:
+    """Kind "landmarks": the metric root-relative pose placed on its 2D keypoints through the
+    lens (the root translation in weighted least squares, the joints' confidences the weights)."""
+
+    def __call__(self, c: PoseCandidate, k: Intrinsics, width: int) -> np.ndarray:
+        return place_on_keypoints(c.relative, c.keypoints_2d, c.confidence, k)
+
+
+class RootDepthLifter:
+    """Kind "root_depth": z_i = d_i + z_a, z_a rescaled from the training camera's lens to this
+    one by the focal length in image widths (z_a was learned for one camera), then each joint
+    back-projected (paper eq. 4)."""
+
+    def __init__(self, contract: ModelContract):
+        self.train_focal_widths = contract.train_focal / contract.train_image_width
+
+    def __call__(self, c: PoseCandidate, k: Intrinsics, width: int) -> np.ndarray:
+        f_ratio = ((k.fx + k.fy) / 2 / width) / self.train_focal_widths
+        return back_project(c.keypoints_2d, c.relative + c.root_depth * f_ratio, k)
+
+
+def make_lifter(contract: ModelContract) -> LandmarkLifter | RootDepthLifter:
+    """The lifter of a pose model's kind (its contract says which)."""
+    return LandmarkLifter() if contract.kind == "landmarks" else RootDepthLifter(contract)

@@ -20,7 +20,7 @@ focal length in closed form from the depths. The principal point stays at its st
 this 3D alignment a shift of it trades against a small rotation and drifts; the bundle
 adjustment estimates it from the 2D keypoints. Only the reference camera's focal is fixed in
 stage 1 (it anchors the depths); all are free in stage 2.
-Joints with confidence below 0.5 are left out; outlier joints are down-weighted by
+Joints with confidence below MIN_CONFIDENCE (0.5) are left out; outlier joints are down-weighted by
 iteratively reweighted least squares (Cauchy).
 """
 
@@ -32,6 +32,7 @@ import numpy as np
 
 from posecam.errors import FusionError
 from posecam.geometry.camera import CameraCalibration, Intrinsics, Rig
+from posecam.geometry.floor import robust_sd
 from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.multiview.observations import Observations
 
@@ -138,7 +139,7 @@ def _robust_weights(residual: np.ndarray, w0: np.ndarray, scale: float) -> np.nd
     ok = (w0 > 0) & np.isfinite(residual)
     if not ok.any():
         return np.zeros_like(w0)
-    sigma = 1.4826 * np.median(residual[ok]) + 1e-9
+    sigma = robust_sd(residual[ok], centre=0.0) + 1e-9   # residuals are distances: about 0
     return np.where(ok, w0 / (1.0 + (np.nan_to_num(residual) / (scale * sigma)) ** 2), 0.0)
 
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from posecam.geometry.camera import Intrinsics, Rig
+from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.multiview.consensus import fuse_points, scaled_depth
 from posecam.multiview.observations import Observations
 
@@ -34,7 +35,7 @@ class FusedPerson:
 
 
 def camera_space(rig: Rig, assumed: list[Intrinsics], obs: Observations, anchor: np.ndarray | None = None,
-                 min_conf: float = 0.5) -> np.ndarray:
+                 min_conf: float = MIN_CONFIDENCE) -> np.ndarray:
     """(V, F, J, 3) each view's monocular poses rebuilt under its camera's intrinsics, in the
     rig's frame. The depth of a monocular pose is its least certain part: where `anchor`
     (F, J, 3, the triangulation of the views' 2D keypoints) gives three joints or more, each

@@ -21,7 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from posecam.geometry.camera import CameraCalibration
+from posecam.filters import butterworth
 from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
+from posecam.media import DEFAULT_FPS
 from posecam.results import Recording
 
 MIN_TRACK_FRAMES = 8            # shorter tracks are left out (detector flicker)
@@ -47,20 +49,17 @@ def shift(a: np.ndarray, offset: float, length: int, fill=np.nan) -> np.ndarray:
 
 
 def lowpass(a: np.ndarray, seen: np.ndarray, fps: float, hz: float) -> np.ndarray:
-    """(F, J, D) tracks low-passed in time (2nd-order Butterworth at `hz`, forwards and back),
-    each joint's gaps bridged where it is not `seen` (F, J), held before and after; NaN for
-    joints seen in fewer than 15 frames."""
-    from scipy.signal import butter, filtfilt
-
+    """(F, J, D) tracks low-passed in time (posecam.filters.butterworth at `hz`: 2nd order,
+    forwards and back), each joint's gaps bridged where it is not `seen` (F, J), held before
+    and after; NaN for joints seen in fewer than 15 frames."""
     out = np.full(a.shape, np.nan)
-    b, c = butter(2, min(hz / (fps / 2), 0.99))
     idx = np.arange(len(a))
     for k in range(a.shape[1]):
         ok = seen[:, k]
         if ok.sum() < 15:
             continue
         filled = np.stack([np.interp(idx, idx[ok], a[ok, k, d]) for d in range(a.shape[2])], axis=1)
-        out[:, k] = filtfilt(b, c, filled, axis=0, padlen=min(9, len(idx) - 1))
+        out[:, k] = butterworth(filled, fps, hz, order=4)
     return out
 
 
@@ -270,7 +269,7 @@ class Take:
         Observations.side_by_side puts them), low-passed at `hz` (`lowpass`; a joint seen
         below min_conf is a gap), at whole-frame offsets `window` frames either way of each
         view's offset (TimedKeypoints)."""
-        n, fps = self.lengths[self.reference], self.fps or 30.0
+        n, fps = self.lengths[self.reference], self.fps or DEFAULT_FPS
         base = np.round(offsets).astype(int) - window - 1
         steps = 2 * window + 3
         uv = np.full((len(self.names), steps, n * len(people), len(self.joints), 2), np.nan)

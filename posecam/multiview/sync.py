@@ -26,7 +26,7 @@ import numpy as np
 
 from posecam.errors import FusionError
 from posecam.geometry.camera import CameraCalibration, Rig
-from posecam.geometry.triangulate import reprojection_errors, triangulate
+from posecam.geometry.triangulate import MIN_CONFIDENCE, reprojection_errors, triangulate
 from posecam.media import DEFAULT_FPS
 from posecam.multiview.observations import PersonTracks, Take, lowpass, shift
 
@@ -135,7 +135,7 @@ def _smoothed(xyz: np.ndarray, conf: np.ndarray, fps: float, min_conf: float) ->
     return out, seen & np.isfinite(out).all(axis=-1)
 
 
-def motion_signals(xyz: np.ndarray, conf: np.ndarray, fps: float, min_conf: float = 0.5) -> tuple[np.ndarray, float]:
+def motion_signals(xyz: np.ndarray, conf: np.ndarray, fps: float, min_conf: float = MIN_CONFIDENCE) -> tuple[np.ndarray, float]:
     """(F, J) each joint's speed about the root (joint 0) in the view's monocular metric pose,
     m/s, low-passed, NaN where the joint or the root is not seen (conf < min_conf); and the
     joints' excursion (mm: median over joints of their standard deviation over time).
