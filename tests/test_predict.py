@@ -2,6 +2,7 @@
 
 import csv
 import json
+import re
 
 import numpy as np
 
@@ -120,3 +121,25 @@ def test_api_on_a_numpy_image_with_lite_model():
     est = PoseEstimator(EstimatorOptions(model="lite", max_people=1))
     frame = est.predict_image(read_image(DATA / "basketball2.png"))
     assert len(frame.people) == 1 and frame.people[0].keypoints_3d.shape == (17, 3)
+
+
+def test_summary_fits_80_columns_with_nothing_cut(tmp_path, monkeypatch):
+    """The summary as a pipe or a log shows it (80 columns): no cell cut, every input's name
+    whole (a long one folds onto a second line), the height's source in words."""
+    import shutil
+
+    monkeypatch.setenv("COLUMNS", "80")      # what rich takes off a terminal, whatever runs the tests
+    long_name = tmp_path / "messi_at_the_camp_nou_in_the_2011_final.jpg"
+    shutil.copy(DATA / "messi5.jpg", long_name)
+    r = run_posecam("predict", long_name, DATA / "basketball2.png", "--height", "1.7")
+    assert r.returncode == 0, r.stderr
+    assert "…" not in r.stdout and max(len(line) for line in r.stdout.splitlines()) <= 80, r.stdout
+    rows = [line.split("│") for line in r.stdout.splitlines() if line.startswith("│")]
+    assert "".join(cells[1].strip() for cells in rows) == long_name.name + "basketball2.png" * 2, r.stdout
+    assert sum("1.70 given" in line for line in r.stdout.splitlines()) >= 2, r.stdout
+    header = " ".join(line for line in r.stdout.splitlines() if line.startswith("┃"))
+    assert header.count(" mm ") == 3 and " m " in header, header
+    r = run_posecam("predict", long_name)       # one input: named in the title, no column for it
+    assert r.returncode == 0, r.stderr
+    assert "…" not in r.stdout and long_name.name in r.stdout, r.stdout
+    assert re.search(r"│ +[12]\.\d\d model │", r.stdout), r.stdout          # the pose model's scale
