@@ -163,7 +163,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     from posecam.multiview.fuse import FuseOptions, fuse_recordings
     from posecam.viz.render3d import VIEW3D_SUFFIXES, write_3d_view
     from posecam.angles import angle_names
-    from posecam.views import load_views
+    from posecam.views import check_views, load_views
 
     err = Console(stderr=True, highlight=False)
     check_output(output, (*POSE_SUFFIXES, *MARKER_SUFFIXES), "output")
@@ -183,6 +183,8 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
         check_input(calibration, "calibration")   # a pipe or a device would block the read
     refuse_alone("out_format", "--out-dir", bool(out_dir))
     many = out_dir is not None or jobs > 1 or ray_address is not None
+    if not many:
+        check_views(list(inputs))     # before any work: one video, a folder of videos
     if many and (output or viz or viz3d or save_calibration or angles or plot):
         raise InputError("--out-dir writes one file per take; it does not go with -o, --viz, --viz3d, --save-calibration, "
                          "--angles or --plot")
