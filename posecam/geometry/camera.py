@@ -55,7 +55,7 @@ class Intrinsics:
             raise InputError(f"fx={self.fx:g} and fy={self.fy:g} ({self.source}) differ by more than 4 times")
         if not (0 <= self.cx <= width and 0 <= self.cy <= height):
             raise InputError(f"principal point ({self.cx:g}, {self.cy:g}) from {self.source} lies outside the "
-                             f"{width}x{height} image")
+                             f"{width}x{height} image: are these intrinsics for another image size?")
         return self
 
     @property

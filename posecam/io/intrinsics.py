@@ -204,10 +204,13 @@ def _resolve(opts: IntrinsicsOptions, width: int, height: int, image_path: str |
         if is_calibration(path):
             return _from_toml(path, opts.camera, width, height)
         data = read_small(path, "intrinsics")
+        if path.suffix.lower() == ".xml" and not is_filestorage(data):   # not OpenCV's: a Qualisys calibration
+            return _from_toml(path, opts.camera, width, height)
+        if opts.camera is not None:
+            raise InputError(f"--camera picks a camera inside a calibration (TOML, .qca.txt); {path} holds one "
+                             "camera's intrinsics: leave --camera out")
         if is_filestorage(data) or is_camera_info(data):
             return _from_filestorage(path, data, width, height)
-        if path.suffix.lower() == ".xml":   # not OpenCV's: a Qualisys calibration
-            return _from_toml(path, opts.camera, width, height)
         return _from_json(path, data)
     if image_path is not None:
         f35 = focal_length_35mm(image_path)
