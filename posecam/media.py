@@ -391,7 +391,7 @@ def folder_holds(folder: Path) -> str:
         entries = sorted(folder.iterdir())
     except OSError:
         return ""
-    if any(p.suffix.lower() in IMAGE_SUFFIXES for p in entries):
+    if any(p.suffix.lower() in IMAGE_SUFFIXES and p.is_file() for p in entries):
         return ""
     videos = [p.name for p in entries if p.suffix.lower() in VIDEO_SUFFIXES and p.is_file()]
     folders = [p.name for p in entries if p.is_dir()]

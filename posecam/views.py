@@ -94,13 +94,14 @@ def check_views(inputs: list[str]) -> None:
     """Refuse, before anything is read, inputs that cannot be one take's views: a folder with
     no images (a take's folder of videos, or a folder of takes: the error says what to give
     instead), or a single video or image folder (a pose JSON alone may hold several views)."""
-    for path in inputs:
+    named = [path for path in inputs if path]     # an empty name is refused as such where it is opened
+    for path in named:
         holds = folder_holds(Path(path)) if Path(path).is_dir() else ""
         if holds:
             count, _, names = holds.partition(" (")           # "4 videos", "cam01.mp4, ...)"
             example = Path(path, "*") if "video" in count else Path(path, names.split(",")[0].rstrip(")"), "*")
             raise InputError(f"{path}: folder holds no images (one view's frames) but {holds}: give one take's "
                              f"videos as the views ({example}), or fuse folders of takes with --out-dir DIR")
-    if len(inputs) == 1 and Path(inputs[0]).suffix.lower() != ".json":
+    if len(inputs) == 1 and named and Path(inputs[0]).suffix.lower() != ".json":
         raise InputError(f"fusion needs two views or more, got 1 ({inputs[0]}): give every camera's video, image "
                          "folder or pose file")

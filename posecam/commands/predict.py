@@ -47,8 +47,8 @@ def print_summary(summaries: list[InputSummary], console, unreadable: int = 0) -
 
     root = summaries[0].rec.root_joint if summaries else "root"
     several = len(summaries) > 1
-    name = "" if several or not summaries else f" of {shown(Path(summaries[0].rec.source).name)}"
-    table = Table(title=f"posecam: {root} in camera coordinates{name}")
+    name = "" if several or not summaries else f"{shown(Path(summaries[0].rec.source).name)}: "
+    table = Table(title=f"posecam: {name}{root} in camera coordinates (mm)")
     if several:
         table.add_column("input", overflow="fold")
     for col in ("id", "frames", "x\nmm", "y\nmm", "z\nmm", "conf.", "height\nm"):
