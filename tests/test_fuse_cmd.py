@@ -1,5 +1,6 @@
 """`posecam fuse` end to end on synthetic pose files, and its bad-input behaviour."""
 
+import io
 import json
 
 import numpy as np
@@ -167,7 +168,7 @@ def test_camera_table_fits_80_columns_with_nothing_cut(tmp_path):
         cam.name = name
     result = fuse_recordings(monocular_views(cams, skeleton_motion(60), offsets=[0, 2, -1, 0]),
                              FuseOptions(sync=True))
-    console = Console(width=80, record=True, file=open("/dev/null", "w"))
+    console = Console(width=80, record=True, file=io.StringIO())
     print_report(result, console, verbose=True)
     text = console.export_text()
     _fits(text)
