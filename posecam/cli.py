@@ -79,6 +79,37 @@ def _end_now(code: int) -> None:
     os._exit(code)
 
 
+# options a user may look for under another name: (a word in the name, the parameter that
+# does it, what to say), said where no option of the command has that word
+_MEANT = (("focal", "fx", "the focal length is --fx, in pixels (--fy where it differs), or the camera's own file "
+                          "with --intrinsics FILE"),
+          ("calib", "intrinsics_file", "a camera's calibration (TOML, .qca.txt, OpenCV or ROS YAML) goes to "
+                                       "--intrinsics FILE, its camera's name to --camera NAME"))
+
+
+def _usage_message(exc: click.UsageError, group: click.Group) -> str:
+    """click's message with what to type instead: --fx for --focal (click's closest spelling
+    is --format) and the like, the command an option belongs to, an option's choices when its
+    value is missing."""
+    ctx = exc.ctx
+    if isinstance(exc, click.NoSuchOption) and ctx is not None:
+        name, params = exc.option_name, ctx.command.params
+        for word, param, say in _MEANT:
+            if (word in name and any(p.name == param for p in params)
+                    and not any(word in o for p in params for o in p.opts)):
+                return f"No such option {name!r}: {say}"
+        for other_name, other in group.commands.items():
+            if other is not ctx.command and any(name in p.opts for p in other.params):
+                return f"No such option {name!r}: it is an option of `posecam {other_name}`"
+    if isinstance(exc, click.BadOptionUsage):    # "requires an argument": click gives no context here
+        commands = [ctx.command] if ctx is not None else list(group.commands.values())
+        choices = [p.type.choices for c in commands for p in c.params
+                   if exc.option_name in p.opts and isinstance(p.type, click.Choice)]
+        if choices:
+            return f"{exc.format_message().rstrip('.')}: one of {', '.join(map(str, choices[0]))}"
+    return exc.format_message()
+
+
 class _Group(click.Group):
     """Turns every failure into one line on stderr and a documented exit code."""
 
@@ -102,7 +133,7 @@ class _Group(click.Group):
             code = 0
         except click.UsageError as exc:
             where = f" (see: {exc.ctx.command_path} -h)" if exc.ctx else ""
-            _fail(exc.format_message() + where, 2)
+            _fail(_usage_message(exc, self) + where, 2)
         except click.ClickException as exc:
             _fail(exc.format_message(), exc.exit_code)
         except PosecamError as exc:

@@ -4,6 +4,7 @@ people tallest first, or per person id (`--height 1.72`, `--height 1.72,1.21`,
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -44,6 +45,9 @@ class Heights:
         ranked: list[float] = []
         by_id: dict[int, float] = {}
         for value in values:
+            if re.fullmatch(r"\s*\d,\d\d\s*", str(value)):   # 1,72: a decimal comma, never two heights (72 m)
+                raise InputError(f"--height {value.strip()} reads as two heights, the second {value.split(',')[1]} m; "
+                                 f"metres take a decimal point: --height {value.strip().replace(',', '.')}")
             for part in str(value).split(","):
                 part = part.strip()
                 if "=" in part:

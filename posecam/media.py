@@ -383,6 +383,25 @@ def _image_files(folder: Path) -> list[Path]:
     return [p for p in entries if p.suffix.lower() in IMAGE_SUFFIXES and p.is_file()]
 
 
+def folder_holds(folder: Path) -> str:
+    """What a folder holds instead of images, for its error: "4 videos (cam01.mp4, cam02.mp4,
+    cam03.mp4, ...)", "2 folders (multi, single)"; "" when it holds images, nothing of use, or
+    cannot be listed."""
+    try:
+        entries = sorted(folder.iterdir())
+    except OSError:
+        return ""
+    if any(p.suffix.lower() in IMAGE_SUFFIXES and p.is_file() for p in entries):
+        return ""
+    videos = [p.name for p in entries if p.suffix.lower() in VIDEO_SUFFIXES and p.is_file()]
+    folders = [p.name for p in entries if p.is_dir()]
+    for names, kind in ((videos, "video"), (folders, "folder")):
+        if names:
+            listed = ", ".join(names[:3]) + (", ..." if len(names) > 3 else "")
+            return f"{len(names)} {kind}{'s' if len(names) > 1 else ''} ({listed})"
+    return ""
+
+
 def _has_exif(path: Path) -> bool:
     """True when a JPEG carries an Exif block (a camera's photo, not a frame cut from a video)."""
     with open(path, "rb") as f:
@@ -395,7 +414,8 @@ def folder_kind(folder: str | os.PathLike) -> tuple[str, list[Path]]:
     folder = Path(folder)
     files = _image_files(folder)
     if not files:
-        raise InputError(f"{folder}: folder holds no images")
+        holds = folder_holds(folder)
+        raise InputError(f"{folder}: folder holds no images" + (f" but {holds}: give them as the inputs" if holds else ""))
     matches = [_NUMBERED.match(p.stem) for p in files]
     numbered = all(matches) and len({(m.group(1), p.suffix.lower()) for m, p in zip(matches, files)}) == 1
     if numbered:

@@ -20,7 +20,7 @@ from posecam.geometry.camera import Rig
 from posecam.io.calibration import read_calibration
 from posecam.io.intrinsics import IntrinsicsOptions, is_calibration
 from posecam.io.poses import read_poses
-from posecam.media import DEFAULT_FPS, FrameSelection, open_media
+from posecam.media import DEFAULT_FPS, FrameSelection, folder_holds, open_media
 from posecam.metric import MetricOptions
 from posecam.multiview.fuse import FuseOptions, check_lengths
 from posecam.results import Recording
@@ -101,3 +101,20 @@ def select_frames(rec: Recording, frames: FrameSelection | None) -> Recording:
     fps = rec.fps or DEFAULT_FPS
     kept = frames.frames(fps, max(f.index for f in rec.frames) + 1)
     return dataclasses.replace(rec, frames=[f for f in rec.frames if f.index in kept], fps=fps / kept.step)
+
+
+def check_views(inputs: list[str]) -> None:
+    """Refuse, before anything is read, inputs that cannot be one take's views: a folder with
+    no images (a take's folder of videos, or a folder of takes: the error says what to give
+    instead), or a single video or image folder (a pose JSON alone may hold several views)."""
+    named = [path for path in inputs if path]     # an empty name is refused as such where it is opened
+    for path in named:
+        holds = folder_holds(Path(path)) if Path(path).is_dir() else ""
+        if holds:
+            count, _, names = holds.partition(" (")           # "4 videos", "cam01.mp4, ...)"
+            example = Path(path, "*") if "video" in count else Path(path, names.split(",")[0].rstrip(")"), "*")
+            raise InputError(f"{path}: folder holds no images (one view's frames) but {holds}: give one take's "
+                             f"videos as the views ({example}), or fuse folders of takes with --out-dir DIR")
+    if len(inputs) == 1 and named and Path(inputs[0]).suffix.lower() != ".json":
+        raise InputError(f"fusion needs two views or more, got 1 ({inputs[0]}): give every camera's video, image "
+                         "folder or pose file")

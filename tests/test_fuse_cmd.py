@@ -1,5 +1,6 @@
 """`posecam fuse` end to end on synthetic pose files, and its bad-input behaviour."""
 
+import io
 import json
 
 import numpy as np
@@ -30,8 +31,8 @@ def test_fuse_with_known_calibration(tmp_path):
     assert r.returncode == 0, r.stderr
     doc = json.loads(out.read_text())
     assert doc["inputs"][0]["source"] == "fused" and doc["inputs"][0]["frame"] == "world"
-    rows = [line.split("|") for line in r.stdout.replace("│", "|").splitlines() if line.count("|") > 5]
-    offsets = {cells[1].strip(): float(cells[2].split()[0]) for cells in rows if cells[1].strip() in [c.name for c in cams]}
+    rows = [line.split("│") for line in r.stdout.splitlines() if line.startswith("│")]
+    offsets = {cells[1].strip(): float(cells[2].split()[0]) for cells in rows}
     assert np.allclose([offsets[c.name] for c in cams], [0, 2, -1, 0], atol=0.25), r.stdout   # sub-frame
 
 
@@ -84,8 +85,8 @@ def test_fuse_with_qualisys_calibration(tmp_path):
     warnings = [line for line in r.stderr.splitlines() if line.startswith("posecam: warning:")]
     assert len(warnings) == 1 and "sorted order" in warnings[0] and "back=cam01" in warnings[0], r.stderr
     assert json.loads(out.read_text())["inputs"][0]["frame"] == "world"
-    rows = [line for line in r.stdout.replace("│", "|").splitlines() if line.count("|") > 5 and "front" in line]
-    assert rows and float(rows[0].split("|")[3]) < 10, r.stdout        # error px: the right cameras
+    rows = [line for line in r.stdout.splitlines() if line.startswith("│") and "front" in line]
+    assert rows and float(rows[0].split("│")[3]) < 10, r.stdout        # reprojection px: the right cameras
 
 
 @pytest.mark.parametrize("sync", [("--sync", "auto"), ("--offsets", "0,0")])
@@ -184,3 +185,71 @@ def test_fusing_videos_is_fusing_the_pose_files_predict_writes_of_them(tmp_path)
     assert len(fused["videos"]) >= 18 and fused["videos"].keys() == fused["files"].keys()
     worst = max(np.abs(fused["videos"][key] - fused["files"][key]).max() for key in fused["files"])
     assert worst < 1.0, worst
+
+
+# ---- the camera table: read at 80 columns, the width of a pipe, a log and most terminals ----
+
+NAMES = ["cam01_gopro_left", "phone", "CAM-3 (tripod)", "cam_04_the_one_on_the_far_wall_by_the_door"]
+
+
+def _first_column(text: str) -> str:
+    """The first column's cells of every table row, top to bottom, joined (a folded name whole again)."""
+    rows = [line.split("│") for line in text.splitlines() if line.startswith("│")]
+    return "".join(cells[1].strip() for cells in rows)
+
+
+def _fits(text: str, width: int = 80) -> None:
+    assert "…" not in text, text                 # rich's mark of a cell cut short
+    assert max(len(line) for line in text.splitlines()) <= width, text
+
+
+def test_camera_table_fits_80_columns_with_nothing_cut(tmp_path):
+    """Every cell of both tables whole at 80 columns: the names (a long one folds onto a second
+    line rather than lose its end), offsets with their spread, every spread; units in the
+    headers. Drawn by rich as a pipe draws it (Console width 80)."""
+    from rich.console import Console
+
+    from posecam.commands.fuse import print_report
+    from posecam.multiview.fuse import FuseOptions, fuse_recordings
+
+    cams = make_rig()
+    for cam, name in zip(cams, NAMES):
+        cam.name = name
+    result = fuse_recordings(monocular_views(cams, skeleton_motion(60), offsets=[0, 2, -1, 0]),
+                             FuseOptions(sync=True))
+    console = Console(width=80, record=True, file=io.StringIO())
+    print_report(result, console, verbose=True)
+    text = console.export_text()
+    _fits(text)
+    assert _first_column(text) == "".join(NAMES) * 2, text
+    for name in NAMES[:3]:       # the names most rigs have fit on their line
+        assert sum(f"│ {name} " in line for line in text.splitlines()) == 2, text
+    header = " ".join(line for line in text.splitlines() if line.startswith("┃"))
+    for unit in ("frames", "px", "deg", "%", "mm", "m"):
+        assert f" {unit} " in header, header
+    rows = [line.split("│") for line in text.splitlines() if line.startswith("│") and "±" in line]
+    assert len(rows) == 3 and all(len(cells) == 9 and all(c.strip() for c in cells[1:8]) for cells in rows), text
+    assert [cells[2].split()[0] for cells in rows] == [f"{c.offset:g}" for c in result.cameras[1:]], text
+
+
+def test_camera_table_through_a_pipe(tmp_path):
+    """The CLI in a process of its own, stdout a pipe and no terminal anywhere (as in a log):
+    rich's 80 columns, nothing cut, the names whole."""
+    import os
+    import subprocess
+    import sys
+
+    cams = make_rig()
+    for cam, name in zip(cams, NAMES[:3] + ["left"]):
+        cam.name = name
+    paths = []
+    for rec in monocular_views(cams, skeleton_motion(40)):
+        paths.append(tmp_path / f"view{len(paths)}.json")
+        write_poses(paths[-1], [rec])
+    env = {k: v for k, v in os.environ.items() if k not in ("COLUMNS", "LINES")}
+    r = subprocess.run([sys.executable, "-m", "posecam", "fuse", *paths], stdin=subprocess.DEVNULL,
+                       capture_output=True, text=True, env=env, timeout=300)
+    assert r.returncode == 0, r.stderr
+    _fits(r.stdout)
+    assert _first_column(r.stdout) == "".join(NAMES[:3]) + "left", r.stdout
+    assert "--verbose" in " ".join(r.stdout.split())     # the legend says where the rest is

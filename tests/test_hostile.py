@@ -414,3 +414,69 @@ def test_the_folder_rule(tmp_path, files, kind):
     assert got == kind
     if kind == "sequence":
         assert [p.name for p in paths] == sorted(files, key=lambda n: int("".join(c for c in n if c.isdigit())))
+
+
+# ---- hints: a wrong input as a new user types it gets a line that says what to do instead ----
+
+@pytest.fixture
+def takes(tmp_path):
+    """A take's folder of two videos, a folder of two takes, a photo."""
+    for take in ("one", "two"):
+        (tmp_path / "takes" / take).mkdir(parents=True)
+        for cam in ("cam01", "cam02"):
+            shutil.copy(DATA / "balance_cam01_30f.mp4", tmp_path / "takes" / take / f"{cam}.mp4")
+    shutil.copy(DATA / "messi5.jpg", tmp_path / "messi.jpg")                                  # 548x342
+    (tmp_path / "portrait.json").write_text(json.dumps({"fx": 1400, "cx": 540, "cy": 960}))   # for 1080x1920
+    return tmp_path
+
+
+# (id, command (formatted with the folder), words the one error line must hold); the intrinsics
+# rows are refused per input, once the model is loaded (every other row before)
+HINTS = [
+    ("fuse-folder-of-videos", "fuse {t}/takes/one", ["but 2 videos (cam01.mp4, cam02.mp4)",
+                                                     "give one take's videos as the views ({t}/takes/one/*)",
+                                                     "folders of takes with --out-dir DIR"]),
+    ("fuse-folder-of-takes", "fuse {t}/takes", ["but 2 folders (one, two)", "({t}/takes/one/*)", "--out-dir DIR"]),
+    ("fuse-one-video", "fuse {t}/takes/one/cam01.mp4", ["fusion needs two views or more, got 1",
+                                                        "give every camera's video"]),
+    ("predict-folder-of-videos", "predict {t}/takes/one", ["but 2 videos (cam01.mp4, cam02.mp4): give them as the "
+                                                           "inputs"]),
+    ("predict-focal", "predict {t}/messi.jpg --focal 1000", ["'--focal': the focal length is --fx, in pixels",
+                                                             "--intrinsics FILE"]),
+    ("fuse-focal-length", "fuse {t}/takes/one/cam01.mp4 {t}/takes/one/cam02.mp4 --focal-length 1000",
+     ["'--focal-length': the focal length is --fx"]),
+    ("predict-calibration", "predict {t}/messi.jpg --calibration Calib.toml",
+     ["calibration (TOML, .qca.txt, OpenCV or ROS YAML) goes to --intrinsics FILE", "--camera NAME"]),
+    ("predict-fuse-option", "predict {t}/messi.jpg --offsets 0,1", ["'--offsets': it is an option of `posecam fuse`"]),
+    ("fuse-predict-option", "fuse {t}/takes/one/cam01.mp4 {t}/takes/one/cam02.mp4 --show",
+     ["'--show': it is an option of `posecam predict`"]),
+    ("sync-without-value", "fuse {t}/takes/one/cam01.mp4 {t}/takes/one/cam02.mp4 --sync",
+     ["'--sync' requires an argument: one of none, auto"]),
+    ("height-decimal-comma", "predict {t}/messi.jpg --height 1,72", ["reads as two heights", "--height 1.72"]),
+    ("camera-of-one-camera", "predict {t}/messi.jpg --intrinsics {t}/portrait.json --camera cam01",
+     ["--camera picks a camera inside a calibration", "leave --camera out"]),
+    ("intrinsics-of-another-size", "predict {t}/messi.jpg --intrinsics {t}/portrait.json",
+     ["lies outside the 548x342 image: are these intrinsics for another image size?"]),
+]
+
+
+@pytest.mark.parametrize("row", HINTS, ids=[r[0] for r in HINTS])
+def test_a_wrong_input_says_what_to_do(takes, row, monkeypatch):
+    """Exit 2, one line, the hint; and nothing predicted first: the models are never loaded
+    (but for the intrinsics rows: each input's own are resolved when it is opened)."""
+    import posecam.estimate
+
+    _, command, words = row
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("a model was loaded before the input was refused")
+
+    if "intrinsics" not in command:
+        monkeypatch.setattr(posecam.estimate, "shared_estimator", no_work)
+        monkeypatch.setattr("posecam.views.shared_estimator", no_work)
+    r = run_posecam(*[a.format(t=takes) for a in shlex.split(command)])
+    words = [w.format(t=takes) for w in words]
+    check_promise(r, 2, words[0])
+    for word in words[1:]:
+        assert word in r.stderr, r.stderr
+    assert "--format" not in r.stderr, r.stderr          # click's closest spelling for --focal

@@ -79,3 +79,95 @@ def test_deeply_nested_json_is_refused(tmp_path):
     p.write_text("[" * 200000 + "]" * 200000)
     with pytest.raises(InputError, match="nested too deeply"):
         resolve_intrinsics(IntrinsicsOptions(file=str(p)), 640, 480)
+
+
+def _camera_info_yaml(path, width, height, k, d=(-0.017697, -0.00727, 0.005751, -0.000139, 0.0)):
+    """A ROS camera_info YAML as ROS's camera_calibration writes it (calibrator.py, `lryaml`):
+    no %YAML header, plain {rows, cols, data} maps, numbers as "%8f"."""
+    def numbers(values):
+        return ", ".join("%8f" % v for v in values)
+
+    p = [k[0][0], 0, k[0][2], 0, 0, k[1][1], k[1][2], 0, 0, 0, 1, 0]
+    path.write_text(f"image_width: {width}\nimage_height: {height}\ncamera_name: narrow_stereo\n"
+                    f"camera_matrix:\n  rows: 3\n  cols: 3\n  data: [{numbers(sum(k, []))}]\n"
+                    f"distortion_model: plumb_bob\ndistortion_coefficients:\n  rows: 1\n  cols: 5\n"
+                    f"  data: [{numbers(d)}]\nrectification_matrix:\n  rows: 3\n  cols: 3\n"
+                    f"  data: [{numbers([1, 0, 0, 0, 1, 0, 0, 0, 1])}]\n"
+                    f"projection_matrix:\n  rows: 3\n  cols: 4\n  data: [{numbers(p)}]\n")
+    return path
+
+
+K_1280 = [[1015.5, 0, 640.25], [0, 1012.75, 401.5], [0, 0, 1]]
+
+
+def test_ros_camera_info_yaml_is_read(tmp_path):
+    ros = _camera_info_yaml(tmp_path / "ost.yaml", 1280, 800, K_1280)
+    k = resolve_intrinsics(IntrinsicsOptions(file=str(ros)), 1280, 800)
+    assert (k.fx, k.fy, k.cx, k.cy, k.source) == (1015.5, 1012.75, 640.25, 401.5, "file:ost.yaml")
+
+
+def test_a_file_for_another_resolution_is_scaled_with_a_warning(tmp_path):
+    """The same picture at half the resolution: every intrinsic halves (the pinhole's pixels
+    are twice as large), and the user is told, since a mode that crops the sensor would not."""
+    from posecam.errors import PosecamWarning
+
+    ros = _camera_info_yaml(tmp_path / "ost.yaml", 1280, 800, K_1280)
+    with pytest.warns(PosecamWarning, match="calibrated for 1280x800 images, the input is 640x400: its "
+                                            "intrinsics scaled by 0.5"):
+        k = resolve_intrinsics(IntrinsicsOptions(file=str(ros)), 640, 400)
+    assert (k.fx, k.fy, k.cx, k.cy) == (1015.5 / 2, 1012.75 / 2, 640.25 / 2, 401.5 / 2)
+
+
+def _filestorage_yaml(path, width, height, k):
+    import cv2
+    import numpy as np
+
+    storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+    storage.write("image_width", width)
+    storage.write("image_height", height)
+    storage.write("camera_matrix", np.array(k, dtype=float))
+    storage.write("distortion_coefficients", np.zeros((5, 1)))
+    storage.release()
+    return path
+
+
+@pytest.mark.parametrize("kind", ["opencv", "ros"])
+@pytest.mark.parametrize("size, words", [
+    ((1080, 1920), "is 1080x1920; the input is turned a quarter from the calibration"),   # portrait video
+    ((1920, 1440), "is 1920x1440; give intrinsics for this size"),                        # a 4:3 mode
+])
+def test_a_file_for_another_shape_is_refused(tmp_path, kind, size, words):
+    k = [[1400.0, 0, 960.0], [0, 1400.0, 540.0], [0, 0, 1]]
+    path = (_filestorage_yaml(tmp_path / "k.yml", 1920, 1080, k) if kind == "opencv"
+            else _camera_info_yaml(tmp_path / "k.yaml", 1920, 1080, k))
+    with pytest.raises(InputError, match=f"calibrated for 1920x1080 images, the input {words}"):
+        resolve_intrinsics(IntrinsicsOptions(file=str(path)), *size)
+
+
+def test_a_landscape_file_for_a_portrait_photo_is_refused_by_the_cli(tmp_path):
+    from conftest import EXAMPLES, run_posecam
+
+    landscape = _filestorage_yaml(tmp_path / "phone.yml", 1920, 1080, [[1400.0, 0, 960.0], [0, 1400.0, 540.0],
+                                                                       [0, 0, 1]])
+    out = tmp_path / "b.json"
+    r = run_posecam("predict", EXAMPLES / "balance.jpg", "--intrinsics", landscape, "-o", out)   # 1080x1920
+    assert r.returncode == 2 and "turned a quarter" in r.stderr and len(r.stderr.splitlines()) == 1, r.stderr
+    assert not out.exists()
+    portrait = _camera_info_yaml(tmp_path / "ost.yaml", 1080, 1920, [[1400.0, 0, 540.0], [0, 1400.0, 960.0],
+                                                                     [0, 0, 1]])
+    r = run_posecam("predict", EXAMPLES / "balance.jpg", "--intrinsics", portrait, "-o", out)
+    assert r.returncode == 0, r.stderr
+    assert json.loads(out.read_text())["inputs"][0]["intrinsics"] == {"fx": 1400.0, "fy": 1400.0, "cx": 540.0,
+                                                                      "cy": 960.0, "source": "file:ost.yaml"}
+
+
+@pytest.mark.parametrize("edit, words", [
+    (("rows: 3\n  cols: 3\n  data: [1015", "rows: 2\n  cols: 3\n  data: [1015"), "camera_matrix: must be a 3x3 matrix"),
+    (("image_width: 1280", "image_width: wide"), "image_width: must be a whole number"),
+    (("camera_matrix:", "camera_matrix: [\n"), r"not a readable OpenCV FileStorage or ROS camera_info YAML \(line 7: "),
+])
+def test_a_broken_camera_info_is_refused_in_one_line(tmp_path, edit, words):
+    ros = _camera_info_yaml(tmp_path / "ost.yaml", 1280, 800, K_1280)
+    ros.write_text(ros.read_text().replace(*edit, 1))
+    with pytest.raises(InputError, match=words):
+        resolve_intrinsics(IntrinsicsOptions(file=str(ros)), 1280, 800)

@@ -2,6 +2,7 @@
 
 import csv
 import json
+import re
 
 import numpy as np
 
@@ -189,3 +190,25 @@ def test_the_depth_drawn_on_a_video_is_the_depth_written(tmp_path, monkeypatch):
     assert r.returncode == 0, r.stderr
     written = _written_labels(out)
     assert len(written) >= 12 and drawn[::2] == drawn[1::2] == written
+
+
+def test_summary_fits_80_columns_with_nothing_cut(tmp_path, monkeypatch):
+    """The summary as a pipe or a log shows it (80 columns): no cell cut, every input's name
+    whole (a long one folds onto a second line), the height's source in words."""
+    import shutil
+
+    monkeypatch.setenv("COLUMNS", "80")      # what rich takes off a terminal, whatever runs the tests
+    long_name = tmp_path / "messi_at_the_camp_nou_in_the_2011_final.jpg"
+    shutil.copy(DATA / "messi5.jpg", long_name)
+    r = run_posecam("predict", long_name, DATA / "basketball2.png", "--height", "1.7")
+    assert r.returncode == 0, r.stderr
+    assert "…" not in r.stdout and max(len(line) for line in r.stdout.splitlines()) <= 80, r.stdout
+    rows = [line.split("│") for line in r.stdout.splitlines() if line.startswith("│")]
+    assert "".join(cells[1].strip() for cells in rows) == long_name.name + "basketball2.png" * 2, r.stdout
+    assert sum("1.70 given" in line for line in r.stdout.splitlines()) >= 2, r.stdout
+    header = " ".join(line for line in r.stdout.splitlines() if line.startswith("┃"))
+    assert header.count(" mm ") == 3 and " m " in header, header
+    r = run_posecam("predict", long_name)       # one input: named in the title, no column for it
+    assert r.returncode == 0, r.stderr
+    assert "…" not in r.stdout and long_name.name in r.stdout, r.stdout
+    assert re.search(r"│ +[12]\.\d\d model │", r.stdout), r.stdout          # the pose model's scale

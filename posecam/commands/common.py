@@ -100,8 +100,10 @@ def intrinsics_options(per_camera: bool = False) -> Callable:
             click.option("--cy", type=Bounded(-MAX_PIXEL, MAX_PIXEL), help="Principal point y in pixels; defaults to the image centre."),
             click.option("--intrinsics", "intrinsics_file", type=click.Path(),
                          help="JSON with fx, fy, cx, cy (or a 3x3 matrix), OpenCV's FileStorage YAML/XML "
-                              "(camera_matrix), or a calibration: anipose/Pose2Sim TOML or Qualisys .qca.txt "
-                              "(with --camera)."),
+                              "(camera_matrix), a ROS camera_info YAML, or a calibration: anipose/Pose2Sim TOML "
+                              "or Qualisys .qca.txt (with --camera). A file that gives its image size must suit "
+                              "the input's: the same picture at another resolution is scaled (with a warning), "
+                              "another shape refused."),
             click.option("--camera", help=camera_help),
         ]):
             f = opt(f)

@@ -24,11 +24,13 @@ def _spread(rep) -> tuple[str, str, str]:
     return ("", "", "") if s is None else (f"{s.rotation_deg:.2f}", f"{s.focal_pct:.1f}", f"{s.position_mm:.0f}")
 
 
-def _offset(rep) -> str:
+def _offset(rep, confidence: bool = True) -> str:
+    """"4.5 ±1.3 (0.82)": the offset in frames, ± one standard deviation and the confidence of
+    --sync auto where it found it (without `confidence`: the table's cell, "4.5 ±1.3")."""
     if rep.offset_confidence >= 1 and not rep.offset_spread:
         return f"{rep.offset:g}"
     spread = f" ±{rep.offset_spread:.1f}" if 0 < rep.offset_spread < float("inf") else ""
-    return f"{rep.offset:g}{spread} ({rep.offset_confidence:.2f})"
+    return f"{rep.offset:g}{spread}" + (f" ({rep.offset_confidence:.2f})" if confidence else "")
 
 
 def camera_comments(result: FusionResult) -> dict[str, str]:
@@ -43,27 +45,47 @@ def camera_comments(result: FusionResult) -> dict[str, str]:
     return out
 
 
-def print_report(result: FusionResult, console) -> None:
+def _table(title: str, columns: tuple[str, ...]):
+    """A report table whose first column (the camera names) folds rather than lose a letter
+    when the console is narrow (80 columns in a pipe or a log); the others never wrap."""
     from rich.table import Table
 
+    table = Table(title=title)
+    table.add_column(columns[0], overflow="fold")
+    for col in columns[1:]:
+        table.add_column(col, justify="right", no_wrap=True)
+    return table
+
+
+def print_report(result: FusionResult, console, verbose: bool = False) -> None:
+    """The cameras at a glance (offset, reprojection error, focal length, the spreads of an
+    estimated rig), 80 columns wide; `verbose`: a second table with the rest."""
     estimated = any(rep.spread is not None for rep in result.cameras)
-    table = Table(title=f"posecam fuse: cameras ({result.recording.frame_of_reference})")
-    for col in ("camera", "offset", "error px", "joints", "L/R", "f px", "cx, cy", "centre m",
-                *(("±rot deg", "±f %", "±pos mm") if estimated else ())):
-        table.add_column(col, justify="left" if col == "camera" else "right", no_wrap=True)
-    for rep, cam in zip(result.cameras, result.rig.cameras):
-        fx, fy, cx, cy = rep.intrinsics
-        focal = f"{fx:.0f}" if abs(fx - fy) < 0.5 else f"{fx:.0f}/{fy:.0f}"
-        table.add_row(shown(rep.name), _offset(rep), f"{rep.reprojection_px:.1f}", str(rep.joints_used),
-                      str(rep.swaps_fixed), focal, f"{cx:.0f}, {cy:.0f}", " ".join(f"{v / 1000:.1f}" for v in cam.centre),
-                      *(_spread(rep) if estimated else ()))
+    table = _table(f"posecam fuse: cameras ({result.recording.frame_of_reference})",
+                   ("camera", "offset\nframes", "reproj.\npx", "focal\npx",
+                    *(("±rot\ndeg", "±focal\n%", "±pos\nmm") if estimated else ())))
+    for rep in result.cameras:
+        fx, fy = rep.intrinsics[:2]
+        table.add_row(shown(rep.name), _offset(rep, confidence=False), f"{rep.reprojection_px:.1f}",
+                      f"{fx:.0f}" if abs(fx - fy) < 0.5 else f"{fx:.0f}/{fy:.0f}", *(_spread(rep) if estimated else ()))
     console.print(table)
+    if verbose:
+        details = _table("cameras: details", ("camera", "offset\nconf.", "joints\nused", "L/R\nswaps", "cx, cy\npx",
+                                              "centre x, y, z\nm"))
+        for rep, cam in zip(result.cameras, result.rig.cameras):
+            details.add_row(shown(rep.name), f"{rep.offset_confidence:.2f}", str(rep.joints_used), str(rep.swaps_fixed),
+                            f"{rep.intrinsics[2]:.0f}, {rep.intrinsics[3]:.0f}",
+                            ", ".join(f"{v / 1000:.2f}" for v in cam.centre))
+        console.print(details)
     console.print(f"metric scale: {result.scale_source}")
-    console.print("offset: frames against the first view (found by --sync auto: ± one standard deviation where "
-                  "known, confidence 0..1); error px: median reprojection error of the fused joints; joints: joints "
-                  "used; L/R: frames with left and right swapped back; f px, cx, cy: intrinsics; centre m: "
-                  "camera centre" + ("; ±rot, ±f, ±pos: one standard deviation of each estimated camera's rotation, "
-                                     "focal length and position (at the rig's scale)" if estimated else ""), style="dim")
+    console.print("offset: frames against the first view, ± one standard deviation where --sync auto found it; "
+                  "reproj.: median reprojection error of the fused joints; focal: fx (fx/fy where they differ)"
+                  + ("; ±rot, ±focal, ±pos: one standard deviation of each estimated camera's rotation, focal "
+                     "length and position (at the rig's scale)" if estimated else "")
+                  + ("; offset conf.: --sync auto's confidence, 0 to 1; joints used: joint observations fused; L/R "
+                     "swaps: frames with left and right swapped back" if verbose else
+                     "; --verbose: each camera's joints used, left/right swaps, principal point and centre"),
+                  style="dim")
 
 
 MAX_OFFSET = 1000   # frames: --max-offset and each of --offsets
@@ -108,6 +130,8 @@ def parse_offsets(text: str) -> list[float]:
               help="Largest frame offset --sync auto tries, in frames either way.")
 @click.option("--viz", type=click.Path(), help="FILE.png or FILE.jpg: the fused pose projected into every view, in "
                                                "one frame (named on it); FILE.mp4: every fused frame.")
+@click.option("--verbose", is_flag=True, help="Add a table of each camera's joints used, left/right swaps, "
+                                              "principal point and centre to the report.")
 @height_option
 @angle_options
 @frame_options
@@ -139,7 +163,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     from posecam.multiview.fuse import FuseOptions, fuse_recordings
     from posecam.viz.render3d import VIEW3D_SUFFIXES, write_3d_view
     from posecam.angles import angle_names
-    from posecam.views import load_views
+    from posecam.views import check_views, load_views
 
     err = Console(stderr=True, highlight=False)
     check_output(output, (*POSE_SUFFIXES, *MARKER_SUFFIXES), "output")
@@ -159,6 +183,8 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
         check_input(calibration, "calibration")   # a pipe or a device would block the read
     refuse_alone("out_format", "--out-dir", bool(out_dir))
     many = out_dir is not None or jobs > 1 or ray_address is not None
+    if not many:
+        check_views(list(inputs))     # before any work: one video, a folder of videos
     if many and (output or viz or viz3d or save_calibration or angles or plot):
         raise InputError("--out-dir writes one file per take; it does not go with -o, --viz, --viz3d, --save-calibration, "
                          "--angles or --plot")
@@ -218,5 +244,5 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
                 series.add(frame)
             write_plot(staged.path(plot), series, f"fused {len(result.views)} views")
         with stdout_report() as console:   # stdout is an output too: written before the files are
-            print_report(result, console)
+            print_report(result, console, flags.pop("verbose", False))
             report_written([*written, save_calibration, viz, viz3d, plot], console)

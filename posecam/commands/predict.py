@@ -36,28 +36,35 @@ class InputSummary:
             totals[0] += 1
             totals[1] = totals[1] + p.root
             totals[2] += float(p.confidence.mean())
-            if p.height_source:         # the latest: the track's scale as the video went on
-                totals[3] = f"{p.height:.2f} {p.height_source[0]}"
+            if p.height_source:         # the latest: the track's scale as the video went on ("given, rank 2": given)
+                totals[3] = f"{p.height:.2f} {p.height_source.split(',')[0]}"
 
 
 def print_summary(summaries: list[InputSummary], console, unreadable: int = 0) -> None:
+    """Each person's mean root position, 80 columns wide: one input is named in the title,
+    several in a first column (a long name folds rather than lose a letter)."""
     from rich.table import Table
 
     root = summaries[0].rec.root_joint if summaries else "root"
-    table = Table(title=f"posecam: {root} in camera coordinates (mm)")
-    for col in ("input", "frames", "person", "x", "y", "z", "mean conf.", "height"):
-        table.add_column(col, justify="right" if col not in ("input",) else "left")
+    several = len(summaries) > 1
+    name = "" if several or not summaries else f"{shown(Path(summaries[0].rec.source).name)}: "
+    table = Table(title=f"posecam: {name}{root} in camera coordinates (mm)")
+    if several:
+        table.add_column("input", overflow="fold")
+    for col in ("id", "frames", "x\nmm", "y\nmm", "z\nmm", "conf.", "height\nm"):
+        table.add_column(col, justify="right", no_wrap=True)
     for sm in summaries:
-        name = shown(Path(sm.rec.source).name)
+        first = (shown(Path(sm.rec.source).name),) if several else ()
         for pid, (n, root_sum, conf_sum, height) in sorted(sm.people.items()):
-            table.add_row(name, str(n), str(pid), *(f"{v:.0f}" for v in root_sum / n), f"{conf_sum / n:.2f}",
+            table.add_row(*first, str(pid), str(n), *(f"{v:.0f}" for v in root_sum / n), f"{conf_sum / n:.2f}",
                           height or "-")
         if not sm.people:
-            table.add_row(name, str(sm.frames), "-", "-", "-", "-", "-", "-")
+            table.add_row(*first, "-", str(sm.frames), "-", "-", "-", "-", "-")
     console.print(table)
-    console.print(f"frames: frames the person is in; x right, y down, z forward (depth): mean of the person's "
-                  f"{root} position; mean conf.: mean joint confidence, 0 to 1; height: m, the person's scale "
-                  "fixed with it, g given, f from the floor, m the pose model's", style="dim")
+    console.print(f"frames: frames the person is in; x right, y down, z forward (depth): the mean of the person's "
+                  f"{root} position; conf.: mean joint confidence, 0 to 1; height: the one the person's scale was "
+                  "fixed with, given (--height), floor (the ground plane's) or model (the pose model's bone lengths)",
+                  style="dim")
     known = [sm.rec for sm in summaries if sm.rec.intrinsics]
     same = len({(r.intrinsics.fx, r.intrinsics.fy, r.intrinsics.cx, r.intrinsics.cy) for r in known}) == 1
     for rec in known[:1] if same else known:   # one line, or one per input when they differ

@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass, field
 import cv2
 import numpy as np
 
-from posecam.errors import InputError
+from posecam.errors import InputError, warn
 from posecam.skeleton import MIN_CONFIDENCE
 
 # 35 mm film diagonal, used to turn 35 mm-equivalent focal lengths into pixels.
@@ -56,7 +56,7 @@ class Intrinsics:
             raise InputError(f"fx={self.fx:g} and fy={self.fy:g} ({self.source}) differ by more than 4 times")
         if not (0 <= self.cx <= width and 0 <= self.cy <= height):
             raise InputError(f"principal point ({self.cx:g}, {self.cy:g}) from {self.source} lies outside the "
-                             f"{width}x{height} image")
+                             f"{width}x{height} image: are these intrinsics for another image size?")
         return self
 
     @property
@@ -158,22 +158,30 @@ class CameraCalibration:
                                  np.array(x[3:6], dtype=float), self.distortion.copy())
 
     def for_image(self, name: str, width: int, height: int) -> "CameraCalibration":
-        """This camera for an input `name` of width x height pixels: the policy every command uses.
+        """This camera for an input `name` ("": unnamed) of width x height pixels: the policy
+        every command uses.
 
         The same size (within 2 %) is taken as a centred crop or pad (the principal point shifts
         by half the difference: Qualisys's 1088-px field for a 1080-px video); a size with the
-        calibrated aspect is a resize (intrinsics scaled); anything else is refused.
+        calibrated aspect is a resize (intrinsics scaled, with a warning: right for a video that
+        is the calibrated picture at another resolution, wrong for a mode that crops the sensor);
+        anything else is refused, a portrait input for a landscape calibration named as such.
         """
         cw, ch = self.size
         k = self.intrinsics
         sx, sy = width / cw, height / ch
+        sizes = (f"camera {self.name} is calibrated for {cw}x{ch} images, "
+                 f"{f'input {name}' if name else 'the input'} is {width}x{height}")
         if abs(sx - sy) <= 0.02 * max(sx, sy) and abs(sx - 1) > 0.02:
             k = k.scaled(sx)
             cw, ch = round(cw * sx), round(ch * sx)
+            warn(f"{sizes}: its intrinsics scaled by {sx:.3g}, right for the same picture at another resolution "
+                 "(calibrate at this size if the camera crops its sensor for it)")
         dw, dh = width - cw, height - ch
         if abs(dw) > 0.02 * cw or abs(dh) > 0.02 * ch:
-            raise InputError(f"camera {self.name} is calibrated for {self.size[0]}x{self.size[1]} images, "
-                             f"input {name} is {width}x{height}")
+            turned = (width - height) * (cw - ch) < 0
+            raise InputError(sizes + ("; the input is turned a quarter from the calibration: give intrinsics "
+                                      "calibrated as it is recorded" if turned else "; give intrinsics for this size"))
         k = Intrinsics(k.fx, k.fy, k.cx + dw / 2, k.cy + dh / 2, k.source)
         return CameraCalibration(name, (width, height), k, self.rotation, self.translation, self.distortion)
 

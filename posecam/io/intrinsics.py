@@ -9,10 +9,11 @@ from __future__ import annotations
 import json
 import math
 import numbers
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
-from posecam.geometry.camera import Intrinsics
+from posecam.geometry.camera import CameraCalibration, Intrinsics
 from posecam.errors import InputError
 from posecam.io.exif import focal_length_35mm
 from posecam.validate import MAX_PIXEL, Field, read_small
@@ -25,7 +26,7 @@ class IntrinsicsOptions:
     fy: float | None = None
     cx: float | None = None
     cy: float | None = None
-    file: str | None = None      # JSON (fx, fy, cx, cy or a 3x3 "matrix"), OpenCV YAML/XML or a calibration
+    file: str | None = None      # JSON (fx, fy, cx, cy or a 3x3 "matrix"), OpenCV YAML/XML, ROS YAML or a calibration
     camera: str | None = None    # camera name inside a calibration TOML
 
     def __post_init__(self) -> None:
@@ -92,32 +93,75 @@ def is_filestorage(data: bytes) -> bool:
     return head.startswith(b"%YAML") or (head.startswith(b"<") and b"<opencv_storage>" in head)
 
 
-def _from_filestorage(path: Path, data: bytes) -> Intrinsics:
+_CAMERA_INFO = re.compile(rb"^camera_matrix[ \t]*:", re.MULTILINE)
+_PARSE_ERROR = re.compile(r"in function '\((\d+)\): (.*)'$")
+
+
+def is_camera_info(data: bytes) -> bool:
+    """True for a ROS camera_info YAML (camera_calibration's ost.yaml, camera_info_manager's
+    files): no `%YAML` header, a top-level `camera_matrix: {rows, cols, data}`."""
+    return not is_filestorage(data) and _CAMERA_INFO.search(data[:65536]) is not None
+
+
+def _from_filestorage(path: Path, data: bytes, width: int, height: int) -> Intrinsics:
     """The camera matrix of an OpenCV FileStorage YAML/XML (cv2.FileStorage: `camera_matrix`
-    and the like, as calibrateCamera's samples write). Read from memory, so any file name works."""
+    and the like, as calibrateCamera's samples write) or of a ROS camera_info YAML (read by
+    the same parser once given the header it lacks), fitted to this input by its
+    image_width/image_height (`_fitted`). Read from memory, so any file name works. The
+    distortion is not used: posecam's single-view camera is a pinhole."""
     import cv2
 
     check = Field(str(path))
+    header = "" if is_filestorage(data) else "%YAML:1.0\n"
     try:
-        storage = cv2.FileStorage(data.decode("utf-8"), cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
-    except (cv2.error, UnicodeDecodeError) as exc:
-        raise InputError(f"{path} is not a readable OpenCV FileStorage file "
-                         f"({str(exc).strip().splitlines()[-1][:120]})") from None
+        storage = cv2.FileStorage(header + data.decode("utf-8"), cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
+    except (cv2.error, SystemError, UnicodeDecodeError) as exc:   # SystemError: a cv2.error in the constructor
+        reason = str(exc.__cause__ or exc).strip().splitlines()[-1]
+        where = _PARSE_ERROR.search(reason)   # OpenCV's "... in function '(LINE): what'"
+        if where:
+            reason = f"line {int(where[1]) - bool(header)}: {where[2]}"
+        raise InputError(f"{path} is not a readable OpenCV FileStorage or ROS camera_info YAML "
+                         f"({reason[:120]})") from None
     try:
-        for key in FILESTORAGE_MATRIX:
-            node = storage.getNode(key)
-            if node.isNone():
-                continue
-            if not node.isMap() or node.getNode("rows").real() != 3 or node.getNode("cols").real() != 3:
-                raise check.fail(key, "must be a 3x3 matrix (!!opencv-matrix rows: 3 cols: 3)")
-            matrix = node.mat()
-            if matrix is None or matrix.shape != (3, 3):
-                raise check.fail(key, "must be a 3x3 matrix (!!opencv-matrix rows: 3 cols: 3)")
-            return _from_matrix(matrix.astype(float).tolist(), check, key, f"file:{path.name}")
+        key = next((key for key in FILESTORAGE_MATRIX if not storage.getNode(key).isNone()), None)
+        if key is None:
+            raise InputError(f"{path}: an OpenCV FileStorage file without a camera matrix "
+                             f"(one of {', '.join(FILESTORAGE_MATRIX)})")
+        k = _from_matrix(_node_matrix(storage.getNode(key), check, key), check, key, f"file:{path.name}")
+        size = _image_size(storage, check)
     finally:
         storage.release()
-    raise InputError(f"{path}: an OpenCV FileStorage file without a camera matrix "
-                     f"(one of {', '.join(FILESTORAGE_MATRIX)})")
+    return _fitted(k, size, width, height, path)
+
+
+def _node_matrix(node, check: Field, key: str) -> list:
+    """A 3x3 matrix node: OpenCV's `!!opencv-matrix` or ROS's plain {rows, cols, data}."""
+    values = node.getNode("data") if node.isMap() else node
+    numbers = [values.at(i) for i in range(values.size())] if values.isSeq() else []
+    if (not node.isMap() or node.getNode("rows").real() != 3 or node.getNode("cols").real() != 3
+            or len(numbers) != 9 or not all(n.isInt() or n.isReal() for n in numbers)):
+        raise check.fail(key, "must be a 3x3 matrix (rows: 3, cols: 3, data: 9 numbers)")
+    return [[numbers[3 * r + c].real() for c in range(3)] for r in range(3)]
+
+
+def _image_size(storage, check: Field) -> tuple[int, int] | None:
+    """The file's image_width and image_height (None when it does not give both)."""
+    nodes = {name: storage.getNode(name) for name in ("image_width", "image_height")}
+    if any(n.isNone() for n in nodes.values()):
+        return None
+    sides = [check.side(int(n.real()) if n.isInt() else n.real() if n.isReal() else n.string(), name)
+             for name, n in nodes.items()]
+    return sides[0], sides[1]
+
+
+def _fitted(k: Intrinsics, size: tuple[int, int] | None, width: int, height: int, path: Path) -> Intrinsics:
+    """A file's intrinsics for this width x height input, by the one policy of every
+    calibrated camera (`CameraCalibration.for_image`): the calibrated size, a small crop or
+    pad, or the same picture at another resolution (scaled, with a warning); another aspect,
+    a portrait video for a landscape calibration included, is refused."""
+    if size is None:
+        return k
+    return CameraCalibration(path.name, size, k).for_image("", width, height).intrinsics
 
 
 def _from_toml(path: Path, camera: str | None, width: int, height: int) -> Intrinsics:
@@ -160,10 +204,13 @@ def _resolve(opts: IntrinsicsOptions, width: int, height: int, image_path: str |
         if is_calibration(path):
             return _from_toml(path, opts.camera, width, height)
         data = read_small(path, "intrinsics")
-        if is_filestorage(data):
-            return _from_filestorage(path, data)
-        if path.suffix.lower() == ".xml":   # not OpenCV's: a Qualisys calibration
+        if path.suffix.lower() == ".xml" and not is_filestorage(data):   # not OpenCV's: a Qualisys calibration
             return _from_toml(path, opts.camera, width, height)
+        if opts.camera is not None:
+            raise InputError(f"--camera picks a camera inside a calibration (TOML, .qca.txt); {path} holds one "
+                             "camera's intrinsics: leave --camera out")
+        if is_filestorage(data) or is_camera_info(data):
+            return _from_filestorage(path, data, width, height)
         return _from_json(path, data)
     if image_path is not None:
         f35 = focal_length_35mm(image_path)
