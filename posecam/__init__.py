@@ -4,26 +4,16 @@
     rec = PoseEstimator().predict_file("clip.mp4")
     rec.frames[0].people[0].keypoints_3d    # (17, 3) mm, camera at the origin
 
-The names below are imported when first used, so `import posecam` stays light.
+The names below are imported when first used, so `import posecam` stays light. Importing
+posecam changes nothing in the process: the `posecam` command alone sets its signal handlers
+and environment (posecam.cli.ENVIRONMENT) when it runs.
 """
 
 from __future__ import annotations
 
 import importlib
-import os
-import sys
-
-if sys.argv[:1] == ["-m"]:   # `python -m posecam` is starting (runpy sets argv[0] so meanwhile)
-    from posecam._start import guard_start
-
-    guard_start()
 
 from posecam._version import __version__
-
-# OpenCV refuses to decode an image over this many pixels, whatever its format (posecam.media
-# reads the headers it knows first, for a clearer message). Read once, when cv2 is loaded, so
-# set here, before any posecam module imports cv2; equal to posecam.media.MAX_PIXELS (268 Mpx).
-os.environ.setdefault("OPENCV_IO_MAX_IMAGE_PIXELS", str(1 << 28))
 
 _API = {
     "CameraCalibration": "posecam.geometry.camera",

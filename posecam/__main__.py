@@ -5,9 +5,12 @@ from posecam._start import guard_start
 
 def main() -> None:
     guard_start()   # until posecam.cli.main installs its own handlers
-    from posecam.cli import main as posecam
+    from posecam.cli import end, main as posecam
 
-    posecam()
+    try:
+        posecam()
+    except SystemExit as exc:
+        end(exc.code)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """Ctrl-C or SIGTERM while `posecam` is starting: one line and the documented code, no traceback.
 
-Installed by `posecam.__main__` (and, for `python -m posecam`, as soon as the package is
-imported); `posecam.cli.main` replaces it with the handlers it keeps when the command runs.
+Installed by `posecam.__main__` first thing (importing the package installs nothing);
+`posecam.cli.main` replaces it with the handlers it keeps when the command runs.
 """
 
 import os

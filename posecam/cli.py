@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import atexit
 import errno
+import io
 import os
 import signal
 import sys
@@ -23,6 +24,18 @@ from posecam.commands.fuse import fuse_command
 from posecam.commands.predict import predict_command
 from posecam.errors import (WRITE_ERRNOS, OutputError, PosecamError, ReaderLeft, Terminated, last_signal, on_signal,
                             printable)
+
+# Set when a command runs (never at import), before any module that reads them is loaded; a
+# value the user set is kept.
+ENVIRONMENT = {
+    "OPENCV_LOG_LEVEL": "ERROR",         # posecam reports what goes wrong itself
+    "OPENCV_FFMPEG_LOGLEVEL": "-8",      # AV_LOG_QUIET: FFmpeg's messages off; read when a video is opened
+    # OpenCV refuses to decode an image over this many pixels, whatever its format (posecam.media
+    # reads the headers it knows first, for a clearer message); read once, when cv2 is loaded.
+    # Equal to posecam.media.MAX_PIXELS (268 Mpx), which is not imported here: it loads cv2.
+    "OPENCV_IO_MAX_IMAGE_PIXELS": str(1 << 28),
+    "ORT_DISABLE_TELEMETRY": "1",        # else onnxruntime leaves a session file (.ses) in the temporary folder
+}
 
 _NO_ARGS = getattr(click.exceptions, "NoArgsIsHelpError", ())   # click >= 8.2
 
@@ -45,6 +58,65 @@ def _quiet_stdout() -> None:
         pass
 
 
+class _ClosedStdout(io.TextIOBase):
+    """What stdout is when the command started with it closed (`posecam ... >&-`): a command
+    that prints nothing ends as usual, one that has something to print fails with exit code 4."""
+
+    def writable(self) -> bool:
+        return True
+
+    def write(self, text: str) -> int:
+        if not text:
+            return 0
+        raise OutputError("cannot write to standard output: it is closed")
+
+
+def _guard_closed_streams() -> None:
+    """Keep file descriptors 1 and 2 taken when the command started with them closed, so that
+    no output file gets one of them (a library's message would land in it); print() then
+    fails on stdout (exit code 4) and is dropped on stderr."""
+    for fd in (1, 2):
+        try:
+            os.fstat(fd)
+        except OSError:
+            taken = os.open(os.devnull, os.O_WRONLY)   # the lowest free descriptor: this one
+            if taken != fd:
+                os.dup2(taken, fd)
+                os.close(taken)
+    if sys.stdout is None:
+        sys.stdout = _ClosedStdout()
+    if sys.stderr is None:   # else print(file=sys.stderr) would write to stdout
+        sys.stderr = open(os.devnull, "w")
+
+
+def _signal_line(signum: int) -> str:
+    """`posecam: interrupted` or `terminated`, naming what this run wrote before the signal."""
+    line = "posecam: terminated" if signum == signal.SIGTERM else "posecam: interrupted"
+    atomic = sys.modules.get("posecam.io.atomic")   # not imported here: it loads cv2; unloaded, nothing was written
+    written = [printable(p) for p in atomic.committed()] if atomic else []
+    if written:
+        more = f" and {len(written) - 3} more" if len(written) > 4 else ""
+        line += f" after writing {', '.join(written[:3] if more else written)}{more}"
+    return line
+
+
+def _interrupted_when_done(signum: int, frame: object = None) -> None:
+    """Ctrl-C or SIGTERM once the command has ended: its outputs are settled, so the line and
+    the code come at once."""
+    os.write(2, (_signal_line(signum) + "\n").encode("utf-8", "backslashreplace"))
+    os._exit(143 if signum == signal.SIGTERM else 130)
+
+
+def end(code: int | str | None) -> None:
+    """End the `posecam` process once its command has ended: at once, skipping the interpreter's
+    teardown, during which Python puts back the default handlers (a Ctrl-C there would kill the
+    process with no line) and which takes a noticeable time with onnxruntime, OpenCV and Ray loaded."""
+    if isinstance(code, str):   # sys.exit("message")
+        print(code, file=sys.stderr)
+        code = 1
+    _end_now(code or 0)
+
+
 def _interrupt_in_chain(exc: BaseException | None) -> KeyboardInterrupt | None:
     """The Ctrl-C or SIGTERM behind `exc`, if one is (click's Abort, a failed native import)."""
     seen = set()
@@ -59,7 +131,7 @@ def _interrupt_in_chain(exc: BaseException | None) -> KeyboardInterrupt | None:
 def _interrupted(exc: BaseException) -> None:
     # the signal noted, where a library turned the Terminated into a plain KeyboardInterrupt (Ray's wait)
     terminated = isinstance(_interrupt_in_chain(exc), Terminated) or last_signal() == signal.SIGTERM
-    click.echo("posecam: terminated" if terminated else "posecam: interrupted", err=True)
+    click.echo(_signal_line(signal.SIGTERM if terminated else signal.SIGINT), err=True)
     code = 143 if terminated else 130
     if last_signal() is None:   # a KeyboardInterrupt raised in this process, not a signal to it
         sys.exit(code)
@@ -120,11 +192,21 @@ class _Group(click.Group):
         if main_thread:   # installed here, when the command runs, never at import
             signal.signal(signal.SIGINT, on_signal)
             signal.signal(signal.SIGTERM, on_signal)
+        try:
+            self._run(args, prog_name, complete_var, **extra)
+        finally:
+            if main_thread:   # the command has ended: a signal now ends the process at once
+                signal.signal(signal.SIGINT, _interrupted_when_done)
+                signal.signal(signal.SIGTERM, _interrupted_when_done)
+
+    def _run(self, args, prog_name, complete_var, **extra) -> None:
+        _guard_closed_streams()
         warnings.showwarning = _show_warning
         for stream in (sys.stdout, sys.stderr):   # an ASCII-only terminal and a name that is not
             if hasattr(stream, "reconfigure"):     # ASCII: escapes, not UnicodeEncodeError
                 stream.reconfigure(errors="backslashreplace")
-        os.environ.setdefault("OPENCV_LOG_LEVEL", "ERROR")   # posecam reports what goes wrong itself
+        for name, value in ENVIRONMENT.items():
+            os.environ.setdefault(name, value)
         try:
             code = super().main(args, prog_name or "posecam", complete_var, False, **extra)
             sys.stdout.flush()   # a full disk or a closed pipe behind stdout shows here

@@ -23,9 +23,9 @@ Only regular files and folders are opened (a FIFO or a device would block foreve
 OpenCV never sees a file name: images are decoded from their bytes, videos whose names
 OpenCV cannot take (not UTF-8) are opened through a temporary link with an ASCII name.
 
-posecam reports damaged inputs itself, in one line: FFmpeg's own messages are turned off once,
-through OpenCV's `OPENCV_FFMPEG_LOGLEVEL` (unless set already), before any video is opened;
-libjpeg, which has no such switch, is muted while an image is decoded.
+posecam reports damaged inputs itself, in one line: the `posecam` command turns FFmpeg's own
+messages off (OpenCV's `OPENCV_FFMPEG_LOGLEVEL`, posecam.cli.ENVIRONMENT); libjpeg, which has
+no such switch, is muted while an image is decoded.
 """
 
 from __future__ import annotations
@@ -46,8 +46,6 @@ import cv2
 import numpy as np
 
 from posecam.errors import InputError, warn
-
-os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")   # AV_LOG_QUIET; read when OpenCV first opens a video
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp")   # read as still images
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv")   # videos posecam writes, and looks for in a take folder
@@ -237,7 +235,8 @@ def _read_bytes(path: Path) -> bytes:
 
 def read_image(path: str | os.PathLike) -> np.ndarray:
     """RGB uint8 image (EXIF orientation applied) or InputError; refused before decoding when
-    its header claims more than MAX_PIXELS (any format: OpenCV's own limit is set to it too)."""
+    its header claims more than MAX_PIXELS (any format, under the `posecam` command, which sets
+    OpenCV's own limit to it too)."""
     path = Path(path)
     check_image_size(path)
     data = _read_bytes(path)

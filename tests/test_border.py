@@ -259,6 +259,23 @@ def files(tmp_path):
 
 
 FUSE = "fuse {in}/a.json {in}/b.json --offsets 0,0 -o {out}/f.json --calibration {in}/"
+
+
+@pytest.mark.parametrize("calibration", ["fov-zero.qca.txt", "rotation-bad.qca.txt", "size-zero.toml"])
+def test_a_refused_calibration_leaves_nothing_in_the_temporary_folder(files, calibration):
+    """A process of its own with a temporary folder of its own: nothing there after the refusal
+    (onnxruntime, loaded by then, writes a session file there unless told not to)."""
+    from posecam.cli import ENVIRONMENT
+
+    tmp = files["tmp"] / "tmpdir"
+    tmp.mkdir()
+    env = {k: v for k, v in os.environ.items() if k not in ENVIRONMENT}   # as a user's shell has it
+    r = subprocess.run([sys.executable, "-m", "posecam", *shlex.split(FUSE.format(**files) + calibration)],
+                       capture_output=True, text=True, timeout=120, env={**env, "TMPDIR": str(tmp)})
+    check_promise(r, 2, calibration)
+    assert list(tmp.iterdir()) == [] and list(files["out"].iterdir()) == []
+
+
 FILE_ROWS = [
     # calibration TOML
     ("toml-size-zero", FUSE + "size-zero.toml", 2, "[cam01]: size: must be 2 whole numbers in 1..65535"),
@@ -390,16 +407,19 @@ def test_an_image_bomb_is_refused_from_its_header(tmp_path, make, name, word):
 
 
 def test_opencv_refuses_what_posecam_does_not_parse(tmp_path):
-    """The same limit for every format OpenCV opens: its own (OPENCV_IO_MAX_IMAGE_PIXELS)."""
-    import cv2
-    import numpy as np
-
+    """The same limit for every format OpenCV opens: its own (OPENCV_IO_MAX_IMAGE_PIXELS), which
+    the command sets before OpenCV loads (a process of its own: this one loaded it long ago)."""
+    from posecam.cli import ENVIRONMENT
     from posecam.media import MAX_PIXELS
 
-    assert os.environ["OPENCV_IO_MAX_IMAGE_PIXELS"] == str(MAX_PIXELS)
-    header = b"P5\n20000 20000\n255\n"       # a PGM (netpbm): not parsed by posecam
-    with pytest.raises(cv2.error, match="CV_IO_MAX_IMAGE_PIXELS"):
-        cv2.imdecode(np.frombuffer(header + b"\0" * 64, np.uint8), cv2.IMREAD_COLOR)
+    assert ENVIRONMENT["OPENCV_IO_MAX_IMAGE_PIXELS"] == str(MAX_PIXELS)
+    photo = tmp_path / "big.png"   # a PGM (netpbm) of 400 Mpx: a header posecam does not parse
+    photo.write_bytes(b"P5\n20000 20000\n255\n" + b"\0" * 64)
+    env = {k: v for k, v in os.environ.items() if k != "OPENCV_IO_MAX_IMAGE_PIXELS"}
+    r = subprocess.run([sys.executable, "-m", "posecam", "predict", photo, "--model", "lite", "-o", tmp_path / "p.json"],
+                       capture_output=True, text=True, timeout=120, env=env)
+    check_promise(r, 2, f"claims more pixels than posecam decodes ({MAX_PIXELS // 10**6} Mpx)")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["big.png"]
 
 
 def test_a_million_people_in_one_frame_is_refused_in_flat_memory(tmp_path):
@@ -605,7 +625,10 @@ def _signal_a_batch_run(tmp_path, workers, sig, code, word, group):
     _, err = proc.communicate(timeout=60)
     took = time.perf_counter() - start
     time.sleep(1.0)                         # a worker left behind would write now
-    assert proc.returncode == code and err.strip().splitlines()[-1] == f"posecam: {word}", (proc.returncode, err)
+    last = err.strip().splitlines()[-1]   # names what was written before the signal, three at most
+    named = last.removeprefix(f"posecam: {word} after writing ").split(" and ")[0].split(", ")
+    assert proc.returncode == code and {Path(n).name for n in named} <= written, (proc.returncode, err)
+    assert len(named) == min(len(written), 3 if len(written) > 4 else 4), last
     assert "Traceback" not in err and "Error" not in err, err
     # 2 s on a quiet machine; on a loaded one, still well within the time the first tasks took
     assert took < max(2.0, first / 2), f"{took:.1f} s to stop; the first outputs took {first:.1f} s"

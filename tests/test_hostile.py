@@ -338,6 +338,111 @@ def test_ctrl_c_while_starting_is_one_line(delay):
     assert err.strip() in ("posecam: interrupted", ""), err
 
 
+_AFTER_THE_END = """
+import atexit, sys, time
+from pathlib import Path
+from posecam.__main__ import main
+
+flag = Path(sys.argv[1])
+
+def ended():   # the command has ended, its outputs committed: hold the process here
+    flag.write_text("ended")
+    time.sleep(60)
+
+atexit.register(ended)
+sys.argv = ["posecam", *sys.argv[2:]]
+main()
+"""
+
+
+@pytest.mark.parametrize("sig, code, word", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")])
+def test_a_signal_after_the_outputs_are_written_names_them(tmp_path, sig, code, word):
+    """The real `posecam` entry point, held once its command has ended (an exit function, run
+    as the process ends): the signal ends it at once, with its code and the files it wrote."""
+    flag, output = tmp_path / "ended", tmp_path / "p.json"
+    proc = subprocess.Popen([sys.executable, "-c", _AFTER_THE_END, flag, "predict", DATA / "messi5.jpg",
+                             "--model", "lite", "-o", output], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 120
+    while time.time() < deadline and not flag.exists() and proc.poll() is None:
+        time.sleep(0.05)
+    assert flag.exists(), proc.communicate()
+    proc.send_signal(sig)
+    out, err = proc.communicate(timeout=30)
+    assert proc.returncode == code and err.strip() == f"posecam: {word} after writing {output}", (proc.returncode, err)
+    assert f"wrote {output}" in out and json.loads(output.read_text())["inputs"][0]["frames"][0]["people"]
+
+
+def test_importing_posecam_changes_nothing_in_the_process():
+    """No signal handler and no environment variable set by importing the package and every
+    name of its API (handlers and environment are the `posecam` command's, set when it runs)."""
+    code = """
+import importlib, json, os, signal, sys
+def state():
+    return {"env": dict(os.environ), "signals": {int(s): repr(signal.getsignal(s)) for s in signal.valid_signals()
+                                                 if s not in (signal.SIGKILL, signal.SIGSTOP)}}
+for name in sys.argv[1:]:   # the libraries posecam loads first: what they set is their own
+    importlib.import_module(name)
+before = state()
+sys.argv[0] = "-m"   # as while `python -m posecam` imports the package, before its __main__ runs
+import posecam, posecam.cli
+for name in posecam.__all__:
+    getattr(posecam, name)
+libraries = {m for m in sys.modules if "." not in m and not m.startswith("_")} - set(sys.stdlib_module_names)
+sys.stdout.write(json.dumps([before, state(), sorted(m for m in sys.modules if m.startswith("posecam")),
+                             sorted(libraries - {"posecam"})]))
+"""
+
+    from posecam.cli import ENVIRONMENT
+
+    env = {k: v for k, v in os.environ.items() if k not in ENVIRONMENT}   # set in this process by the CLI tests
+
+    def imported(*first: str) -> list:
+        r = subprocess.run([sys.executable, "-c", code, *first], capture_output=True, text=True, timeout=120, env=env)
+        assert r.returncode == 0, r.stderr
+        return json.loads(r.stdout)
+
+    libraries = imported()[3]
+    assert {"cv2", "numpy"} <= set(libraries)
+    before, after, loaded, _ = imported(*libraries)
+    assert "posecam.media" in loaded and "posecam.estimate" in loaded   # the modules that used to set them
+    assert after["signals"] == before["signals"]
+    assert after["env"] == before["env"]
+
+
+# Closed standard streams: `posecam ... >&-` and `2>&-`.
+
+def _closed(redirect: str, *args, env: dict | None = None) -> subprocess.CompletedProcess:
+    command = shlex.join([sys.executable, "-m", "posecam", *map(str, args)])
+    return subprocess.run(["bash", "-c", f"exec {command} {redirect}"], capture_output=True, text=True, timeout=300,
+                          env=env)
+
+
+@pytest.mark.parametrize("output", [(), ("-o", "p.json")], ids=["report-only", "with-file"])
+def test_a_closed_stdout_is_one_line_and_exit_4(tmp_path, output):
+    """The report is an output: it cannot be printed, so nothing is written (as on a full disk)."""
+    r = _closed(">&-", "predict", DATA / "messi5.jpg", "--model", "lite", *(tmp_path / o if o.endswith(".json") else o
+                                                                             for o in output))
+    assert r.returncode == 4 and r.stderr.strip() == "posecam: error: cannot write to standard output: it is closed", r
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_closed_stdout_is_no_error_when_nothing_is_printed(tmp_path):
+    """--out-dir reports on stderr: a closed stdout misses nothing."""
+    r = _closed(">&-", "predict", DATA / "messi5.jpg", "--model", "lite", "--out-dir", tmp_path)
+    assert r.returncode == 0 and "Traceback" not in r.stderr, r
+    assert json.loads((tmp_path / "messi5.json").read_text())["inputs"][0]["frames"][0]["people"]
+
+
+def test_a_closed_stderr_keeps_the_outputs_whole(tmp_path):
+    """A truncated JPEG (a warning, libjpeg's own messages muted) with stderr closed: the pose
+    file is complete, not a descriptor shared with the messages."""
+    photo = tmp_path / "cut.jpg"
+    photo.write_bytes((DATA / "messi5.jpg").read_bytes()[:20000])
+    r = _closed("2>&-", "predict", photo, "--model", "lite", "-o", tmp_path / "p.json")
+    assert r.returncode == 0 and "wrote" in r.stdout, r
+    assert json.loads((tmp_path / "p.json").read_text())["inputs"][0]["source"].endswith("cut.jpg")
+
+
 # Full disks: slow, and the tmpfs one needs root.
 
 @pytest.mark.slow

@@ -208,12 +208,21 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         raise_if_signalled()
         _verify(tmp_path, target)
         _publish(tmp_path, target)
+        _committed.append(target)
     except OSError as exc:
         tmp_path.unlink(missing_ok=True)
         raise OutputError(f"cannot write {target}: {_describe(exc)}") from None
     except BaseException:
         tmp_path.unlink(missing_ok=True)
         raise
+
+
+_committed: list[Path] = []   # every output this process committed, in order
+
+
+def committed() -> list[Path]:
+    """The outputs this process has committed so far (a signal after them names them)."""
+    return list(_committed)
 
 
 def _verify(tmp: Path, target: Path) -> None:
@@ -412,6 +421,7 @@ class StagedOutputs:
                 backup = self._backup(target, tmp)
                 done.append((target, backup))
                 _publish(tmp, target)
+            _committed.extend(target for target, _ in self.files)
         except BaseException as exc:
             failed = done[-1][0] if done else None
             for target, backup in reversed(done):
