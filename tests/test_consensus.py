@@ -275,3 +275,29 @@ def test_principal_point_free_only_where_the_people_pin_it():
     centred = make_rig(principal_noise=0.0)
     assert _principal_point_case(centred, standing, fix=False, bias_px=4.0) > \
         1.2 * _principal_point_case(centred, standing, fix=True, bias_px=4.0)
+
+
+def test_a_known_lens_stays_known_and_can_be_freed():
+    """Views predicted with the cameras' own intrinsics (given: --fx/--intrinsics) keep them
+    exactly; only where the cameras stand is estimated, and no worse than with every lens
+    free. --free-intrinsics estimates them again."""
+    cams = make_rig()
+    world = skeleton_motion(100)
+    recs = monocular_views(cams, world, known_lens=True)
+    held = fuse_recordings(recs, FuseOptions())
+    freed = fuse_recordings(recs, FuseOptions(free_intrinsics=True))
+    for true, est, rep in zip(cams, held.rig.cameras, held.cameras):
+        k, e = true.intrinsics, est.intrinsics
+        assert (e.fx, e.fy, e.cx, e.cy) == (k.fx, k.fy, k.cx, k.cy) and e.source == "flags", (true.name, e)
+        assert rep.intrinsics_fixed and rep.to_dict()["intrinsics_fixed"] is True
+        assert rep.spread is None or rep.spread.focal_pct == 0.0
+    assert not any(rep.intrinsics_fixed for rep in freed.cameras)
+    assert any(abs(e.intrinsics.fx / t.intrinsics.fx - 1) > 1e-4 for t, e in zip(cams, freed.rig.cameras))
+
+    def worst(result):
+        return max(relative_rotation_error_deg(cams[0].rotation, t.rotation, np.eye(3), e.rotation)
+                   for t, e in zip(cams[1:], result.rig.cameras[1:]))
+
+    assert worst(held) < 1.0 and worst(held) <= worst(freed) + 0.2, (worst(held), worst(freed))
+    default = fuse_recordings(monocular_views(cams, world), FuseOptions())
+    assert not any(rep.intrinsics_fixed for rep in default.cameras)          # the default lens: estimated

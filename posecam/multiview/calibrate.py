@@ -89,15 +89,16 @@ def _bone_lengths(obs: Observations, joints: tuple[str, ...], min_conf: float) -
 
 
 def _consensus(assumed: list[CameraCalibration], people: list[Observations], views: list[int], ref: int,
-               min_conf: float) -> Rig:
-    """Consensus on the people, a second time without the outlier stretches of the first."""
+               min_conf: float, fixed: frozenset[str] = frozenset()) -> Rig:
+    """Consensus on the people, a second time without the outlier stretches of the first; the
+    intrinsics of the cameras named in `fixed` held."""
     obs = Observations.side_by_side([p.take(views) for p in people])
     conf = obs.conf.copy()
     lengths = np.cumsum([0] + [p.conf.shape[1] for p in people])
     kept = [assumed[v] for v in views]
     for _ in range(2):
         inliers = Observations(obs.uv, obs.xyz, conf, obs.score)
-        fit = estimate_rig(kept, inliers, ConsensusOptions(reference=views.index(ref), min_conf=min_conf))
+        fit = estimate_rig(kept, inliers, ConsensusOptions(reference=views.index(ref), min_conf=min_conf, fixed=fixed))
         res = stretch_residuals(fit.rig, kept, inliers, lengths, min_conf)          # (V, P) mm
         bad = res > OUTLIER_FACTOR * np.nanmedian(res)
         if not bad.any():
@@ -157,7 +158,8 @@ def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations
                      timed: TimedKeypoints | None = None, offsets: list[float] | None = None) -> KeptCameras:
     """Cameras of the views that the people allow; FusionError when fewer than two are left.
     With `timed` keypoints of the people (side by side) at the views' `offsets`, the bundle
-    adjustment refines the offsets too (posecam.multiview.bundle) and KeptCameras has them."""
+    adjustment refines the offsets too (posecam.multiview.bundle) and KeptCameras has them.
+    The cameras named in BundleOptions.fixed_intrinsics keep their intrinsics throughout."""
     views = list(range(len(assumed)))
     warnings = []
     people = [p for p in people if ((p.conf.max(axis=-1) > 0).sum(axis=0) >= 2).any()]   # seen twice
@@ -173,7 +175,8 @@ def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations
                               + (": " + "; ".join(warnings) if warnings else ""))
         obs = Observations.side_by_side([p.take(views) for p in people])
         try:
-            rig = _consensus(assumed, people, views, reference, min_conf)
+            rig = _consensus(assumed, people, views, reference, min_conf,
+                             (bundle_options or BundleOptions()).fixed_intrinsics)
             refined = None
             if bundle:
                 start = None if timed is None else np.asarray(offsets, float)[views]

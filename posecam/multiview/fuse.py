@@ -59,6 +59,9 @@ class FuseOptions:
     min_conf: float = MIN_CONFIDENCE
     bundle_options: BundleOptions = field(default_factory=BundleOptions)
     heights: Heights = field(default_factory=Heights)   # known heights: the metric scale of an estimated rig
+    # estimate the intrinsics of the views whose poses were made with given ones (flags, a file, a
+    # calibration: Intrinsics.given) too; by default those are held and only the cameras' poses estimated
+    free_intrinsics: bool = False
 
 
 @dataclass
@@ -209,6 +212,13 @@ def to_metric(cameras: KeptCameras, people: list[Observations], take: Take,
     return replace(cameras, rig=rig, spreads=spreads), source, warnings
 
 
+def known_lenses(take: Take, opts: FuseOptions) -> frozenset[str]:
+    """Names of the views whose intrinsics are held while the rig is estimated: those given
+    (Intrinsics.given), unless FuseOptions.free_intrinsics, and any BundleOptions.fixed_intrinsics."""
+    given = () if opts.free_intrinsics else (n for n, c in zip(take.names, take.assumed) if c.intrinsics.given)
+    return opts.bundle_options.fixed_intrinsics | frozenset(given)
+
+
 def _offsets(take: Take, association: Association, rig: Rig | None, start: list[float], opts: FuseOptions,
              say: Callable[[str], None]) -> SyncResult:
     """The views' offsets: estimated with `sync`, else the ones given (zeros by default)."""
@@ -247,6 +257,7 @@ def fuse_recordings(recordings: list[Recording], options: FuseOptions | None = N
 def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[str], None] | None) -> FusionResult:
     say = progress or (lambda _msg: None)
     take = check_take(recordings, opts)
+    opts = replace(opts, bundle_options=replace(opts.bundle_options, fixed_intrinsics=known_lenses(take, opts)))
     given = given_cameras(take, opts.calibration) if opts.calibration is not None else None
     start = list(opts.offsets) if opts.offsets is not None else [0] * len(recordings)
     rig = given.rig if given else None
@@ -286,8 +297,9 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
     fused = [fuse_person(rig, [take.assumed[v].intrinsics for v in views], obs, opts.method, opts.min_conf)
              for obs in people]
     spread = sync.spread or [0.0] * len(recordings)
+    fixed = [bool(given) or take.names[v] in opts.bundle_options.fixed_intrinsics for v in views]
     reports = camera_reports(rig, [sync.offsets[v] for v in views], [sync.confidence[v] for v in views],
-                             [spread[v] for v in views], swaps, people, fused, opts.min_conf, cameras.spreads)
+                             [spread[v] for v in views], swaps, people, fused, opts.min_conf, cameras.spreads, fixed)
     recording = _to_recording(fused, rig, views.index(take.reference), recordings[take.reference])
     recording.cameras = [r.to_dict() for r in reports]
     return FusionResult(recording, rig, sync.offsets, reports, views, list(dict.fromkeys(warnings)), scale_source)
