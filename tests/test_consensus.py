@@ -159,12 +159,15 @@ def test_bundle_adjustment_refines_fractional_offsets_started_a_frame_off():
     assert rotation[True] < rotation[False] and rotation[True] < rotation["true"] + 0.2, rotation
 
 
-def test_sync_of_a_still_person_keeps_zero_with_a_warning():
+def test_sync_of_a_still_person_refuses_the_cameras_it_cannot_pin():
+    """People too still to pin an offset: no camera is fused at a guessed offset; the refusal
+    names every camera and says what would fuse it."""
     cams = make_rig()
-    result = fuse_recordings(_fractional(cams, [0.0, 2.0, -1.0, 0.0], still=True), FuseOptions(sync=True))
-    assert result.offsets == [0, 0, 0, 0]
-    sync = [w for w in result.warnings if "synchronise" in w]
-    assert len(sync) == 3 and all("move too little" in w for w in sync), result.warnings
+    with pytest.raises(FusionError) as err:
+        fuse_recordings(_fractional(cams, [0.0, 2.0, -1.0, 0.0], still=True), FuseOptions(sync=True))
+    line = str(err.value)
+    assert "\n" not in line and line.count("move too little") == 3 and "--offsets" in line, line
+    assert all(c.name in line for c in cams[1:]), line
 
 
 def test_camera_spread_grows_when_frames_are_removed(estimated):

@@ -102,12 +102,14 @@ def parse_offsets(text: str) -> list[float]:
 @click.option("--save-calibration", type=click.Path(), help="Write the cameras to FILE.toml (anipose/Pose2Sim).")
 @click.option("--method", type=click.Choice(["average", "triangulate"]), default="average", show_default=True,
               help="Average the monocular poses, or triangulate the 2D keypoints.")
-@click.option("--sync", type=click.Choice(["none", "auto"]), default="none", show_default=True,
-              help="auto: estimate each video's frame offset against the first.")
+@click.option("--sync", type=click.Choice(["none", "auto"]),
+              help="auto: estimate each video's frame offset against the first; none: the views started together. "
+                   "Default: auto, none with --calibration.")
 @click.option("--offsets", help="Frame offsets, one per view, e.g. 0,-1,4.5,0 (sub-frame allowed): view c's frame i+o "
                                 "shows the same instant as the first view's frame i.")
-@click.option("--max-offset", type=click.IntRange(0, MAX_OFFSET), default=10, show_default=True,
-              help="Largest frame offset --sync auto tries, in frames either way.")
+@click.option("--max-offset", type=click.IntRange(0, MAX_OFFSET),
+              help="Largest frame offset --sync auto tries, in frames either way (default: without --calibration, "
+                   "any that leaves the views half the shorter one's frames; with it, 10).")
 @click.option("--free-intrinsics", is_flag=True,
               help="Estimate every camera's focal length, also where the intrinsics were given (--fx, --intrinsics, "
                    "or recorded so in a pose JSON); by default a given lens is held and only where the cameras "
@@ -158,6 +160,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     check_output(viz, (*PICTURE_SUFFIXES, *VIDEO_SUFFIXES), "--viz")
     if offsets and sync == "auto":
         raise InputError("give either --offsets or --sync auto")
+    sync = sync or ("none" if calibration or offsets else "auto")
     refuse_alone("max_offset", "--sync auto", sync == "auto")
     refuse_alone("trc_y_up", "-o FILE.trc or FILE.c3d", bool(markers))
     refuse_alone("free_intrinsics", "cameras to estimate (no --calibration)", not calibration)
