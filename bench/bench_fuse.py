@@ -602,6 +602,211 @@ def bench(cache: Path, take: str, before: Path | None) -> None:
           f"ratio of medians {np.median(fusing) / np.median(predicting):.2f}")
 
 
+# ---- the rigs people have: every pair, a known lens or none, views cut at their start ----------
+
+BIG_ANGLES = tuple(f"{s}_{j}" for j in ("knee_flexion", "hip_flexion", "shoulder_flexion", "elbow_flexion")
+                   for s in ("r", "l"))
+CUTS = (-40, -25, -12, 12, 25, 40)      # frames: N < 0 cuts -N off the camera, N > 0 cuts N off the reference
+LENSES = {"default": "", "lab": "_lab"}  # cache folder suffix: predicted with the default lens / the lab's
+
+
+def predict_lab(cache: Path, take: str) -> None:
+    """Each camera predicted with its lab intrinsics (`--intrinsics Calib.qca.txt --camera camNN`),
+    once, into DIR/<take>_lab/camNN.json: a user who knows the lens."""
+    folder = cache / f"{take}_lab"
+    folder.mkdir(parents=True, exist_ok=True)
+    for n in NAMES:
+        if not (folder / f"{n}.json").exists():
+            subprocess.run([sys.executable, "-m", "posecam", "predict", str(ROOT / TAKES[take][0] / f"{n}.mp4"),
+                            "--intrinsics", str(ROOT / TAKES[take][0] / "Calib.qca.txt"), "--camera", n,
+                            "-o", str(folder / f"{n}.json")], check=True, env=dict(os.environ, PYTHONPATH=str(ROOT)),
+                           stdout=subprocess.DEVNULL)
+
+
+def new_user_options(**kw):
+    """FuseOptions as `posecam fuse` builds them with no option typed (read off the command's
+    own defaults, so a --before checkout is measured with its own)."""
+    from posecam.commands.fuse import fuse_command
+    from posecam.multiview.fuse import FuseOptions
+
+    default = {p.name: p.default for p in fuse_command.params}
+    has = {f.name for f in fields(FuseOptions)}
+    base = {"sync": default["sync"] == "auto", "max_offset": default["max_offset"]}
+    return FuseOptions(**{k: v for k, v in {**base, **kw}.items() if k in has})
+
+
+def cut(rec, n: int):
+    """The recording without its first n frames, numbered from 0 as if the camera had started later."""
+    from dataclasses import replace as dc_replace
+
+    from posecam.results import Frame
+
+    dt = 1.0 / (rec.fps or 60.0)
+    frames = [Frame(k, k * dt, f.people) for k, f in enumerate(rec.frames[n:])]
+    return dc_replace(rec, frames=frames)
+
+
+def _fused_angles(result) -> list[list[dict]]:
+    """Per fused frame, per person: its pelvis as seen by the reference camera (uv) and its 8 big
+    angles (smoothed as `posecam fuse` smooths)."""
+    from posecam.angles import angle_names, angles_of
+    from posecam.filters import smooth_recording
+
+    fused = smooth_recording(result.recording)
+    names = angle_names(fused.joints)
+    idx = [names.index(a) for a in BIG_ANGLES]
+    out = []
+    for f in fused.frames:
+        out.append([{"uv": p.keypoints_2d[0].tolist(),
+                     "angles": angles_of(p.keypoints_3d, fused.joints, fused.frame_of_reference)[idx].tolist()}
+                    for p in f.people])
+    return out
+
+
+def _run_case(recs, names, opts) -> dict:
+    from posecam.multiview.fuse import fuse_recordings
+
+    t0 = time.perf_counter()
+    try:
+        res = fuse_recordings(recs, opts)
+    except Exception as exc:  # a refusal is a figure too
+        return {"error": f"{type(exc).__name__}: {exc}", "time_s": time.perf_counter() - t0}
+    cams = res.rig.cameras
+    return {"time_s": time.perf_counter() - t0, "cameras_names": [names[v] for v in res.views],
+            "R": [c.rotation.tolist() for c in cams], "t": [c.translation.tolist() for c in cams],
+            "fx": [c.intrinsics.fx for c in cams], "offsets_kept": [res.offsets[v] for v in res.views],
+            "warnings": res.warnings, "frame": "world" if opts.calibration is not None else "camera",
+            "pelvis": [[p.keypoints_3d[0].tolist() for p in f.people] for f in res.recording.frames],
+            "angles": _fused_angles(res),
+            "fixed": [bool(getattr(r, "intrinsics_fixed", False)) for r in res.cameras],
+            "spreads": [[r.spread.rotation_deg, r.spread.focal_pct] if getattr(r, "spread", None) else None
+                        for r in res.cameras]}
+
+
+def rigs_worker(take: str, cache: Path, offsets: list[float], out: Path) -> None:
+    """Every camera set (the four, each pair) with each lens, fused as a new user would (the
+    command's defaults), the lab-calibrated fuse of the same inputs (the angles' yardstick), and
+    the cut views: N frames cut off a camera (N < 0) or the reference (N > 0)."""
+    from posecam import read_poses
+    from posecam.io.calibration import read_calibration
+
+    lab = read_calibration(ROOT / TAKES[take][0] / "Calib.qca.txt")
+    results = {}
+    for lens, suffix in LENSES.items():
+        recs = [read_poses(cache / f"{take}{suffix}" / f"{n}.json")[0] for n in NAMES]
+        results[f"{lens} lab"] = _run_case(recs, list(NAMES), new_user_options(calibration=lab, offsets=offsets))
+        for views in [(0, 1, 2, 3), *itertools.combinations(range(4), 2)]:
+            names = [NAMES[v] for v in views]
+            results[f"{lens} {'+'.join(names)}"] = _run_case([recs[v] for v in views], names, new_user_options())
+    recs = [read_poses(cache / take / f"{n}.json")[0] for n in NAMES]
+    for n_cut in CUTS:
+        for c in range(1, 4):
+            for views in ((0, 1, 2, 3), (0, c)):
+                if n_cut > 0 and c > 1 and len(views) == 4:
+                    continue                     # the reference cut: one run of the four serves every camera
+                edited = [cut(r, abs(n_cut)) if (v == 0 and n_cut > 0) or (v == c and n_cut < 0) else r
+                          for v, r in enumerate(recs)]
+                names = [NAMES[v] for v in views]
+                results[f"cut {n_cut} {NAMES[c]} {'+'.join(names)}"] = _run_case([edited[v] for v in views], names,
+                                                                                new_user_options())
+    out.write_text(json.dumps(results))
+
+
+def _angle_errors(run: dict, lab: dict) -> tuple[float, float]:
+    """Median (over the 8 big angles) and worst of each angle's median |difference| over frames
+    and people, people matched by their pelvis in the reference camera."""
+    diffs = []
+    for a, b in zip(run["angles"], lab["angles"]):
+        for p in a:
+            if not b:
+                continue
+            q = min(b, key=lambda q: np.linalg.norm(np.subtract(q["uv"], p["uv"])))
+            if np.linalg.norm(np.subtract(q["uv"], p["uv"])) < 100:
+                diffs.append(np.abs((np.subtract(p["angles"], q["angles"]) + 180) % 360 - 180))
+    if not diffs:
+        return np.nan, np.nan
+    per_angle = np.nanmedian(np.array(diffs), axis=0)
+    return float(np.median(per_angle)), float(np.max(per_angle))
+
+
+def _expected(truth: Truth, n_cut: int, c: int, views) -> list[float]:
+    """The offsets the cut views should get: the lab's, plus N for the cut camera, or for every
+    camera when the reference is cut."""
+    return [truth.combination[v] + (n_cut if v and (n_cut > 0 or v == c) else 0) for v in views]
+
+
+def show_rigs(take: str, runs: dict[str, dict], truth: Truth) -> None:
+    for code, res in runs.items():
+        print(f"== {take} ({code}): every camera set as a new user fuses it (the command's defaults)")
+        print("   set                      lens     rot med/max deg  focal max %  pelvis mm  angles med/worst deg"
+              "  offsets found - lab")
+        for lens in LENSES:
+            lab = res.get(f"{lens} lab")
+            for views in [(0, 1, 2, 3), *itertools.combinations(range(4), 2)]:
+                label = "+".join(NAMES[v] for v in views)
+                r = res.get(f"{lens} {label}")
+                if r is None:
+                    continue
+                if "error" in r:
+                    print(f"   {label:24s} {lens:8s} REFUSED {r['error'][:150]}")
+                    continue
+                s = truth.score(r)
+                ang = _angle_errors(r, lab) if lab and "error" not in lab else (np.nan, np.nan)
+                rots = list(s["rot"].values())
+                off = ", ".join(f"{e:+.1f}" for e in list(s["offset_error"].values())[1:])
+                held = " (lens held)" if all(r.get("fixed") or [False]) else ""
+                print(f"   {label:24s} {lens:8s} {np.median(rots):5.2f} / {max(rots):5.2f}    {s['focal_max']:6.1f}"
+                      f"      {s['pelvis_median']:6.0f}     {ang[0]:5.2f} / {ang[1]:5.2f}        {off}{held}"
+                      + (f"  [{len(r['warnings'])} warnings]" if r["warnings"] else ""))
+        print(f"== {take} ({code}): cut views, default lens: found - expected (lab + N) per camera, "
+              "and against the uncut fuse + N")
+        uncut = {"+".join(NAMES[v] for v in views): res.get(f"default {'+'.join(NAMES[v] for v in views)}")
+                 for views in [(0, 1, 2, 3), *[(0, c) for c in range(1, 4)]]}
+        worst, refused, n_runs = 0.0, 0, 0
+        for key, r in res.items():
+            if not key.startswith("cut "):
+                continue
+            _, n_cut, cam, label = key.split(" ")
+            n_cut, c = int(n_cut), NAMES.index(cam)
+            views = [NAMES.index(n) for n in label.split("+")]
+            n_runs += 1
+            if "error" in r:
+                refused += 1
+                print(f"   N {n_cut:+3d} cut {'cam01' if n_cut > 0 else cam} {label:24s} REFUSED {r['error'][:140]}")
+                continue
+            want = dict(zip([NAMES[v] for v in views], _expected(truth, n_cut, c, views)))
+            base = uncut.get(label)
+            base_off = dict(zip(base["cameras_names"], base["offsets_kept"])) if base and "error" not in base else {}
+            rows = []
+            for name, o in zip(r["cameras_names"][1:], r["offsets_kept"][1:]):
+                err = o - want[name]
+                worst = max(worst, abs(err))
+                vs_uncut = (f", uncut+N {o - base_off[name] - (want[name] - truth.combination[NAMES.index(name)]):+.1f}"
+                            if name in base_off else "")
+                rows.append(f"{name} {o:+.1f} (want {want[name]:+.1f}: {err:+.1f}{vs_uncut})")
+            dropped = [n for n in label.split("+") if n not in r["cameras_names"]]
+            print(f"   N {n_cut:+3d} cut {'cam01' if n_cut > 0 else cam} {label:24s} " + "; ".join(rows)
+                  + (f"; dropped {', '.join(dropped)}" if dropped else ""))
+        print(f"   cut runs: {n_runs}, refused {refused}, worst |found - expected| of the fused cameras {worst:.1f} frames")
+
+
+def rigs(cache: Path, take: str, before: Path | None) -> None:
+    predict(cache, take)
+    predict_lab(cache, take)
+    truth = Truth(take, cache)
+    codes = {"before": before} if before else {}
+    codes["after"] = ROOT
+    runs = {}
+    for code, path in codes.items():
+        out = cache / take / f"rigs_{'after' if path == ROOT else path.name}.json"
+        if path == ROOT or not out.exists():
+            subprocess.run([sys.executable, __file__, "--rigs-worker", str(out), "--take", take, "--cache", str(cache),
+                            "--offsets", ",".join(map(str, truth.combination))],
+                           env=dict(os.environ, PYTHONPATH=str(path)), check=True, cwd=path)
+        runs[code] = json.loads(out.read_text())
+    show_rigs(take, runs, truth)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--cache", type=Path, default=Path("/tmp/fuse_cache"))
@@ -611,9 +816,19 @@ def main() -> None:
     ap.add_argument("--worker", type=Path, help=argparse.SUPPRESS)
     ap.add_argument("--long", type=Path, help=argparse.SUPPRESS)
     ap.add_argument("--offsets", help=argparse.SUPPRESS)
+    ap.add_argument("--rigs", action="store_true", help="only the rigs people have: every pair, a known lens or "
+                                                        "none, views cut at their start")
+    ap.add_argument("--rigs-worker", type=Path, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
         return worker(args.take, args.cache, [float(o) for o in args.offsets.split(",")], args.worker)
+    if args.rigs_worker:
+        return rigs_worker(args.take, args.cache, [float(o) for o in args.offsets.split(",")], args.rigs_worker)
+    if args.rigs:
+        for key in TAKES:
+            if args.take in (key, "both"):
+                rigs(args.cache, key, args.before)
+        return
     if args.long:
         return long_worker(args.cache, args.loops, args.long)
     for key in TAKES:

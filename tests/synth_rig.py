@@ -124,8 +124,10 @@ def make_rig(specs=DEFAULT_SPECS, seed: int = 1, principal_noise: float = 0.01) 
 def monocular_views(cams: list[CameraCalibration], world: np.ndarray, seed: int = 2,
                     pixel_noise: float = 2.0, joint_noise: float = 25.0, depth_noise: float = 50.0,
                     outlier_rate: float = 0.02, offsets: list[int] | None = None,
-                    visible: np.ndarray | None = None, id_switch: dict | None = None) -> list[Recording]:
-    """What `posecam predict` would write for each camera, with default intrinsics.
+                    visible: np.ndarray | None = None, id_switch: dict | None = None,
+                    known_lens: bool = False) -> list[Recording]:
+    """What `posecam predict` would write for each camera, with default intrinsics (with
+    `known_lens`, the cameras' own, as given by the user: source "flags").
 
     world: (F, J, 3) one person, or (P, F, J, 3) several. offsets[c] = o means camera c's frame
     i + o shows the instant of the world's frame i (its recording starts o frames earlier);
@@ -141,7 +143,8 @@ def monocular_views(cams: list[CameraCalibration], world: np.ndarray, seed: int 
     recs = []
     for ci, cam in enumerate(cams):
         o = offsets[ci] if offsets else 0
-        k0 = Intrinsics.default(*cam.size)
+        k = cam.intrinsics
+        k0 = Intrinsics(k.fx, k.fy, k.cx, k.cy, "flags") if known_lens else Intrinsics.default(*cam.size)
         rec = Recording(cam.name, cam.size[0], cam.size[1], k0, H36M_JOINTS, model="synthetic", fps=30.0)
         for i in range(n + max(o, 0)):
             src = i - o

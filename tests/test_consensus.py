@@ -159,12 +159,15 @@ def test_bundle_adjustment_refines_fractional_offsets_started_a_frame_off():
     assert rotation[True] < rotation[False] and rotation[True] < rotation["true"] + 0.2, rotation
 
 
-def test_sync_of_a_still_person_keeps_zero_with_a_warning():
+def test_sync_of_a_still_person_refuses_the_cameras_it_cannot_pin():
+    """People too still to pin an offset: no camera is fused at a guessed offset; the refusal
+    names every camera and says what would fuse it."""
     cams = make_rig()
-    result = fuse_recordings(_fractional(cams, [0.0, 2.0, -1.0, 0.0], still=True), FuseOptions(sync=True))
-    assert result.offsets == [0, 0, 0, 0]
-    sync = [w for w in result.warnings if "synchronise" in w]
-    assert len(sync) == 3 and all("move too little" in w for w in sync), result.warnings
+    with pytest.raises(FusionError) as err:
+        fuse_recordings(_fractional(cams, [0.0, 2.0, -1.0, 0.0], still=True), FuseOptions(sync=True))
+    line = str(err.value)
+    assert "\n" not in line and line.count("move too little") == 3 and "--offsets" in line, line
+    assert all(c.name in line for c in cams[1:]), line
 
 
 def test_camera_spread_grows_when_frames_are_removed(estimated):
@@ -425,3 +428,29 @@ def test_bundle_adjustment_derivatives_are_the_residuals_own():
     numeric = np.stack([(problem.residuals(x + h) - problem.residuals(x - h)) / (2 * h[i])
                         for i, h in enumerate(np.diag(step))], axis=1)
     assert np.abs(analytic - numeric).max() < 1e-5 * np.abs(numeric).max()
+
+
+def test_a_known_lens_stays_known_and_can_be_freed():
+    """Views predicted with the cameras' own intrinsics (given: --fx/--intrinsics) keep them
+    exactly; only where the cameras stand is estimated, and no worse than with every lens
+    free. --free-intrinsics estimates them again."""
+    cams = make_rig()
+    world = skeleton_motion(100)
+    recs = monocular_views(cams, world, known_lens=True)
+    held = fuse_recordings(recs, FuseOptions())
+    freed = fuse_recordings(recs, FuseOptions(free_intrinsics=True))
+    for true, est, rep in zip(cams, held.rig.cameras, held.cameras):
+        k, e = true.intrinsics, est.intrinsics
+        assert (e.fx, e.fy, e.cx, e.cy) == (k.fx, k.fy, k.cx, k.cy) and e.source == "flags", (true.name, e)
+        assert rep.intrinsics_fixed and rep.to_dict()["intrinsics_fixed"] is True
+        assert rep.spread is None or rep.spread.focal_pct == 0.0
+    assert not any(rep.intrinsics_fixed for rep in freed.cameras)
+    assert any(abs(e.intrinsics.fx / t.intrinsics.fx - 1) > 1e-4 for t, e in zip(cams, freed.rig.cameras))
+
+    def worst(result):
+        return max(relative_rotation_error_deg(cams[0].rotation, t.rotation, np.eye(3), e.rotation)
+                   for t, e in zip(cams[1:], result.rig.cameras[1:]))
+
+    assert worst(held) < 1.0 and worst(held) <= worst(freed) + 0.2, (worst(held), worst(freed))
+    default = fuse_recordings(monocular_views(cams, world), FuseOptions())
+    assert not any(rep.intrinsics_fixed for rep in default.cameras)          # the default lens: estimated

@@ -63,7 +63,7 @@ def test_views_of_different_lengths(tmp_path):
     short = tmp_path / "short"
     short.mkdir()
     _, short_paths = _inputs(short, 20)
-    r = run_posecam("fuse", paths[0], short_paths[1], "-o", tmp_path / "x.json")
+    r = run_posecam("fuse", paths[0], short_paths[1], "--sync", "none", "-o", tmp_path / "x.json")
     assert r.returncode == 2 and "different lengths (front.json 60, right.json 20 frames)" in r.stderr, r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "x.json").exists()
@@ -83,7 +83,8 @@ def test_fuse_with_qualisys_calibration(tmp_path):
     assert r.returncode == 0, r.stderr
     assert grid.stat().st_size > 0
     warnings = [line for line in r.stderr.splitlines() if line.startswith("posecam: warning:")]
-    assert len(warnings) == 1 and "sorted order" in warnings[0] and "back=cam01" in warnings[0], r.stderr
+    assert len(warnings) == 2 and "sorted order" in warnings[0] and "back=cam01" in warnings[0], r.stderr
+    assert "every view fused at offset 0" in warnings[1], r.stderr     # --sync none, the default with a calibration
     assert json.loads(out.read_text())["inputs"][0]["frame"] == "world"
     rows = [line for line in r.stdout.splitlines() if line.startswith("│") and "front" in line]
     assert rows and float(rows[0].split("│")[3]) < 10, r.stdout        # reprojection px: the right cameras
@@ -127,7 +128,7 @@ def test_a_view_without_intrinsics_is_refused_in_one_line(tmp_path):
 def test_estimated_rig_reports_spreads_in_json_and_toml_and_takes_heights(tmp_path):
     cams, paths = _inputs(tmp_path, 60)
     out, toml = tmp_path / "fused.json", tmp_path / "rig.toml"
-    r = run_posecam("fuse", *paths, "--height", "1.9", "-o", out, "--save-calibration", toml)
+    r = run_posecam("fuse", *paths, "--height", "1.9", "--sync", "none", "-o", out, "--save-calibration", toml)
     assert r.returncode == 0, r.stderr
     listed = json.loads(out.read_text())["inputs"][0]["cameras"]
     assert [c["name"] for c in listed] == [c.name for c in cams]

@@ -21,7 +21,8 @@ if TYPE_CHECKING:
 
 def _spread(rep) -> tuple[str, str, str]:
     s = rep.spread
-    return ("", "", "") if s is None else (f"{s.rotation_deg:.2f}", f"{s.focal_pct:.1f}", f"{s.position_mm:.0f}")
+    focal = "fixed" if rep.intrinsics_fixed else "" if s is None else f"{s.focal_pct:.1f}"
+    return ("", focal, "") if s is None else (f"{s.rotation_deg:.2f}", focal, f"{s.position_mm:.0f}")
 
 
 def _offset(rep, confidence: bool = True) -> str:
@@ -40,7 +41,8 @@ def camera_comments(result: FusionResult) -> dict[str, str]:
         line = f"offset {_offset(rep)} frames; reprojection {rep.reprojection_px:.1f} px"
         if rep.spread is not None:
             rot, focal, pos = _spread(rep)
-            line += f"; one standard deviation: rotation {rot} deg, focal {focal} %, position {pos} mm"
+            focal = "held (given)" if rep.intrinsics_fixed else f"{focal} %"
+            line += f"; one standard deviation: rotation {rot} deg, focal {focal}, position {pos} mm"
         out[rep.name] = line
     return out
 
@@ -122,12 +124,18 @@ def parse_offsets(text: str) -> list[float]:
 @click.option("--save-calibration", type=click.Path(), help="Write the cameras to FILE.toml (anipose/Pose2Sim).")
 @click.option("--method", type=click.Choice(["average", "triangulate"]), default="average", show_default=True,
               help="Average the monocular poses, or triangulate the 2D keypoints.")
-@click.option("--sync", type=click.Choice(["none", "auto"]), default="none", show_default=True,
-              help="auto: estimate each video's frame offset against the first.")
+@click.option("--sync", type=click.Choice(["none", "auto"]),
+              help="auto: estimate each video's frame offset against the first; none: the views started together. "
+                   "Default: auto, none with --calibration.")
 @click.option("--offsets", help="Frame offsets, one per view, e.g. 0,-1,4.5,0 (sub-frame allowed): view c's frame i+o "
                                 "shows the same instant as the first view's frame i.")
-@click.option("--max-offset", type=click.IntRange(0, MAX_OFFSET), default=10, show_default=True,
-              help="Largest frame offset --sync auto tries, in frames either way.")
+@click.option("--max-offset", type=click.IntRange(0, MAX_OFFSET),
+              help="Largest frame offset --sync auto tries, in frames either way (default: without --calibration, "
+                   "any that leaves the views half the shorter one's frames; with it, 10).")
+@click.option("--free-intrinsics", is_flag=True,
+              help="Estimate every camera's focal length, also where the intrinsics were given (--fx, --intrinsics, "
+                   "or recorded so in a pose JSON); by default a given lens is held and only where the cameras "
+                   "stand is estimated.")
 @click.option("--viz", type=click.Path(), help="FILE.png or FILE.jpg: the fused pose projected into every view, in "
                                                "one frame (named on it); FILE.mp4: every fused frame.")
 @click.option("--verbose", is_flag=True, help="Add a table of each camera's joints used, left/right swaps, "
@@ -139,7 +147,7 @@ def parse_offsets(text: str) -> list[float]:
 @many_options("take")
 @intrinsics_options(per_camera=True)
 def fuse_command(inputs, output, calibration, save_calibration, method, sync, offsets, max_offset, viz,
-                 viz3d=None, smooth=True, trc_y_up=False, out_dir=None, out_format="json",
+                 free_intrinsics=False, viz3d=None, smooth=True, trc_y_up=False, out_dir=None, out_format="json",
                  jobs=1, ray_address=None, heights=(), angles=False, plot=None, **flags) -> None:
     """Fuse several cameras' views of one scene.
 
@@ -176,8 +184,10 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     check_output(viz, (*PICTURE_SUFFIXES, *VIDEO_SUFFIXES), "--viz")
     if offsets and sync == "auto":
         raise InputError("give either --offsets or --sync auto")
+    sync = sync or ("none" if calibration or offsets else "auto")
     refuse_alone("max_offset", "--sync auto", sync == "auto")
     refuse_alone("trc_y_up", "-o FILE.trc or FILE.c3d", bool(markers))
+    refuse_alone("free_intrinsics", "cameras to estimate (no --calibration)", not calibration)
     offset_list = parse_offsets(offsets) if offsets else None
     if calibration:
         check_input(calibration, "calibration")   # a pipe or a device would block the read
@@ -202,7 +212,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
                        per_person=markers)  # every output checked before the work
     rig = read_calibration(calibration) if calibration else None
     opts = FuseOptions(calibration=rig, method=method, offsets=offset_list, sync=sync == "auto",
-                       max_offset=max_offset, heights=Heights.parse(heights))
+                       max_offset=max_offset, heights=Heights.parse(heights), free_intrinsics=free_intrinsics)
     if many:
         from posecam.commands.many import fuse_many
 

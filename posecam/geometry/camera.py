@@ -21,6 +21,9 @@ FILM_DIAGONAL_MM = 43.2666
 DEFAULT_FOCAL_35MM = 28.0
 # Plausible horizontal fields of view in degrees: a long telephoto to a fisheye.
 FOV_RANGE = (5.0, 170.0)
+# Intrinsics.source values of a lens nobody measured: posecam's guess (the default lens, the
+# photo's EXIF) or its own estimate; any other source (flags, a file, a calibration) is given
+ESTIMATED_SOURCES = ("default", "exif", "consensus", "bundle")
 
 
 @dataclass(frozen=True)
@@ -42,6 +45,12 @@ class Intrinsics:
             raise InputError(f"intrinsics must be finite numbers, got {values}")
         if self.fx <= 0 or self.fy <= 0:
             raise InputError(f"focal lengths must be positive, got fx={self.fx}, fy={self.fy}")
+
+    @property
+    def given(self) -> bool:
+        """Whether these intrinsics were measured (flags, a file, a calibration), not guessed
+        or estimated by posecam (ESTIMATED_SOURCES)."""
+        return self.source not in ESTIMATED_SOURCES
 
     def check_image(self, width: int, height: int) -> "Intrinsics":
         """These intrinsics if they are plausible for a width x height image, else InputError:

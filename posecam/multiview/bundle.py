@@ -2,9 +2,10 @@
 joints over all views, so camera estimates do not stop at the accuracy of monocular depth.
 
 Unknowns, as slots of each camera's parameter vector (`CameraCalibration.params`): every
-camera's focal length (its aspect fy / fx kept), optionally cx, cy (fixed at their start by
-default), every camera's rotation (Rodrigues) and translation but the reference's, and one 3D point per frame and joint seen by two views
-or more. Residuals: reprojection errors in units of `pixel_sigma`, weighted by confidence
+camera's focal length (its aspect fy / fx kept) but those whose intrinsics are known
+(`BundleOptions.fixed_intrinsics`), optionally cx, cy (fixed at their start by default),
+every camera's rotation (Rodrigues) and translation but the reference's, and one 3D point per
+frame and joint seen by two views or more. Residuals: reprojection errors in units of `pixel_sigma`, weighted by confidence
 (joints below 0.5 are left out) under a robust soft-L1 loss, plus, when the principal point is
 free, a weak prior that keeps it near the image centre. Reprojection alone cannot tell the
 rig's scale; it comes back from the metric monocular poses: after the fit the rig and the
@@ -42,7 +43,7 @@ observation; independent errors give the plain Gauss-Newton covariance back.
 from __future__ import annotations
 
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -83,6 +84,9 @@ class BundleOptions:
     refine_offsets: bool = False
     offset_window: int = 4
     offset_lowpass_hz: float = 6.0
+    # names of the cameras whose intrinsics are known (given, not guessed): focal length and
+    # principal point held, only where the camera stands is estimated
+    fixed_intrinsics: frozenset[str] = frozenset()
 
 
 @dataclass
@@ -327,8 +331,9 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     p0 = np.c_[rig.params(), np.zeros(n_v) if offsets is None else offsets]   # (V, 10)
     p0[:, 6] = np.log(p0[:, 6])                                           # optimised as log f
     free = np.zeros(p0.shape, bool)
-    free[:, 6] = True
-    free[:, 7:9] = not opts.fix_principal_point
+    lens_free = np.array([c.name not in opts.fixed_intrinsics for c in cams])
+    free[:, 6] = lens_free
+    free[:, 7:9] = lens_free[:, None] & (not opts.fix_principal_point)
     others = [i for i in range(n_v) if i != ref]
     free[others, :6] = True
     free[others, 9] = refine
@@ -381,7 +386,8 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     pts, p[:, 3:6] = pts * scale, p[:, 3:6] * scale
     cov[:, 3:6, :] *= scale
     cov[:, :, 3:6] *= scale
-    out = rig.with_params(p, source="bundle").cameras
+    out = [replace(c.with_params(x), intrinsics=c.intrinsics) if c.name in opts.fixed_intrinsics
+           else c.with_params(x, "bundle") for c, x in zip(rig.cameras, p)]
     observed = problem.observed(np.c_[p, shifts])[0]
     err = np.full((n_v, n_m), np.nan)
     for i, cam in enumerate(out):

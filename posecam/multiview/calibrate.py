@@ -89,15 +89,16 @@ def _bone_lengths(obs: Observations, joints: tuple[str, ...], min_conf: float) -
 
 
 def _consensus(assumed: list[CameraCalibration], people: list[Observations], views: list[int], ref: int,
-               min_conf: float) -> Rig:
-    """Consensus on the people, a second time without the outlier stretches of the first."""
+               min_conf: float, fixed: frozenset[str] = frozenset()) -> Rig:
+    """Consensus on the people, a second time without the outlier stretches of the first; the
+    intrinsics of the cameras named in `fixed` held."""
     obs = Observations.side_by_side([p.take(views) for p in people])
     conf = obs.conf.copy()
     lengths = np.cumsum([0] + [p.conf.shape[1] for p in people])
     kept = [assumed[v] for v in views]
     for _ in range(2):
         inliers = Observations(obs.uv, obs.xyz, conf, obs.score)
-        fit = estimate_rig(kept, inliers, ConsensusOptions(reference=views.index(ref), min_conf=min_conf))
+        fit = estimate_rig(kept, inliers, ConsensusOptions(reference=views.index(ref), min_conf=min_conf, fixed=fixed))
         res = stretch_residuals(fit.rig, kept, inliers, lengths, min_conf)          # (V, P) mm
         bad = res > OUTLIER_FACTOR * np.nanmedian(res)
         if not bad.any():
@@ -157,7 +158,8 @@ def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations
                      timed: TimedKeypoints | None = None, offsets: list[float] | None = None) -> KeptCameras:
     """Cameras of the views that the people allow; FusionError when fewer than two are left.
     With `timed` keypoints of the people (side by side) at the views' `offsets`, the bundle
-    adjustment refines the offsets too (posecam.multiview.bundle) and KeptCameras has them."""
+    adjustment refines the offsets too (posecam.multiview.bundle) and KeptCameras has them.
+    The cameras named in BundleOptions.fixed_intrinsics keep their intrinsics throughout."""
     views = list(range(len(assumed)))
     warnings = []
     people = [p for p in people if ((p.conf.max(axis=-1) > 0).sum(axis=0) >= 2).any()]   # seen twice
@@ -173,7 +175,8 @@ def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations
                               + (": " + "; ".join(warnings) if warnings else ""))
         obs = Observations.side_by_side([p.take(views) for p in people])
         try:
-            rig = _consensus(assumed, people, views, reference, min_conf)
+            rig = _consensus(assumed, people, views, reference, min_conf,
+                             (bundle_options or BundleOptions()).fixed_intrinsics)
             refined = None
             if bundle:
                 start = None if timed is None else np.asarray(offsets, float)[views]
@@ -215,9 +218,9 @@ def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations
 def cameras_from_people(take: Take, association: Association, sync: SyncResult, min_conf: float,
                         bundle: bool = True, bundle_options: BundleOptions | None = None) -> KeptCameras:
     """The stage without a calibration: `estimate_cameras` on every associated person at the
-    offsets (with BundleOptions.refine_offsets, the bundle adjustment refines them, from where
-    they are: KeptCameras.offsets),
-    then, while a kept view's people do not move as the reference's (`motion_agreement`
+    offsets, in the views whose offset is pinned (not SyncResult.unpinned; with
+    BundleOptions.refine_offsets, the bundle adjustment refines the offsets from where they
+    are: KeptCameras.offsets), then, while a kept view's people do not move as the reference's (`motion_agreement`
     below MIN_SAME_MOTION where they move enough to tell), that view dropped and the cameras
     estimated again without it."""
     ref = take.reference
@@ -226,8 +229,17 @@ def cameras_from_people(take: Take, association: Association, sync: SyncResult, 
     timed = None
     if bundle and opts.refine_offsets:
         timed = take.timed(association.people, sync.offsets, opts.offset_window, opts.offset_lowpass_hz, min_conf)
-    est = estimate_cameras(take.assumed, take.observations(association.people, sync.offsets, every), take.joints,
-                           ref, min_conf, bundle, bundle_options, timed, sync.offsets)
+
+    def estimate(kept: list[int]) -> KeptCameras:
+        est = estimate_cameras([take.assumed[u] for u in kept],
+                               [p.take(kept) for p in take.observations(association.people, sync.offsets, every)],
+                               take.joints, kept.index(ref), min_conf, bundle, bundle_options,
+                               None if timed is None else timed.take(kept),
+                               None if timed is None else [sync.offsets[u] for u in kept])
+        est.views = [kept[i] for i in est.views]
+        return est
+
+    est = estimate([v for v in every if v not in sync.unpinned])
     while True:                          # views whose people do not move as the reference's: not one scene
         agreement = motion_agreement(take, association.people, sync.offsets, min_conf)
         unrelated = [(agreement[v][0], v) for v in est.views if v in agreement
@@ -240,12 +252,8 @@ def cameras_from_people(take: Take, association: Association, sync: SyncResult, 
         kept = [u for u in est.views if u != v]
         if len(kept) < 2:
             raise FusionError(line.replace(" dropped:", " cannot be fused:"))
-        est = estimate_cameras([take.assumed[u] for u in kept],
-                               [p.take(kept) for p in take.observations(association.people, sync.offsets, every)],
-                               take.joints, kept.index(ref), min_conf, bundle, bundle_options,
-                               None if timed is None else timed.take(kept),
-                               None if timed is None else [sync.offsets[u] for u in kept])
-        est.views, est.warnings = [kept[i] for i in est.views], [line] + est.warnings
+        est = estimate(kept)
+        est.warnings = [line] + est.warnings
 
 
 def cameras_without_swaps(take: Take, cameras: KeptCameras, people: list[Observations], swaps: np.ndarray,

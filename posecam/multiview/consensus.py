@@ -19,7 +19,8 @@ moving. Each iteration: rigid Procrustes without reflection for R, eq. 8 for t, 
 focal length in closed form from the depths. The principal point stays at its start here: in
 this 3D alignment a shift of it trades against a small rotation and drifts; the bundle
 adjustment estimates it from the 2D keypoints. Only the reference camera's focal is fixed in
-stage 1 (it anchors the depths); all are free in stage 2.
+stage 1 (it anchors the depths); all are free in stage 2, but those of the cameras whose
+intrinsics are known (`ConsensusOptions.fixed`: given by the user, not guessed), held in both.
 Joints with confidence below MIN_CONFIDENCE (0.5) are left out; outlier joints are down-weighted by
 iteratively reweighted least squares (Cauchy).
 """
@@ -50,6 +51,7 @@ class ConsensusOptions:
     cauchy_scale: float = 2.5      # outlier scale, in robust standard deviations of the residuals
     joint: bool = True             # stage 2 (all views at once); False: stage 1 only, quicker
     max_frames: int = 300          # frames used, evenly spaced (the cost is linear in them)
+    fixed: frozenset[str] = frozenset()   # names of the cameras whose intrinsics are known: held
 
 
 @dataclass
@@ -195,8 +197,9 @@ def _run_stage(assumed: list[CameraCalibration], obs: Observations, s: _State, w
                                   "joints with the other views")
             if i != ref:
                 s.rotation[i], s.translation[i] = procrustes(target[i][ok], p[i][ok], w[i][ok])
-            s.k[i] = fit_focal(camera, obs.xyz[i], root[i], s.k[i],
-                               target[i] @ s.rotation[i].T + s.translation[i], w[i])
+            if camera.name not in opts.fixed:
+                s.k[i] = fit_focal(camera, obs.xyz[i], root[i], s.k[i],
+                                   target[i] @ s.rotation[i].T + s.translation[i], w[i])
         if it > 0 and s.change(old) < opts.tol:
             return it + 1, True
     return opts.max_iter, False
@@ -232,7 +235,8 @@ def estimate_rig(assumed: list[CameraCalibration], obs: Observations,
     _, x = _points(assumed, obs, s)
     target = fuse_points(x, s.rotation, w0, leave_one_out=True)
     dist = np.where(w0 > 0, np.linalg.norm(x - target, axis=-1), np.nan)
-    cameras = [CameraCalibration(c.name, c.size, Intrinsics(*map(float, s.k[i]), source="consensus"),
+    cameras = [CameraCalibration(c.name, c.size, c.intrinsics if c.name in opts.fixed else
+                                 Intrinsics(*map(float, s.k[i]), source="consensus"),
                                  s.rotation[i].copy(), s.translation[i].copy())
                for i, c in enumerate(assumed)]
     return ConsensusResult(

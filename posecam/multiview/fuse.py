@@ -42,7 +42,7 @@ from posecam.multiview.fuse_people import FusedPerson, fuse_person
 from posecam.multiview.left_right import fix_people
 from posecam.multiview.observations import Observations, Take
 from posecam.multiview.report import CameraReport, camera_reports
-from posecam.multiview.sync import SyncResult, synchronise
+from posecam.multiview.sync import RIG_MAX_OFFSET, SyncResult, coarse_offsets, synchronise
 from posecam.results import Frame, Person, Recording
 from posecam.skeleton import skeleton_of
 
@@ -52,13 +52,18 @@ class FuseOptions:
     calibration: Rig | None = None         # known cameras; None: estimate them
     method: str = "average"                # "average" (monocular poses) or "triangulate" (2D)
     offsets: list[float] | None = None     # per view, see posecam.multiview.sync; None: zeros or auto
-    sync: bool = False                     # estimate the offsets
-    max_offset: int = 10
+    sync: bool = False                     # estimate the offsets (`posecam fuse` does unless given a calibration)
+    # frames either way the offsets may reach; None: without a calibration, any that leaves the views
+    # half the shorter one's frames (posecam.multiview.sync.coarse_offsets); with one, 10
+    max_offset: int | None = None
     reference: int = 0
     bundle: bool = True                    # refine an estimated rig by bundle adjustment
     min_conf: float = MIN_CONFIDENCE
     bundle_options: BundleOptions = field(default_factory=BundleOptions)
     heights: Heights = field(default_factory=Heights)   # known heights: the metric scale of an estimated rig
+    # estimate the intrinsics of the views whose poses were made with given ones (flags, a file, a
+    # calibration: Intrinsics.given) too; by default those are held and only the cameras' poses estimated
+    free_intrinsics: bool = False
 
 
 @dataclass
@@ -82,12 +87,15 @@ def view_names(recordings: list[Recording]) -> list[str]:
 
 
 def check_lengths(names: list[str], lengths: list[int], opts: FuseOptions) -> str | None:
-    """Views of one take have one length: InputError when they differ by more than the offsets
-    allow (`max_offset` and the largest `offsets`), a warning line when they differ at all."""
-    if not lengths or max(lengths) == min(lengths):
+    """Views of one take have one length unless they are synchronised without a calibration
+    (unsynchronised cameras started apart: the offsets found line them up): InputError when they
+    differ by more than the offsets allow (`max_offset` and the largest `offsets`), a warning
+    line when they differ at all."""
+    if not lengths or max(lengths) == min(lengths) or (opts.sync and opts.calibration is None):
         return None
     shown = ", ".join(f"{n} {k}" for n, k in zip(names, lengths))
-    slack = opts.max_offset + max((abs(o) for o in opts.offsets or [0]), default=0)
+    search = opts.max_offset if opts.max_offset is not None else RIG_MAX_OFFSET if opts.sync else 0
+    slack = search + max((abs(o) for o in opts.offsets or [0]), default=0)
     if max(lengths) - min(lengths) > slack:
         raise InputError(f"the views have different lengths ({shown} frames): fuse needs "
                          "recordings of the same take; trim them to it")
@@ -209,6 +217,23 @@ def to_metric(cameras: KeptCameras, people: list[Observations], take: Take,
     return replace(cameras, rig=rig, spreads=spreads), source, warnings
 
 
+def known_lenses(take: Take, opts: FuseOptions) -> frozenset[str]:
+    """Names of the views whose intrinsics are held while the rig is estimated: those given
+    (Intrinsics.given), unless FuseOptions.free_intrinsics, and any BundleOptions.fixed_intrinsics."""
+    given = () if opts.free_intrinsics else (n for n, c in zip(take.names, take.assumed) if c.intrinsics.given)
+    return opts.bundle_options.fixed_intrinsics | frozenset(given)
+
+
+def _start(take: Take, opts: FuseOptions) -> list[float]:
+    """Where the offsets start: the ones given; to be found without a calibration, where the
+    views' bones move alike (posecam.multiview.sync.coarse_offsets); else zeros."""
+    if opts.offsets is not None:
+        return list(opts.offsets)
+    if opts.sync and opts.calibration is None:
+        return coarse_offsets(take, opts.max_offset, opts.min_conf)
+    return [0.0] * len(take.names)
+
+
 def _offsets(take: Take, association: Association, rig: Rig | None, start: list[float], opts: FuseOptions,
              say: Callable[[str], None]) -> SyncResult:
     """The views' offsets: estimated with `sync`, else the ones given (zeros by default)."""
@@ -223,6 +248,8 @@ def _estimated(take: Take, association: Association, sync: SyncResult, opts: Fus
     """The cameras without a calibration (posecam.multiview.calibrate.cameras_from_people), and the
     offsets with them where BundleOptions.refine_offsets asks."""
     say("estimating the cameras")
+    if len(take.names) - len(sync.unpinned) < 2:
+        raise FusionError("fewer than two cameras can be fused: " + "; ".join(sync.warnings))
     return cameras_from_people(take, association, sync, opts.min_conf, opts.bundle, opts.bundle_options)
 
 
@@ -247,9 +274,10 @@ def fuse_recordings(recordings: list[Recording], options: FuseOptions | None = N
 def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[str], None] | None) -> FusionResult:
     say = progress or (lambda _msg: None)
     take = check_take(recordings, opts)
+    opts = replace(opts, bundle_options=replace(opts.bundle_options, fixed_intrinsics=known_lenses(take, opts)))
     given = given_cameras(take, opts.calibration) if opts.calibration is not None else None
-    start = list(opts.offsets) if opts.offsets is not None else [0] * len(recordings)
     rig = given.rig if given else None
+    start = _start(take, opts)
 
     say("associating people across views")
     association = associate_people(take, rig, start, opts.min_conf)
@@ -258,7 +286,10 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
         association = associate_people(take, rig, sync.offsets, opts.min_conf)
     cameras = given or _estimated(take, association, sync, opts, say)
     sync = refined_offsets(sync, cameras)
-    warnings = cameras.warnings + sync.warnings
+    warnings = sync.warnings + cameras.warnings
+    if not opts.sync and opts.offsets is None:
+        warnings.append("every view fused at offset 0, as if the cameras had started together: --sync auto finds "
+                        "their offsets, --offsets sets them")
 
     say("checking left and right")
     people, swaps = fix_people(cameras.rig, take.observations(association.people, sync.offsets, cameras.views),
@@ -286,8 +317,9 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
     fused = [fuse_person(rig, [take.assumed[v].intrinsics for v in views], obs, opts.method, opts.min_conf)
              for obs in people]
     spread = sync.spread or [0.0] * len(recordings)
+    fixed = [bool(given) or take.names[v] in opts.bundle_options.fixed_intrinsics for v in views]
     reports = camera_reports(rig, [sync.offsets[v] for v in views], [sync.confidence[v] for v in views],
-                             [spread[v] for v in views], swaps, people, fused, opts.min_conf, cameras.spreads)
+                             [spread[v] for v in views], swaps, people, fused, opts.min_conf, cameras.spreads, fixed)
     recording = _to_recording(fused, rig, views.index(take.reference), recordings[take.reference])
     recording.cameras = [r.to_dict() for r in reports]
     return FusionResult(recording, rig, sync.offsets, reports, views, list(dict.fromkeys(warnings)), scale_source)

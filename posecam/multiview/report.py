@@ -1,5 +1,5 @@
 """What fusion says about each camera: offset, its confidence and spread, reprojection error,
-joints used, intrinsics, left/right swaps undone, and, for an estimated camera, the spread of
+joints used, intrinsics (and whether they were held: given), left/right swaps undone, and, for an estimated camera, the spread of
 its rotation, focal length and position (posecam.multiview.bundle.CameraSpread)."""
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ class CameraReport:
     offset_confidence: float = 1.0         # of --sync auto, 0..1 (posecam.multiview.sync); 1: given or reference
     offset_spread: float = 0.0             # frames, one standard deviation (0: given or reference)
     spread: CameraSpread | None = None     # of an estimated camera; None: given
+    intrinsics_fixed: bool = False         # the intrinsics were given and held (not estimated)
 
     def to_dict(self) -> dict:
         """The report as JSON-ready values (a fused JSON's `cameras` list)."""
@@ -32,7 +33,8 @@ class CameraReport:
                "offset_confidence": round(float(self.offset_confidence), 3),
                "offset_spread_frames": _finite(self.offset_spread, 2),
                "reprojection_px": _finite(self.reprojection_px, 2), "joints_used": self.joints_used,
-               "intrinsics": [round(float(v), 2) for v in self.intrinsics], "swaps_fixed": self.swaps_fixed}
+               "intrinsics": [round(float(v), 2) for v in self.intrinsics],
+               "intrinsics_fixed": self.intrinsics_fixed, "swaps_fixed": self.swaps_fixed}
         if self.spread is not None:
             out.update(rotation_spread_deg=_finite(self.spread.rotation_deg, 3),
                        focal_spread_pct=_finite(self.spread.focal_pct, 3),
@@ -46,9 +48,9 @@ def _finite(x: float, digits: int) -> float | None:
 
 def camera_reports(rig: Rig, offsets: list[float], confidence: list[float], offset_spread: list[float],
                    swaps: np.ndarray, people: list[Observations], fused: list[FusedPerson], min_conf: float,
-                   spreads: list[CameraSpread] | None = None) -> list[CameraReport]:
-    """One report per camera of `rig`; offsets, their confidence and spread, swaps and the
-    cameras' spreads (V,) in the same order."""
+                   spreads: list[CameraSpread] | None = None, fixed: list[bool] | None = None) -> list[CameraReport]:
+    """One report per camera of `rig`; offsets, their confidence and spread, swaps, the
+    cameras' spreads and whether their intrinsics were held (V,) in the same order."""
     reports = []
     for v, cam in enumerate(rig.cameras):
         errors, used = [], 0
@@ -61,5 +63,6 @@ def camera_reports(rig: Rig, offsets: list[float], confidence: list[float], offs
         k = cam.intrinsics
         reports.append(CameraReport(cam.name, offsets[v], float(np.median(err)) if err.size else float("nan"),
                                     used, (k.fx, k.fy, k.cx, k.cy), int(swaps[v]), confidence[v],
-                                    offset_spread[v], spreads[v] if spreads else None))
+                                    offset_spread[v], spreads[v] if spreads else None,
+                                    bool(fixed[v]) if fixed else False))
     return reports

@@ -19,8 +19,10 @@ demo, a person balancing for 1.7 s, monocular pose noise swamps the motion and i
 
 from __future__ import annotations
 
+import itertools
 import warnings
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -28,7 +30,8 @@ from posecam.errors import FusionError
 from posecam.geometry.camera import CameraCalibration, Rig
 from posecam.geometry.triangulate import MIN_CONFIDENCE, reprojection_errors, triangulate
 from posecam.media import DEFAULT_FPS
-from posecam.multiview.observations import PersonTracks, Take, lowpass, shift
+from posecam.multiview.observations import PersonTracks, Take, ViewTrack, lowpass, shift
+from posecam.skeleton import skeleton_of
 
 
 def rig_error(cams: list[CameraCalibration], uv: list[np.ndarray], conf: list[np.ndarray],
@@ -47,6 +50,7 @@ class SyncResult:
     confidence: list[float]     # per view, 0..1 (reference: 1); see the functions that make it
     warnings: list[str]
     spread: list[float] | None = None   # per view, frames (one standard deviation), where known
+    unpinned: list[int] = field(default_factory=list)   # views whose offset the motion does not pin: left out
 
 
 def _confidence(errors: dict[int, float], best: int) -> float:
@@ -122,7 +126,6 @@ LAG_STEP = 0.1                  # frames: the lag grid before the parabolic refi
 MIN_MOTION = 45.0               # mm: below this excursion of the joints about the root (the
                                 # median over joints of their low-passed standard deviation over
                                 # time) the people are too still to pin an offset
-MIN_CORRELATION = 0.3           # peak correlation below which an offset is not trusted
 MAX_SPREAD = 1.0                # frames: a bootstrap spread above this is no offset either
 BOOTSTRAP = 30                  # resamples of blocks of frames and of joints for the offset's spread
 
@@ -182,53 +185,214 @@ def _peak(lags: np.ndarray, corr: np.ndarray) -> float:
 
 @dataclass
 class MotionOffset:
-    offset: float               # frames, module convention (0 when not pinned)
+    offset: float               # frames, module convention
     correlation: float          # of the signals at that offset, -1..1
     spread: float               # frames: standard deviation over block-bootstrap resamples
 
 
-def motion_offset(ref: np.ndarray, other: np.ndarray, max_offset: float, seed: int = 0) -> MotionOffset:
-    """Offset of `other` (F_o, K) against `ref` (F, K) motion signals (`motion_signals`, the
-    same K columns: the same people's joints), sub-frame: the correlation on a lag grid of
-    LAG_STEP frames, its peak refined by a parabola; the spread is that of the peak over
-    resamples of blocks of frames (a tenth of the take each) and of the joints: a monocular
-    pose's errors depend on where the camera stands, so joints whose motion two views see
-    differently pull the peak apart, and resampling the frames alone would hide it (Pose2Sim's
-    single take: cam03 -0.4 +- 0.8 frames over frames alone, +- 1.2 over frames and joints, where
-    the lab rig puts it at +4.2)."""
-    lags = np.round(np.arange(-max_offset, max_offset + LAG_STEP / 2, LAG_STEP), 6)
-    corr = np.array([motion_correlation(ref, other, o) for o in lags])
+def motion_offset(score: Callable[[float, np.ndarray | None, np.ndarray | None], float], n: int, k: int,
+                  centre: float, window: float, seed: int = 0) -> MotionOffset:
+    """The sub-frame lag at which score(lag, frames, columns) (a correlation of two views'
+    signals: n frames, k columns, optionally only some frames and columns, repeats counting
+    twice) peaks, on a grid of LAG_STEP frames within `window` of `centre`, refined by a
+    parabola; its spread is that of the peak over resamples of blocks of frames (a tenth of the
+    take each) and of the columns: a monocular pose's errors depend on where the camera stands,
+    so signals that two views see differently pull the peak apart, and resampling the frames
+    alone would hide it (Pose2Sim's single take, joint speeds: cam03 -0.4 +- 0.8 frames over
+    frames alone, +- 1.2 over frames and joints, where the lab rig puts it at +4.2)."""
+    lags = np.round(centre + np.arange(-window, window + LAG_STEP / 2, LAG_STEP), 6)
+    corr = np.array([score(o, None, None) for o in lags])
     if not np.isfinite(corr).any():
-        return MotionOffset(0.0, np.nan, np.inf)
+        return MotionOffset(centre, np.nan, np.inf)
     best = _peak(lags, corr)
     rng = np.random.default_rng(seed)
-    n = len(ref)
     block = max(10, n // 10)
     near = lags[np.abs(lags - best) <= 2.0]
     peaks = []
-    k = ref.shape[1]
     for _ in range(BOOTSTRAP):
         starts = rng.integers(0, max(n - block, 1), size=max(n // block, 1))
         frames = np.concatenate([np.arange(s, min(s + block, n)) for s in starts])
         columns = rng.integers(0, k, size=k)
-        c = np.array([motion_correlation(ref, other, o, frames, columns) for o in near])
+        c = np.array([score(o, frames, columns) for o in near])
         if np.isfinite(c).any():
             peaks.append(_peak(near, c))
     spread = float(np.std(peaks)) if len(peaks) > 2 else np.inf
     return MotionOffset(round(best, 2), float(np.nanmax(corr)), spread)
 
 
+# ---- the coarse offsets: bone directions, the same from every camera up to its rotation -------
+
+COARSE_SHARE = 0.5              # the coarse search's lags leave each pair of views at least this
+                                # share of the shorter one's frames
+COARSE_TRACKS = 3               # the longest tracks of each view that the coarse search pairs
+MIN_BONE_PAIRS = 150            # bone observations two views must share at a lag to score it
+FINE_WINDOW = 3                 # frames either way of the coarse lag that the motion correlation scans
+
+
+def bone_directions(xyz: np.ndarray, conf: np.ndarray, joints: tuple[str, ...], fps: float,
+                    min_conf: float) -> np.ndarray:
+    """(F, B, 3) unit vectors of the skeleton's bones in a view's monocular poses (camera
+    frame), low-passed at LOWPASS_HZ; NaN where one of its ends is not seen (conf < min_conf)."""
+    idx = skeleton_of(joints).bone_indices
+    v = xyz[:, idx[:, 1]] - xyz[:, idx[:, 0]]
+    seen = (conf[:, idx[:, 0]] >= min_conf) & (conf[:, idx[:, 1]] >= min_conf) & np.isfinite(v).all(axis=-1)
+    with np.errstate(all="ignore"):
+        v = v / np.linalg.norm(v, axis=-1, keepdims=True)
+        smooth = lowpass(v, seen, fps, LOWPASS_HZ)
+        smooth /= np.linalg.norm(smooth, axis=-1, keepdims=True)
+    return np.where(seen[..., None], smooth, np.nan)
+
+
+def _bone_products(a: np.ndarray, b: np.ndarray, lags: np.ndarray) -> np.ndarray:
+    """Per whole-frame lag (module convention: b's frame i + lag is a's frame i), over the
+    frames both see: H = sum of b's bones times a's (b a^T), the same of their deviations from
+    each bone's mean over those frames, the deviations' squared norms (a's, b's) and the count:
+    (L, 21) = H (9), centred H (9), |a'|^2, |b'|^2, count."""
+    out = np.zeros((len(lags), 21))
+    i = np.arange(len(a))
+    for k, lag in enumerate(lags):
+        j = i + lag
+        ok = (j >= 0) & (j < len(b))
+        both = np.isfinite(a[i[ok]]).all(axis=-1) & np.isfinite(b[j[ok]]).all(axis=-1)       # (M, B)
+        pa, pb = np.where(both[..., None], a[i[ok]], 0.0), np.where(both[..., None], b[j[ok]], 0.0)
+        n = np.maximum(both.sum(axis=0), 1)[:, None]                                          # (B, 1)
+        ca = np.where(both[..., None], pa - pa.sum(axis=0) / n, 0.0)
+        cb = np.where(both[..., None], pb - pb.sum(axis=0) / n, 0.0)
+        out[k, :9] = np.einsum("mbi,mbj->ij", pb, pa).ravel()
+        out[k, 9:18] = np.einsum("mbi,mbj->ij", cb, ca).ravel()
+        out[k, 18:] = (ca * ca).sum(), (cb * cb).sum(), both.sum()
+    return out
+
+
+def _motion_match(products: np.ndarray, significance: bool = True) -> np.ndarray:
+    """(L,) how alike two views' bones move at each lag: the one rotation that turns the view's
+    bones onto the reference's best (Procrustes without reflection on the whole bones: the pose
+    pins it), and under it the correlation r of the bones' deviations from their means (the
+    motion; a still pose scores nothing), as its significance atanh(r) sqrt(n) over the n bones
+    shared (a short overlap, or a short track, correlates by chance more easily; r itself
+    without `significance`); NaN where fewer than MIN_BONE_PAIRS bones are shared."""
+    h, centred = products[:, :9].reshape(-1, 3, 3), products[:, 9:18].reshape(-1, 3, 3)
+    u, _, vt = np.linalg.svd(h)
+    d = np.sign(np.linalg.det(u @ vt))
+    r = np.einsum("lji,lj,lkj->lik", vt, np.c_[np.ones((len(d), 2)), d], u)       # V diag(1, 1, d) U^T
+    corr = np.einsum("lij,lji->l", r, centred) / np.sqrt(np.maximum(products[:, 18] * products[:, 19], 1e-12))
+    if significance:
+        corr = np.arctanh(np.clip(corr, -0.999, 0.999)) * np.sqrt(products[:, 20])
+    return np.where(products[:, 20] >= MIN_BONE_PAIRS, corr, np.nan)
+
+
+def bone_correlation(ref: np.ndarray, other: np.ndarray, lag: float, frames: np.ndarray | None = None,
+                     columns: np.ndarray | None = None) -> float:
+    """`_motion_match`'s correlation of two views' bones (F, K, 3) (`bone_directions`, the same
+    people's side by side) at a sub-frame lag, each side moved by half of it (interpolated
+    alike, as `motion_correlation` does), optionally only some frames and bones."""
+    n = len(ref)
+    a, b = shift(ref, -lag / 2, n), shift(other, lag / 2, n)
+    if frames is not None:
+        a, b = a[frames], b[frames]
+    if columns is not None:
+        a, b = a[:, columns], b[:, columns]
+    return float(_motion_match(_bone_products(a, b, np.zeros(1, int)), significance=False)[0])
+
+
+@dataclass
+class CoarseOffset:
+    offset: int                 # whole frames, module convention
+    score: float                # `_motion_match` there
+    epipolar_px: float          # median epipolar distance of the paired people's keypoints there
+
+
+def epipolar_px(ref: list[ViewTrack], other: list[ViewTrack], pairing: tuple[tuple[int, int], ...], lag: int,
+                min_conf: float) -> float:
+    """Median distance (px) of the paired tracks' keypoints, the view's frame i + lag against the
+    reference's frame i, to the epipolar lines of the one fundamental matrix that fits them best
+    (least median of squares): one rigid scene seen by two cameras fits it, another person (or
+    the same one at another instant, where it moves) does not. inf with too few points."""
+    import cv2
+
+    a, b = [], []
+    for i, j in pairing:
+        ta, tb = ref[i], other[j]
+        f = np.arange(len(ta.conf))
+        g = f + lag
+        ok = (g >= 0) & (g < len(tb.conf))
+        seen = (ta.conf[f[ok]] >= min_conf) & (tb.conf[g[ok]] >= min_conf)
+        a.append(ta.uv[f[ok]][seen]), b.append(tb.uv[g[ok]][seen])
+    a, b = np.concatenate(a), np.concatenate(b)
+    if len(a) < 30:
+        return np.inf
+    fm, _ = cv2.findFundamentalMat(a.astype(np.float64), b.astype(np.float64), cv2.FM_LMEDS)
+    if fm is None or fm.shape != (3, 3):
+        return np.inf
+    ha, hb = np.c_[a, np.ones(len(a))], np.c_[b, np.ones(len(b))]
+    lines = ha @ fm.T                                          # epipolar lines in the view
+    return float(np.median(np.abs(np.sum(lines * hb, axis=1)) / np.linalg.norm(lines[:, :2], axis=1)))
+
+
+def coarse_offset(ref: list[ViewTrack], other: list[ViewTrack], joints: tuple[str, ...], fps: float,
+                  min_conf: float, min_overlap: int) -> CoarseOffset | None:
+    """The whole-frame lag of a view against the reference from their people (tracks), over
+    every lag that leaves the two views min_overlap frames: each camera sees every bone
+    (`bone_directions`) turned by its own rotation, so at the right lag one rotation turns all of
+    the view's bones onto the reference's and their motions correlate (`_motion_match`), people
+    paired one to one with one rotation for them all. Every pairing of the tracks is tried; its
+    best lag scores it where it has one pairing (a bystander whom one camera sees may move as
+    the person does at some lag), the pairing whose keypoints fit one epipolar geometry best
+    there (`epipolar_px`) wins. None when no lag shares enough bones."""
+    bones = [[bone_directions(t.xyz, t.conf, joints, fps, min_conf) for t in view] for view in (ref, other)]
+    n_ref, n_other = len(ref[0].conf), len(other[0].conf)
+    lags = np.arange(min_overlap - n_ref, n_other - min_overlap + 1)
+    products = {(i, j): _bone_products(a, b, lags) for i, a in enumerate(bones[0]) for j, b in enumerate(bones[1])}
+    k = min(len(ref), len(other))
+    pairings = ([tuple(zip(range(len(ref)), p)) for p in itertools.permutations(range(len(other)), k)]
+                if len(ref) <= len(other) else
+                [tuple(zip(p, range(len(other)))) for p in itertools.permutations(range(len(ref)), k)])
+    found = []
+    for pairing in pairings:
+        score = _motion_match(sum(products[pair] for pair in pairing))
+        if np.isfinite(score).any():
+            at = int(np.nanargmax(score))
+            found.append(CoarseOffset(int(lags[at]), float(score[at]), np.nan))
+    if len(found) > 1:
+        found = [CoarseOffset(c.offset, c.score, epipolar_px(ref, other, pairing, c.offset, min_conf))
+                 for c, pairing in zip(found, pairings)]
+        return min(found, key=lambda c: c.epipolar_px)
+    return found[0] if found else None
+
+
+def coarse_offsets(take: Take, max_offset: int | None, min_conf: float) -> list[float]:
+    """Every view's whole-frame offset against the reference (`coarse_offset`, on the longest
+    COARSE_TRACKS tracks of each) over every lag that leaves the two views COARSE_SHARE of the
+    shorter one's frames; 0 where nothing is shared or the lag exceeds max_offset (None: no
+    limit). Who is who need not be known: it runs on the views' tracks, before the association."""
+    fps = take.fps or DEFAULT_FPS
+    ref = take.reference
+    out = [0.0] * len(take.names)
+    for v in range(len(take.names)):
+        if v == ref or not take.tracks[v] or not take.tracks[ref]:
+            continue
+        found = coarse_offset(take.tracks[ref][:COARSE_TRACKS], take.tracks[v][:COARSE_TRACKS], take.joints, fps,
+                              min_conf, int(COARSE_SHARE * min(take.lengths[ref], take.lengths[v])))
+        if found is not None and (max_offset is None or abs(found.offset) <= max_offset):
+            out[v] = float(found.offset)
+    return out
+
+
 # ---- the stage: the views' offsets from the associated people ---------------------------------
 
-def synchronise(take: Take, people: list[PersonTracks], rig: Rig | None, start: list[float], max_offset: int,
+RIG_MAX_OFFSET = 10             # frames either way that a rig's search tries unless told
+
+
+def synchronise(take: Take, people: list[PersonTracks], rig: Rig | None, start: list[float], max_offset: int | None,
                 min_conf: float) -> SyncResult:
     """Every view's offset (module convention) from the people the association found: with a
-    rig (its cameras the take's views, in order), `estimate_offsets` on every person seen twice;
-    without, each view's motion against the reference's (`motion_offset`), 0 with a warning
-    where it cannot be pinned."""
+    rig (its cameras the take's views, in order), `estimate_offsets` on every person seen twice
+    (within max_offset, RIG_MAX_OFFSET if None); without, each view's motion against the
+    reference's (`motion_offset`) within FINE_WINDOW frames of its start (`coarse_offsets`), the
+    view left out (SyncResult.unpinned) with a warning where the motion does not pin it."""
     if rig is not None:
-        return _rig_offsets(take, people, rig, start, max_offset)
-    return _motion_offsets(take, people, max_offset, min_conf)
+        return _rig_offsets(take, people, rig, start, RIG_MAX_OFFSET if max_offset is None else max_offset)
+    return _motion_offsets(take, people, start, min_conf)
 
 
 def _rig_offsets(take: Take, people: list[PersonTracks], rig: Rig, start: list[float], max_offset: int) -> SyncResult:
@@ -265,11 +429,27 @@ def _shared_motion(take: Take, people: list[PersonTracks], v: int,
     return signals[0], signals[1], min(excursion)
 
 
-def _motion_offsets(take: Take, people: list[PersonTracks], max_offset: int, min_conf: float) -> SyncResult:
-    """Offsets without a rig (`motion_offset`): per view, the motion of the people it shares
-    with the reference; 0 with a warning where it cannot be pinned."""
+def _shared_bones(take: Take, people: list[PersonTracks], v: int, min_conf: float) -> tuple[np.ndarray, np.ndarray]:
+    """The bone directions (`bone_directions`) of the people view v shares with the reference,
+    the reference's and v's, each (F_view, P * B, 3), people side by side."""
+    fps = take.fps or DEFAULT_FPS
+    shared = [p for p in people if take.reference in p.views and v in p.views]
+    out = []
+    for u in (take.reference, v):
+        out.append(np.concatenate([bone_directions(*p.view_arrays(u, take.lengths[u])[1:3], take.joints, fps, min_conf)
+                                   for p in shared], axis=1))
+    return out[0], out[1]
+
+
+def _motion_offsets(take: Take, people: list[PersonTracks], start: list[float], min_conf: float) -> SyncResult:
+    """Offsets without a rig: per view, the sub-frame lag within FINE_WINDOW frames of its start
+    (`coarse_offsets`) at which the bones of the people it shares with the reference move
+    alike (`bone_correlation`, `motion_offset`); a view whose offset that does not pin (people
+    too still, a spread above MAX_SPREAD, a peak at the window's edge) is left out (`unpinned`),
+    with a warning: fused at a wrong offset, its camera would be estimated wrong too."""
     ref, n_views = take.reference, len(take.names)
-    offsets, confidence, spread, warnings = [0.0] * n_views, [1.0] * n_views, [0.0] * n_views, []
+    offsets, confidence, spread, warnings = list(start), [1.0] * n_views, [0.0] * n_views, []
+    unpinned = []
     for v in range(n_views):
         if v == ref:
             continue
@@ -277,26 +457,24 @@ def _motion_offsets(take: Take, people: list[PersonTracks], max_offset: int, min
         if shared is None:
             confidence[v], spread[v] = 0.0, np.inf
             continue
-        m = motion_offset(shared[0], shared[1], max_offset)
+        a, b = _shared_bones(take, people, v, min_conf)
+        m = motion_offset(lambda lag, frames, columns: bone_correlation(a, b, lag, frames, columns),
+                          len(a), a.shape[1], start[v], FINE_WINDOW)
         confidence[v], spread[v] = max(float(np.nan_to_num(m.correlation)), 0.0), m.spread
-        name = take.names[v]
+        why = None
         if shared[2] < MIN_MOTION:
-            warnings.append(f"{name}: the people move too little to synchronise it (their joints move "
-                            f"{shared[2]:.0f} mm about the root); offset 0 kept. Give --offsets")
-        elif not m.correlation >= MIN_CORRELATION:
-            warnings.append(f"{name}: its motion matches the reference's poorly (correlation "
-                            f"{np.nan_to_num(m.correlation):.2f}); offset 0 kept. Give --offsets")
+            why = f"the people move too little to synchronise it (their joints move {shared[2]:.0f} mm about the root)"
         elif not m.spread <= MAX_SPREAD:
-            warnings.append(f"{name}: its motion pins the offset poorly (best {m.offset:+.1f} frames, "
-                            f"spread {m.spread:.1f}); offset 0 kept. Give --offsets")
-        elif abs(m.offset) >= max_offset - 0.5:
-            warnings.append(f"{name}: the best offset is at the search limit ({m.offset:+.1f}); offset 0 "
-                            "kept. Give --offsets or a larger --max-offset")
-        else:
+            why = f"its motion pins the offset poorly (best {m.offset:+.1f} frames, spread {m.spread:.1f})"
+        elif abs(m.offset - start[v]) >= FINE_WINDOW - 0.5:
+            why = f"its motion's best offset ({m.offset:+.1f}) lies far from where its bones put it ({start[v]:+.0f})"
+        if why is None:
             offsets[v] = m.offset
             continue
         confidence[v] = 0.0
-    return SyncResult(offsets, confidence, warnings, spread)
+        unpinned.append(v)
+        warnings.append(f"camera {take.names[v]} dropped: {why}; give --offsets to fuse it")
+    return SyncResult(offsets, confidence, warnings, spread, unpinned)
 
 
 def motion_agreement(take: Take, people: list[PersonTracks], offsets: list[float],
