@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from posecam.doubts import DoubtStage
 from posecam.errors import InputError, ModelError
 from posecam.filters import StreamingSmoother
 from posecam.metric import MetricOptions, MetricStage
@@ -85,8 +86,9 @@ class FileStream:
 
     def poses(self, smooth: bool = False, on_frame: OnFrame | None = None,
               metric: MetricOptions | None = None) -> Iterator[Frame]:
-        """The input's frames, finished: each predicted frame goes to `on_frame` (progress bars,
-        overlays) as it comes, then, with `metric`, to its track's metric scale (posecam.metric;
+        """The input's frames, finished: each predicted frame has its people's doubts marked
+        (posecam.doubts; a video's frames come JUMP_WINDOW s late), goes to `on_frame` (progress
+        bars, overlays), then, with `metric`, to its track's metric scale (posecam.metric;
         afterwards `recording.floor` is set, and `notes` holds its warnings), then, with `smooth`
         and a video or a sequence, through the streaming smoother (a few seconds late; the whole
         video's smoothing). Nothing is kept."""
@@ -97,7 +99,14 @@ class FileStream:
             for frame in frames:
                 yield from smoother.push(frame) if smoother else (frame,)
 
-        for frame, rgb in self.frames:
+        doubts: DoubtStage[tuple[Frame, np.ndarray]] = DoubtStage(self.recording, self.media.kind != "image")
+
+        def checked() -> Iterator[tuple[Frame, np.ndarray]]:
+            for frame, rgb in self.frames:
+                yield from doubts.push(frame, (frame, rgb))
+            yield from doubts.flush()
+
+        for frame, rgb in checked():
             if on_frame:
                 on_frame(frame, rgb, self.media)
             yield from finish(scaler.push(frame) if scaler else (frame,))

@@ -29,6 +29,7 @@ class Person:
     height_estimated: float = float("nan")  # m: the height estimated from the track, whatever was given
     height_sd: float = float("nan")         # m: its standard uncertainty
     depth_sd: float = float("nan")          # mm: standard uncertainty of the root's depth (z)
+    doubts: tuple[str, ...] = ()            # why the pose may not be this person's (posecam.doubts); () sound
     skeleton: Skeleton = field(default=H36M, repr=False, compare=False)
 
     def __post_init__(self) -> None:
