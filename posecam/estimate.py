@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from posecam.doubts import DoubtStage
 from posecam.errors import InputError, ModelError
 from posecam.filters import StreamingSmoother
 from posecam.metric import MetricOptions, MetricStage
@@ -117,8 +118,9 @@ class FileStream:
 
     def poses(self, smooth: bool = False, metric: MetricOptions | None = None,
               taps: Mapping[str, OnFrame | None] | None = None) -> Iterator[Frame]:
-        """The input's frames through the rest of the chain: with `metric`, each track's metric
-        scale (posecam.metric: `recording.intrinsics` is the lens the frames were solved with
+        """The input's frames through the rest of the chain: each frame's people have their
+        doubts marked (posecam.doubts; a video's frames come JUMP_WINDOW s late), then, with
+        `metric`, each track's metric scale (posecam.metric: `recording.intrinsics` is the lens the frames were solved with
         when the first comes out, `recording.floor` the ground plane at the end, and `notes`
         holds the warnings), then, with `smooth` and a video or a sequence, the streaming
         smoother (a few seconds late; the whole video's smoothing). `taps`: stage name (TAPS)
@@ -126,7 +128,7 @@ class FileStream:
         taps = {stage: tap for stage, tap in (taps or {}).items() if tap}
         if set(taps) - set(TAPS):
             raise ValueError(f"taps are at the stages {', '.join(TAPS)}, not {', '.join(sorted(set(taps) - set(TAPS)))}")
-        frames = _tapped(self.frames, taps.get("confirm"), self.media)
+        frames = _tapped(self._doubted(), taps.get("confirm"), self.media)
         if metric:
             frames = self._scaled(frames, metric, "metric" in taps)
         frames = _tapped(frames, taps.get("metric"), self.media)
@@ -137,6 +139,14 @@ class FileStream:
         for frame, _ in frames:
             yield from smoother.push(frame)
         yield from smoother.flush()
+
+    def _doubted(self) -> Iterator[tuple[Frame, np.ndarray]]:
+        """The doubts stage: each frame with its people's doubts marked (held back while a
+        video's root-jump window fills)."""
+        doubts: DoubtStage[tuple[Frame, np.ndarray]] = DoubtStage(self.recording, self.media.kind != "image")
+        for frame, rgb in self.frames:
+            yield from doubts.push(frame, (frame, rgb))
+        yield from doubts.flush()
 
     def _scaled(self, frames: Iterator[tuple[Frame, np.ndarray]], options: MetricOptions,
                 images: bool) -> Iterator[tuple[Frame, np.ndarray | None]]:
@@ -164,6 +174,8 @@ def _tapped(frames: Iterator[tuple[Frame, np.ndarray]], tap: OnFrame | None,
         if tap:
             tap(frame, rgb, media)
         yield frame, rgb
+
+
 
 
 class PoseEstimator:

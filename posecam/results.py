@@ -30,6 +30,7 @@ class Person:
     height_estimated: float = float("nan")  # m: the height estimated from the track, whatever was given
     height_sd: float = float("nan")         # m: its standard uncertainty
     depth_sd: float = float("nan")          # mm: standard uncertainty of the root's depth (z)
+    doubts: tuple[str, ...] = ()            # why the pose may not be this person's (posecam.doubts); () sound
     skeleton: Skeleton = field(default=H36M, repr=False, compare=False)
     # the pose model's output of this person lifted through another lens (the estimator's lifter;
     # the metric stage's people's lens): (J, 3) mm; None for poses that were not predicted here

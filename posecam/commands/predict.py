@@ -24,6 +24,8 @@ class InputSummary:
         self.people: dict[int, list] = {}      # id -> [frames, sum of root (3,), sum of mean confidence, height]
         self.dropped: dict[str, int] = {}      # people seen but dropped, per stage ...
         self.best_dropped = 0.0                # ... and the highest presence among those the pose model dropped
+        self.doubtful = 0                      # poses written with doubts (posecam.doubts) ...
+        self.doubts: dict[str, int] = {}       # ... and how often each doubt was raised
 
     def add(self, frame) -> None:
         self.frames += 1
@@ -32,6 +34,9 @@ class InputSummary:
             if d.stage == "presence":
                 self.best_dropped = max(self.best_dropped, d.score)
         for p in frame.people:
+            self.doubtful += bool(p.doubts)
+            for d in p.doubts:
+                self.doubts[d] = self.doubts.get(d, 0) + 1
             totals = self.people.setdefault(p.id, [0, 0.0, 0.0, ""])
             totals[0] += 1
             totals[1] = totals[1] + p.root
@@ -78,11 +83,23 @@ def print_summary(summaries: list[InputSummary], console, unreadable: int = 0) -
         if sm.dropped:
             console.print(f"dropped in {shown(Path(sm.rec.source).name)} (person-frames, listed in the JSON's \"dropped\"): "
                           f"{dropped_text(sm.dropped)}")
+        if sm.doubtful:
+            console.print(f"{sm.doubtful} pose{'s' if sm.doubtful > 1 else ''} doubtful in {shown(Path(sm.rec.source).name)} "
+                          f"(kept, listed in the JSON's \"doubts\"): {doubts_text(sm.doubts)}")
 
 
 DROP_REASONS = {"max_people": "over --max-people", "presence": "pose model presence below --min-presence",
                 "neighbour": "pose on a neighbour", "duplicate": "pose of a person already followed",
                 "unconfirmed": "track not confirmed (a false start)"}
+
+
+DOUBT_REASONS = {"off_body": "off the body (2D and 3D joints disagree)", "root_jump": "with a root jump",
+                 "bones": "with limbs off the person's own"}
+
+
+def doubts_text(counts: dict[str, int]) -> str:
+    """"3 with a root jump, 1 with limbs off the person's own": how often each doubt was raised."""
+    return ", ".join(f"{n} {DOUBT_REASONS.get(d, d)}" for d, n in sorted(counts.items()))
 
 
 def dropped_text(counts: dict[str, int]) -> str:

@@ -3,11 +3,14 @@
 JSON: {"posecam", "model", "joints", "root_joint", "inputs": [{"source", "width", "height", "frame",
 "intrinsics": {"fx", "fy", "cx", "cy", "source"}, "fps", "frames": [{"index", "time",
 "people": [{"id", "score", "bbox", "keypoints_2d", "keypoints_3d", "confidence", "root"[, "height",
-"height_source", "height_estimated", "height_sd", "depth_sd"]}], "dropped": [{"stage", "score",
+"height_source", "height_estimated", "height_sd", "depth_sd"][, "doubts"]}], "dropped": [{"stage", "score",
 "bbox"}]}][, "floor": {"normal", "distance", "spread", "contacts", "tracks"}]}]}. The height fields (m; depth_sd in mm) are there when the
 person's metric scale was fixed (posecam.metric); "floor" when a ground plane was fitted (camera
-frame, mm). Files without them (older posecam) read as before.
-CSV: one row per joint, header exactly CSV_HEADER (height and depth_sd empty where unknown).
+frame, mm). "doubts" lists, for a person whose pose may not be theirs, the checks it failed
+(posecam.doubts: "off_body", "root_jump", "bones"); absent for a sound pose. Files without them
+(older posecam) read as before.
+CSV: one row per joint, header exactly CSV_HEADER (height and depth_sd empty where unknown;
+doubts the person's doubts joined by ";", empty for a sound pose).
 With angles (`posecam predict --angles`, posecam.angles) each person also holds "angles": {name:
 degrees}, and the CSV gains one column per angle after CSV_HEADER's (the person's angles in that
 frame, repeated on each of its joint rows).
@@ -41,7 +44,7 @@ from posecam.skeleton import skeleton_of
 
 POSE_SUFFIXES = (".json", ".csv")   # the pose files posecam writes (and reads, .json)
 CSV_HEADER = ("source", "frame", "person", "joint", "u", "v", "x", "y", "z", "confidence", "height", "height_source",
-              "depth_sd")
+              "depth_sd", "doubts")
 
 
 def _round(a: np.ndarray, digits: int) -> list:
@@ -74,6 +77,8 @@ def person_to_dict(p: Person) -> dict:
         out.update(height=_number(p.height, 3), height_source=p.height_source,
                    height_estimated=_number(p.height_estimated, 3), height_sd=_number(p.height_sd, 3),
                    depth_sd=_number(p.depth_sd, 1))
+    if p.doubts:
+        out["doubts"] = list(p.doubts)
     return out
 
 
@@ -152,7 +157,7 @@ class PoseWriter:
                     self._csv.writerow((r.source, f.index, p.id, name, _csv_number(u, 2), _csv_number(v, 2),
                                         _csv_number(x, 1), _csv_number(y, 1), _csv_number(z, 1),
                                         _csv_number(p.confidence[j], 3), _csv_number(p.height, 3),
-                                        p.height_source, _csv_number(p.depth_sd, 1)) + angles)
+                                        p.height_source, _csv_number(p.depth_sd, 1), ";".join(p.doubts)) + angles)
         self._frames += 1
 
     def close(self) -> None:
@@ -197,6 +202,7 @@ def write_poses(path: str | os.PathLike, recordings: list[Recording], angles: tu
 MAX_INPUTS = 10000       # inputs in one pose file
 MAX_DEGREES = 720.0      # |angle|
 MAX_HEIGHT_M = 100.0     # a person's height and its uncertainty, in metres
+MAX_DOUBTS = 16          # doubts of one person
 FRAMES_OF_REFERENCE = ("camera", "world")   # or "reference camera NAME"
 
 
@@ -336,7 +342,13 @@ def _read_person(p: object, check: Field, shape: dict) -> Person:
         check.numbers(p["confidence"], "confidence", ((joints,),), 0, 1, nulls=True),
         _angles(p.get("angles"), check),
         **_person_metric(p, check),
+        doubts=_doubts(p.get("doubts", []), check),
     )
+
+
+def _doubts(values: object, check: Field) -> tuple[str, ...]:
+    """A person's doubts (posecam.doubts), () for a sound pose."""
+    return tuple(check.text(d, "doubts", limit=64) for d in check.items(values, "doubts", MAX_DOUBTS))
 
 
 def _angles(values: object, check: Field) -> dict[str, float] | None:

@@ -221,12 +221,14 @@ def assumed_cameras(names: list[str], recordings: list[Recording]) -> list[Camer
 
 
 def tracks_of(rec: Recording, view: int, min_frames: int = MIN_TRACK_FRAMES) -> list[ViewTrack]:
-    """Every person id of `rec` seen in at least `min_frames` frames, longest first."""
+    """Every person id of `rec` seen in at least `min_frames` frames, longest first; a pose with
+    doubts (posecam.doubts) counts as unseen."""
     n, j = len(rec.frames), len(rec.joints)
     ids: dict[int, list[int]] = {}
     for i, f in enumerate(rec.frames):
         for p in f.people:
-            ids.setdefault(p.id, []).append(i)
+            if not p.doubts:
+                ids.setdefault(p.id, []).append(i)
     tracks = []
     for pid, frames in ids.items():
         if len(frames) < min_frames:
@@ -234,7 +236,7 @@ def tracks_of(rec: Recording, view: int, min_frames: int = MIN_TRACK_FRAMES) -> 
         uv, xyz = np.full((n, j, 2), np.nan), np.full((n, j, 3), np.nan)
         conf, score = np.zeros((n, j)), np.zeros(n)
         for i in frames:
-            p = next(q for q in rec.frames[i].people if q.id == pid)
+            p = next(q for q in rec.frames[i].people if q.id == pid and not q.doubts)
             uv[i], xyz[i], conf[i], score[i] = p.keypoints_2d, p.keypoints_3d, p.confidence, p.score
         tracks.append(ViewTrack(view, (pid,), uv, xyz, conf, score))
     return sorted(tracks, key=lambda t: -int(t.seen.sum()))

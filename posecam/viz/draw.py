@@ -9,6 +9,7 @@ from posecam.results import Person
 from posecam.skeleton import skeleton_of
 
 LEFT, RIGHT, CENTRE = (66, 135, 245), (245, 130, 48), (60, 200, 90)  # RGB
+DOUBTED = (150, 150, 150)   # a pose with doubts (posecam.doubts): grey, its label marked "?"
 
 
 def _side_colour(name: str) -> tuple[int, int, int]:
@@ -43,7 +44,8 @@ def place_labels(sizes: list[tuple[int, int]], anchors: list[tuple[float, float]
 def draw_people(image_rgb: np.ndarray, people: list[Person], joints: tuple[str, ...],
                 min_confidence: float = 0.3) -> np.ndarray:
     """A copy of the image with each person's skeleton, id and root depth drawn on it; the
-    labels stay inside the image and do not overlap."""
+    labels stay inside the image and do not overlap. A pose with doubts is drawn grey, its
+    label "#ID? ..."."""
     out = image_rgb.copy()
     skeleton = skeleton_of(joints)
     scale = max(out.shape[:2]) / 1000
@@ -55,10 +57,10 @@ def draw_people(image_rgb: np.ndarray, people: list[Person], joints: tuple[str, 
         for a, b in skeleton.bone_indices:
             if ok[a] and ok[b]:
                 cv2.line(out, tuple(np.round(uv[a]).astype(int)), tuple(np.round(uv[b]).astype(int)),
-                         _side_colour(joints[b]), thick, cv2.LINE_AA)
+                         DOUBTED if p.doubts else _side_colour(joints[b]), thick, cv2.LINE_AA)
         for j in np.flatnonzero(ok):
             cv2.circle(out, tuple(np.round(uv[j]).astype(int)), thick + 1, (255, 255, 255), -1, cv2.LINE_AA)
-    labels = [f"#{p.id} z={p.root[2] / 1000:.2f} m" for p in people]
+    labels = [f"#{p.id}{'?' if p.doubts else ''} z={p.root[2] / 1000:.2f} m" for p in people]
     sizes, baselines = [], []
     for label in labels:
         (w, h), base = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, font, thick + 2)

@@ -1,0 +1,149 @@
+"""Doubts: poses that are not a plausible person, marked as they come, before any smoothing.
+
+Each person gets `Person.doubts`, the names of the checks it fails (empty: none):
+
+    "off_body"   the pose model's 2D joints and its 3D joints disagree: the 75th percentile of the
+                 distance between the 2D joints and the 3D joints projected through the input's
+                 intrinsics, over the confident joints, is more than OFF_BODY of the person's 2D
+                 extent (a body cut by the border or turned away, where the model guesses)
+    "root_jump"  (videos) the root leaves its track's steady path (`steady_path`: a robust line
+                 through the track's roots, its slope from SLOPE_SPAN s before to JUMP_WINDOW s
+                 after, its offset from +-JUMP_WINDOW s) by more than ROOT_JUMP of its distance
+                 from the camera (the skeleton jumped to another body, or spans two); the line
+                 follows steady motion, so a runner is not doubted, at a track's ends either
+    "bones"      (videos) the limbs (upper and lower arms and legs) are, by their median, more than
+                 BONES (log ratio) off the same limbs' median over the track's last BONE_HISTORY s
+
+The thresholds sit well clear of what sound poses reach on the Pose2Sim demo takes and OpenCV's
+pedestrian clip (off_body at most 0.086, root_jump 0.08, bones 0.18); the doubted poses are
+flagged, not dropped: their data stay in the files, fusion leaves them out.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from typing import Generic, TypeVar
+
+import numpy as np
+
+from posecam.geometry.camera import Intrinsics, project
+from posecam.geometry.triangulate import MIN_CONFIDENCE
+from posecam.results import Frame, Person, Recording
+from posecam.skeleton import Skeleton, skeleton_of
+
+OFF_BODY = 0.11         # 75th percentile of the 2D/3D disagreement, over the person's 2D extent
+ROOT_JUMP = 0.12        # the root's distance from its running median, over its distance from the camera
+JUMP_WINDOW = 0.25      # s either side of a frame: the steady path's offset (at least 2 frames)
+SLOPE_SPAN = 1.0        # s before a frame (and JUMP_WINDOW after) the steady path's slope is taken from
+BONES = 0.3             # |log| of the limbs' median ratio to the track's own (0.3: 35 % longer or shorter)
+BONE_HISTORY = 10.0     # s of a track's past its limbs are compared with
+MIN_SAMPLES = 3         # a track's frames in the window (root) or confident limbs (bones) a check needs
+DOUBTS = ("off_body", "root_jump", "bones")   # every doubt, in the order they are listed
+
+Item = TypeVar("Item")
+
+
+def limb_indices(skeleton: Skeleton) -> np.ndarray:
+    """(L, 2) joint indices of the limbs: shoulder-elbow, elbow-wrist, hip-knee, knee-ankle."""
+    ends = {"shoulder": "elbow", "elbow": "wrist", "hip": "knee", "knee": "ankle"}
+    limbs = [(a, b) for a, b in skeleton.bones if ends.get(a.split("_")[-1]) == b.split("_")[-1]]
+    return np.array([(skeleton.index(a), skeleton.index(b)) for a, b in limbs], dtype=int).reshape(-1, 2)
+
+
+def off_body(p: Person, k: Intrinsics) -> float:
+    """The 2D/3D disagreement of one pose (see "off_body"); NaN with fewer than 4 confident joints."""
+    seen = p.confidence >= MIN_CONFIDENCE
+    if seen.sum() < 4 or not np.isfinite(p.keypoints_3d[seen]).all():
+        return float("nan")
+    uv = p.keypoints_2d[seen]
+    error = np.linalg.norm(project(p.keypoints_3d[seen], k) - uv, axis=1)
+    return float(np.percentile(error, 75) / max(np.ptp(uv, axis=0).max(), 1.0))
+
+
+def steady_path(times: np.ndarray, points: np.ndarray, at: float, window: float) -> np.ndarray:
+    """Where a steady motion through (N, D) `points` at `times` is at time `at`: a line whose
+    slope is, for each coordinate, the median of the slopes between every two points (Theil-Sen),
+    and whose offset is the median offset of the points within `window` of `at`. A minority of
+    wrong points moves neither, and the line follows a steady motion to a track's ends, where
+    the points reach one way only."""
+    i, j = np.triu_indices(len(times), 1)
+    apart = times[j] - times[i]
+    slope = np.median((points[j] - points[i])[apart > 0] / apart[apart > 0, None], axis=0) if (apart > 0).any() \
+        else np.zeros(points.shape[1])
+    near = np.abs(times - at) <= window + 1e-6
+    return np.median(points[near] - slope * (times[near, None] - at), axis=0)
+
+
+class DoubtStage(Generic[Item]):
+    """Mark the doubts of each person in a stream of frames: push each frame (with an item of
+    the caller's, given back in order: the frame, or the frame and its image) as it comes, take
+    the items that come back (JUMP_WINDOW s late, for a video), `flush()` at the end. `tracked`:
+    the people's ids follow them from frame to frame (a video, a sequence); without it (a folder of
+    photos) only "off_body" is checked, and nothing waits. The intrinsics are the input's as its
+    poses were lifted with (taken when the stage is made)."""
+
+    def __init__(self, rec: Recording, tracked: bool = True):
+        self.k = rec.intrinsics
+        self.tracked = tracked
+        self.skeleton = skeleton_of(rec.joints)
+        self.limbs = limb_indices(self.skeleton)
+        self.window = max(JUMP_WINDOW, 2.0 / rec.fps) if rec.fps else JUMP_WINDOW
+        self._held: deque[tuple[Frame, Item]] = deque()
+        # track id -> its recent frames: (time, root (3,), limb lengths (L,), NaN where not confident)
+        self._tracks: dict[int, deque[tuple[float, np.ndarray, np.ndarray]]] = {}
+        self._last = -np.inf        # the latest frame's time
+
+    def push(self, frame: Frame, item: Item) -> list[Item]:
+        for p in frame.people:
+            p.doubts = ("off_body",) if self.k is not None and off_body(p, self.k) > OFF_BODY else ()
+        if not self.tracked:
+            return [item]
+        for p in frame.people:
+            self._tracks.setdefault(p.id, deque()).append((frame.time, p.root, self._limbs(p)))
+        self._held.append((frame, item))
+        self._last = frame.time
+        return self._release(final=False)
+
+    def flush(self) -> list[Item]:
+        return self._release(final=True)
+
+    def _limbs(self, p: Person) -> np.ndarray:
+        a, b = self.limbs[:, 0], self.limbs[:, 1]
+        length = np.linalg.norm(p.keypoints_3d[a] - p.keypoints_3d[b], axis=1)
+        return np.where(np.minimum(p.confidence[a], p.confidence[b]) >= MIN_CONFIDENCE, length, np.nan)
+
+    def _release(self, final: bool) -> list[Item]:
+        out = []
+        while self._held and (final or self._held[0][0].time + self.window <= self._last + 1e-6):
+            frame, item = self._held.popleft()
+            for p in frame.people:
+                p.doubts = tuple(d for d in DOUBTS if d in p.doubts or d in self._track_doubts(p, frame.time))
+            self._forget(frame.time)
+            out.append(item)
+        return out
+
+    def _track_doubts(self, p: Person, time: float) -> tuple[str, ...]:
+        rows = self._tracks[p.id]
+        times = np.array([t for t, _, _ in rows])
+        span = (times >= time - SLOPE_SPAN - 1e-6) & (times <= time + self.window + 1e-6)
+        doubts = []
+        if (np.abs(times - time) <= self.window + 1e-6).sum() >= MIN_SAMPLES:
+            roots = np.array([r for (_, r, _), s in zip(rows, span) if s])
+            path = steady_path(times[span], roots, time, self.window)
+            if np.linalg.norm(p.root - path) > ROOT_JUMP * np.linalg.norm(p.root):
+                doubts.append("root_jump")
+        limbs, own = np.array([x for _, _, x in rows]), self._limbs(p)
+        known = (np.isfinite(limbs).sum(axis=0) >= MIN_SAMPLES) & np.isfinite(own) & (own > 0)
+        ratio = [np.log(own[i] / np.nanmedian(limbs[:, i])) for i in np.flatnonzero(known)]
+        if len(ratio) >= MIN_SAMPLES and abs(np.median(ratio)) > BONES:
+            doubts.append("bones")
+        return tuple(doubts)
+
+    def _forget(self, time: float) -> None:
+        """Drop what no frame still held needs: a track's frames older than BONE_HISTORY s."""
+        for tid in list(self._tracks):
+            rows = self._tracks[tid]
+            while rows and rows[0][0] < time - max(BONE_HISTORY, self.window):
+                rows.popleft()
+            if not rows:
+                del self._tracks[tid]
