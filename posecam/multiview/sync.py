@@ -153,18 +153,27 @@ def motion_signals(xyz: np.ndarray, conf: np.ndarray, fps: float, min_conf: floa
     return np.where(seen, speed, np.nan), excursion if np.isfinite(excursion) else 0.0
 
 
-def motion_correlation(ref: np.ndarray, other: np.ndarray, lag: float, frames: np.ndarray | None = None,
-                       columns: np.ndarray | None = None) -> float:
-    """Pearson correlation of ref (F, K) with other at `lag` (module convention), over every
-    signal and frame where both have a value (optionally only `frames` and `columns`, repeats
-    counting twice). Each side moves by half the lag, so both are interpolated alike
-    (interpolating one side only smooths it, and biases the peak towards whole frames)."""
+def _shifted_pair(ref: np.ndarray, other: np.ndarray, lag: float, frames: np.ndarray | None,
+                  columns: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """ref and other at `lag` (module convention), each moved by half of it, so both are
+    interpolated alike (interpolating one side only smooths it, and biases the peak towards
+    whole frames); optionally only `frames` and `columns`."""
     n = len(ref)
     a, b = shift(ref, -lag / 2, n), shift(other, lag / 2, n)
     if frames is not None:
         a, b = a[frames], b[frames]
     if columns is not None:
         a, b = a[:, columns], b[:, columns]
+    return a, b
+
+
+def motion_correlation(ref: np.ndarray, other: np.ndarray, lag: float, frames: np.ndarray | None = None,
+                       columns: np.ndarray | None = None) -> float:
+    """Pearson correlation of ref (F, K) with other at `lag` (module convention), over every
+    signal and frame where both have a value (optionally only `frames` and `columns`, repeats
+    counting twice). Each side moves by half the lag, so both are interpolated alike
+    (interpolating one side only smooths it, and biases the peak towards whole frames)."""
+    a, b = _shifted_pair(ref, other, lag, frames, columns)
     ok = np.isfinite(a) & np.isfinite(b)
     if ok.sum() < 30:
         return np.nan
@@ -286,12 +295,7 @@ def bone_correlation(ref: np.ndarray, other: np.ndarray, lag: float, frames: np.
     """`_motion_match`'s correlation of two views' bones (F, K, 3) (`bone_directions`, the same
     people's side by side) at a sub-frame lag, each side moved by half of it (interpolated
     alike, as `motion_correlation` does), optionally only some frames and bones."""
-    n = len(ref)
-    a, b = shift(ref, -lag / 2, n), shift(other, lag / 2, n)
-    if frames is not None:
-        a, b = a[frames], b[frames]
-    if columns is not None:
-        a, b = a[:, columns], b[:, columns]
+    a, b = _shifted_pair(ref, other, lag, frames, columns)
     return float(_motion_match(_bone_products(a, b, np.zeros(1, int)), significance=False)[0])
 
 
