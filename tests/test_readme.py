@@ -205,7 +205,7 @@ def test_version_and_top_level_help_whole_sentences() -> None:
     (["predict", "examples/balance.jpg", "--camera", "cam01"], "--intrinsics"),
     (["predict", "examples/balance.jpg", "--min-presence", "2"], "--min-presence': '2' is not a finite number >= 0 and <= 1"),
     (["fuse", "a.mp4", "b.mp4", "--viz", "out/grid.gif"], "--viz must end in"),
-    (["fuse", "a.mp4", "b.mp4", "--max-offset", "5"], "--max-offset needs --sync auto"),
+    (["fuse", "a.mp4", "b.mp4", "--sync", "none", "--max-offset", "5"], "--max-offset needs --sync auto"),
     (["predict", "examples/balance.jpg", "--trc-y-up"], "--trc-y-up needs -o FILE.trc"),
     (["predict", "examples/balance.jpg", "--format", "csv"], "--format needs --out-dir"),
 ])

@@ -12,6 +12,7 @@ from posecam.geometry.camera import CameraCalibration, Intrinsics
 from posecam.io.calibration import write_toml
 from posecam.io.intrinsics import IntrinsicsOptions
 from posecam.io.poses import read_poses, write_poses
+from posecam.multiview.fuse import FuseOptions
 from posecam.views import load_views, view_intrinsics
 
 VIEWS = [str(DATA / "messi5.jpg"), str(EXAMPLES / "balance.jpg")]   # 548x342 and 1080x1920
@@ -49,23 +50,25 @@ def test_camera_names_must_match_the_videos(tmp_path):
 
 
 def test_lengths_are_compared_from_the_headers_before_any_prediction(estimator, tmp_path):
-    """A 30-frame video against a 25-frame pose file: a warning naming both, from the video's
-    header; against a 5-frame one (past the offsets fuse may try): refused, nothing predicted."""
+    """Offsets of up to 10 frames given: a 30-frame video against a 25-frame pose file is a
+    warning naming both, from the video's header; against a 5-frame one (past those offsets):
+    refused, nothing predicted."""
     from dataclasses import replace
 
     rec = estimator.predict_file(EXAMPLES / "balance.jpg")
     rec.frames = [replace(rec.frames[0], index=i, time=i / 30) for i in range(25)]
     write_poses(tmp_path / "side.json", [rec])
     video = str(DATA / "balance_cam01_30f.mp4")
+    given = FuseOptions(offsets=[0, 10])
     with pytest.warns(PosecamWarning, match=r"differ in length \(balance_cam01_30f.mp4 30, side.json 25 frames\)"):
-        recs = load_views([video, str(tmp_path / "side.json")], estimator=estimator)
+        recs = load_views([video, str(tmp_path / "side.json")], estimator=estimator, fuse=given)
     assert [len(r.frames) for r in recs] == [30, 25]
     rec.frames = rec.frames[:5]
     write_poses(tmp_path / "short.json", [rec])
     with warnings.catch_warnings(record=True) as seen:
         warnings.simplefilter("always")
         with pytest.raises(InputError, match=r"different lengths \(balance_cam01_30f.mp4 30, short.json 5 frames\)"):
-            load_views([video, str(tmp_path / "short.json")], on_frame=lambda *a: pytest.fail("predicted"))
+            load_views([video, str(tmp_path / "short.json")], fuse=given, on_frame=lambda *a: pytest.fail("predicted"))
     assert not seen
 
 
