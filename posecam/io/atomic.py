@@ -208,7 +208,8 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         raise_if_signalled()
         _verify(tmp_path, target)
         _publish(tmp_path, target)
-        _committed.append(target)
+        if not any(_STALE.match(part) for part in Path(target).parts):   # a staged file is not an output yet
+            _committed.append(target)
     except OSError as exc:
         tmp_path.unlink(missing_ok=True)
         raise OutputError(f"cannot write {target}: {_describe(exc)}") from None
