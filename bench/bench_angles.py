@@ -98,7 +98,7 @@ def _read_plain(video: Path) -> int:
 
 
 def _read_media(video: Path) -> int:
-    from posecam.media import open_media
+    from posecam.io.media import open_media
 
     return sum(1 for _ in open_media(video).frames())
 

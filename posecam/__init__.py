@@ -36,7 +36,7 @@ _API = {
     "write_toml": "posecam.io.calibration",
     "read_poses": "posecam.io.poses",
     "write_poses": "posecam.io.poses",
-    "FrameSelection": "posecam.media",
+    "FrameSelection": "posecam.io.media",
     "angles_of": "posecam.angles",
     "add_angles": "posecam.angles",
     "angle_names": "posecam.angles",

@@ -31,7 +31,7 @@ from posecam.io.atomic import (OutputSet, StagedOutputs, check_output, deferred_
                                tagged_staging)
 from posecam.io.intrinsics import IntrinsicsOptions
 from posecam.io.poses import PoseWriter, write_poses
-from posecam.media import VIDEO_SUFFIXES
+from posecam.io.media import VIDEO_SUFFIXES
 from posecam.metric import MetricOptions
 
 if TYPE_CHECKING:

@@ -36,7 +36,7 @@ from posecam.inference.pose_model import PoseCandidate, make_lifter, make_pose_m
 from posecam.inference.roi import Roi
 from posecam.inference.session import load_model
 from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
-from posecam.media import FrameSelection, Media, open_media
+from posecam.io.media import FrameSelection, Media, open_media
 from posecam.results import Dropped, Frame, Person, Recording
 from posecam.skeleton import BLAZEPOSE33, BLAZEPOSE_LANDMARKS, H36M_JOINTS, SKELETONS, blazepose_to_h36m, skeleton_of
 from posecam.tracking import ConfirmedIds, Track, Tracker, TrackerOptions, foreign_joints, number_people, oks

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from posecam.errors import InputError
-from posecam.media import DEFAULT_FPS
+from posecam.io.media import DEFAULT_FPS
 from posecam.results import Frame, Recording
 
 METHODS = ("butterworth", "one_euro")

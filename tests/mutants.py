@@ -72,7 +72,7 @@ MUTANTS = (
            'rotation = check.rotation(table["rotation"], "rotation")',
            'rotation = check.rotation(table["rotation"], "rotation").T',
            (f"{CALIB}::test_foreign_calibration_projects_as_opencv_does",)),
-    Mutant("toml: Rodrigues vector's sign flipped", "posecam/validate.py",
+    Mutant("toml: Rodrigues vector's sign flipped", "posecam/io/validate.py",
            "return cv2.Rodrigues(a)[0]", "return cv2.Rodrigues(-a)[0]",
            (f"{CALIB}::test_foreign_calibration_projects_as_opencv_does",)),
     Mutant("toml: translation taken as mm", "posecam/io/calibration.py",

@@ -79,7 +79,7 @@ def test_smoothing_follows_each_track_on_a_real_clip(clip):
 
 
 def test_a_still_image_is_left_alone(estimator):
-    from posecam.media import read_image
+    from posecam.io.media import read_image
 
     frame = estimator.predict_image(read_image(DATA / "messi5.jpg"))
     from posecam.results import Recording

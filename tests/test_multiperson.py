@@ -9,7 +9,7 @@ from conftest import DATA, run_posecam
 from posecam import EstimatorOptions, PoseEstimator
 from posecam.inference.detector import Detection
 from posecam.inference.roi import Roi
-from posecam.media import open_media, read_image
+from posecam.io.media import open_media, read_image
 from posecam.geometry.boxes import box_iou
 from posecam.results import Frame, Person
 from posecam.tracking import ConfirmedIds, Tracker, TrackerOptions, foreign_joints

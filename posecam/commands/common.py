@@ -15,14 +15,14 @@ import click
 
 from posecam.errors import InputError, OutputError, ReaderLeft, on_signal, printable
 from posecam.inference.contract import DETECTORS, POSE_MODELS
-from posecam.validate import MAX_PEOPLE, MAX_PIXEL
+from posecam.io.validate import MAX_PEOPLE, MAX_PIXEL
 
 if TYPE_CHECKING:
     from rich.progress import Progress
 
     from posecam.estimate import EstimatorOptions
     from posecam.io.intrinsics import IntrinsicsOptions
-    from posecam.media import FrameSelection, Media
+    from posecam.io.media import FrameSelection, Media
     from posecam.results import Frame
 
 
@@ -161,7 +161,7 @@ def frame_options(f: Callable) -> Callable:
 
 def make_frame_selection(kwargs: dict) -> FrameSelection | None:
     """The FrameSelection of the `frame_options` flags, taken out of a command's kwargs (None: all frames)."""
-    from posecam.media import FrameSelection
+    from posecam.io.media import FrameSelection
 
     start, end, stride = (kwargs.pop(n) for n in ("start", "end", "stride"))
     return FrameSelection(start, end, stride) if (start, end, stride) != (None, None, None) else None

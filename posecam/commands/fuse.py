@@ -160,12 +160,12 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     from rich.console import Console
 
     from posecam.io.atomic import OutputSet
-    from posecam.media import check_input
+    from posecam.io.media import check_input
     from posecam.io.calibration import read_calibration, write_toml
     from posecam.filters import smooth_recording
     from posecam.io.poses import POSE_SUFFIXES, write_poses
     from posecam.io.trc import MARKER_SUFFIXES, check_markers_output, write_markers
-    from posecam.media import VIDEO_SUFFIXES
+    from posecam.io.media import VIDEO_SUFFIXES
     from posecam.viz.sinks import PICTURE_SUFFIXES
     from posecam.heights import Heights
     from posecam.multiview.fuse import FuseOptions, fuse_recordings

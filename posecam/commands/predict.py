@@ -162,7 +162,7 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
 def _picture_paths(inputs: list[str], folder: str) -> dict[str, str]:
     """`--viz DIR/` for several photos: each photo's picture, DIR/<name>_pose<its suffix> (.jpg
     for a suffix posecam does not write); refused for videos and when two names would clash."""
-    from posecam.media import IMAGE_SUFFIXES, is_stream
+    from posecam.io.media import IMAGE_SUFFIXES, is_stream
     from posecam.viz.sinks import PICTURE_SUFFIXES
 
     if not Path(folder).is_dir():
@@ -220,7 +220,7 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     from posecam.metric import MetricOptions
     from posecam.io.poses import POSE_SUFFIXES, PoseWriter
     from posecam.io.trc import MARKER_SUFFIXES, check_markers_output, write_markers
-    from posecam.media import VIDEO_SUFFIXES, expand_inputs, is_stream, open_media
+    from posecam.io.media import VIDEO_SUFFIXES, expand_inputs, is_stream, open_media
     from posecam.viz.draw import draw_people
     from posecam.viz.sinks import PICTURE_SUFFIXES, VideoSink, WindowSink, check_window, write_image
     from posecam.viz.render3d import VIEW3D_SUFFIXES, write_3d_view

@@ -37,8 +37,8 @@ from posecam.geometry.floor import Floor
 from posecam.errors import InputError
 from posecam.io.atomic import atomic_path
 from posecam.io.jsonstream import JsonStream
-from posecam.validate import MAX_FPS, MAX_INDEX, MAX_JOINTS, MAX_MM, MAX_PEOPLE, MAX_PIXEL, MAX_SECONDS, Field
-from posecam.media import check_input
+from posecam.io.validate import MAX_FPS, MAX_INDEX, MAX_JOINTS, MAX_MM, MAX_PEOPLE, MAX_PIXEL, MAX_SECONDS, Field
+from posecam.io.media import check_input
 from posecam.results import Dropped, Frame, Person, Recording
 from posecam.skeleton import skeleton_of
 
@@ -210,7 +210,7 @@ def read_poses(path: str | os.PathLike) -> list[Recording]:
     """Read a JSON file written by `posecam predict` (or `fuse`) back into recordings.
 
     The file is streamed (posecam.io.jsonstream) and every field checked as it comes
-    (posecam.validate): at most MAX_PEOPLE people per frame, frame indices whole numbers
+    (posecam.io.validate): at most MAX_PEOPLE people per frame, frame indices whole numbers
     that increase, times, sizes, intrinsics and coordinates finite and in range."""
     check_input(path, "pose file")
     where = str(path)

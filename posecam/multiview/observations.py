@@ -23,7 +23,7 @@ import numpy as np
 from posecam.geometry.camera import CameraCalibration
 from posecam.filters import butterworth
 from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
-from posecam.media import DEFAULT_FPS
+from posecam.io.media import DEFAULT_FPS
 from posecam.results import Recording
 
 MIN_TRACK_FRAMES = 8            # shorter tracks are left out (detector flicker)
