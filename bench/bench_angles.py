@@ -36,7 +36,7 @@ from bench_smooth import lab_joints as lab_smooth_joints, predictions, take_file
 
 from posecam.angles import angle_names, angles_of  # noqa: E402
 from posecam.filters import butterworth, smooth_recording  # noqa: E402
-from posecam.metric import MetricOptions, scale_recording  # noqa: E402
+from posecam.scale.metric import MetricOptions, scale_recording  # noqa: E402
 from posecam.skeleton import H36M_JOINTS  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent

@@ -398,7 +398,7 @@ def worker(take: str, cache: Path, offsets: list[float], out: Path) -> None:
         if cfg.get("heights"):
             if "heights" not in has or (cfg["heights"] == 2 and TAKES[take][2] == TAKES[take][1]):
                 continue
-            from posecam.heights import Heights
+            from posecam.scale.heights import Heights
 
             kw["heights"] = Heights.parse([TAKES[take][cfg["heights"]]])
         if cfg.get("refine"):

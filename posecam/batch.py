@@ -32,7 +32,7 @@ from posecam.io.atomic import (OutputSet, StagedOutputs, check_output, deferred_
 from posecam.io.intrinsics import IntrinsicsOptions
 from posecam.io.poses import PoseWriter, write_poses
 from posecam.io.media import VIDEO_SUFFIXES
-from posecam.metric import MetricOptions
+from posecam.scale.metric import MetricOptions
 
 if TYPE_CHECKING:
     from posecam.multiview.fuse import FuseOptions

@@ -24,7 +24,7 @@ class Person:
     keypoints_3d: np.ndarray    # (J, 3) x, y, z in mm, camera (or world) coordinates
     confidence: np.ndarray      # (J,) in [0, 1]
     angles: dict[str, float] | None = None   # joint/segment angles in degrees (posecam.angles), when asked for
-    # metric scale (posecam.metric); NaN and "" where it was not fixed
+    # metric scale (posecam.scale.metric); NaN and "" where it was not fixed
     height: float = float("nan")            # m: the height the person's scale was fixed with
     height_source: str = ""                 # "given", "given, rank K", "floor" or "model"
     height_estimated: float = float("nan")  # m: the height estimated from the track, whatever was given
@@ -88,7 +88,7 @@ class Recording:
     model: str = ""
     fps: float | None = None
     frame_of_reference: str = "camera"   # "camera", "reference camera NAME" or "world"
-    floor: Floor | None = None           # the ground plane under the people (posecam.metric), camera frame
+    floor: Floor | None = None           # the ground plane under the people (posecam.scale.metric), camera frame
     cameras: list[dict] = field(default_factory=list)   # fused: what fusion says of each input camera
 
     @property

@@ -21,7 +21,7 @@ from posecam.io.calibration import read_calibration
 from posecam.io.intrinsics import IntrinsicsOptions, is_calibration
 from posecam.io.poses import read_poses
 from posecam.io.media import DEFAULT_FPS, FrameSelection, folder_holds, open_media
-from posecam.metric import MetricOptions
+from posecam.scale.metric import MetricOptions
 from posecam.multiview.fuse import FuseOptions, check_lengths
 from posecam.results import Recording
 

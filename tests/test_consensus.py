@@ -189,8 +189,8 @@ def test_camera_spread_grows_when_frames_are_removed(estimated):
 def test_heights_set_the_metric_scale():
     """The rig gives the people's heights relative to each other; a given height fixes the
     scale: the triangulated skeleton comes out that tall (here 10 % above the truth on purpose)."""
-    from posecam.heights import Heights
-    from posecam.metric import stature
+    from posecam.scale.heights import Heights
+    from posecam.scale.stature import stature
 
     cams = make_rig()
     recs = monocular_views(cams, skeleton_motion(80))
@@ -214,7 +214,7 @@ def test_heights_set_the_metric_scale():
 def test_heights_that_disagree_with_the_rig_are_warned_about():
     """Two people, the second 0.8 times the first's size: heights in that ratio fit one scale and
     pass in silence; a list that makes the second 0.6 times the first cannot, and says so."""
-    from posecam.heights import Heights
+    from posecam.scale.heights import Heights
 
     cams = make_rig()
     adult = skeleton_motion(80, centre=(-900.0, 0.0))

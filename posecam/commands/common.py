@@ -119,7 +119,7 @@ def make_intrinsics_options(kwargs: dict) -> IntrinsicsOptions:
 
 
 def height_option(f: Callable) -> Callable:
-    """--height, shared by `predict` and `fuse` (parsed by posecam.heights.Heights.parse)."""
+    """--height, shared by `predict` and `fuse` (parsed by posecam.scale.heights.Heights.parse)."""
     return click.option("--height", "heights", multiple=True, metavar="M[,M...]|ID=M",
                         help="People's heights in metres, which fix their metric scale: one value for everyone, "
                              "a list matched to the people tallest first (1.72,1.21), or per id (--height 0=1.72 "

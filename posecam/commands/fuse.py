@@ -167,7 +167,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     from posecam.io.trc import MARKER_SUFFIXES, check_markers_output, write_markers
     from posecam.io.media import VIDEO_SUFFIXES
     from posecam.viz.sinks import PICTURE_SUFFIXES
-    from posecam.heights import Heights
+    from posecam.scale.heights import Heights
     from posecam.multiview.fuse import FuseOptions, fuse_recordings
     from posecam.viz.render3d import VIEW3D_SUFFIXES, write_3d_view
     from posecam.angles import angle_names

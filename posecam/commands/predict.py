@@ -215,9 +215,9 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     z forward, the camera at the origin.
     """
     from posecam.estimate import shared_estimator
-    from posecam.heights import Heights
+    from posecam.scale.heights import Heights
     from posecam.io.atomic import OutputSet
-    from posecam.metric import MetricOptions
+    from posecam.scale.metric import MetricOptions
     from posecam.io.poses import POSE_SUFFIXES, PoseWriter
     from posecam.io.trc import MARKER_SUFFIXES, check_markers_output, write_markers
     from posecam.io.media import VIDEO_SUFFIXES, expand_inputs, is_stream, open_media

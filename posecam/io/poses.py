@@ -5,7 +5,7 @@ JSON: {"posecam", "model", "joints", "root_joint", "inputs": [{"source", "width"
 "people": [{"id", "score", "bbox", "keypoints_2d", "keypoints_3d", "confidence", "root"[, "height",
 "height_source", "height_estimated", "height_sd", "depth_sd"][, "doubts"]}], "dropped": [{"stage", "score",
 "bbox"}]}][, "floor": {"normal", "distance", "spread", "contacts", "tracks"}]}]}. The height fields (m; depth_sd in mm) are there when the
-person's metric scale was fixed (posecam.metric); "floor" when a ground plane was fitted (camera
+person's metric scale was fixed (posecam.scale.metric); "floor" when a ground plane was fitted (camera
 frame, mm). "doubts" lists, for a person whose pose may not be theirs, the checks it failed
 (posecam.doubts: "off_body", "root_jump", "bones"); absent for a sound pose. Files without them
 (older posecam) read as before.
@@ -119,7 +119,7 @@ class PoseWriter:
 
     def begin(self, rec: Recording) -> None:
         """A new input. Its header is written with its first frame (or when it ends), so that
-        what the first frames settle (the lens the people give, posecam.metric) is in it."""
+        what the first frames settle (the lens the people give, posecam.scale.metric) is in it."""
         self._end_input()
         if self.fmt == "csv" and not self._inputs:
             self._csv.writerow(CSV_HEADER + self.angles)
@@ -167,7 +167,7 @@ class PoseWriter:
         self._rec = None
 
     def _floor(self) -> str:
-        """The input's ground plane, known once its frames are all through (posecam.metric)."""
+        """The input's ground plane, known once its frames are all through (posecam.scale.metric)."""
         floor = getattr(self._rec, "floor", None)
         return f', "floor": {_dumps(floor.to_dict())}' if floor is not None else ""
 
@@ -363,7 +363,7 @@ def _angles(values: object, check: Field) -> dict[str, float] | None:
 
 
 def _person_metric(p: dict, check: Field) -> dict:
-    """The metric-scale fields of a person (posecam.metric; absent in older files)."""
+    """The metric-scale fields of a person (posecam.scale.metric; absent in older files)."""
     def number(key: str, hi: float) -> float:
         return _optional(check.number(p.get(key), key, 0, hi, optional=True))
 
