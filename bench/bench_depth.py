@@ -240,7 +240,7 @@ def variants(take: str, measured: str | None = None):
 
 
 def take_bench(take: str, cache: Path) -> None:
-    from posecam.filters import smooth_recording
+    from posecam.analysis.filters import smooth_recording
     from posecam.scale.metric import scale_recording
 
     cams = lab_cameras(take)

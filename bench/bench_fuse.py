@@ -649,8 +649,8 @@ def cut(rec, n: int):
 def _fused_angles(result) -> list[list[dict]]:
     """Per fused frame, per person: its pelvis as seen by the reference camera (uv) and its 8 big
     angles (smoothed as `posecam fuse` smooths)."""
-    from posecam.angles import angle_names, angles_of
-    from posecam.filters import smooth_recording
+    from posecam.analysis.angles import angle_names, angles_of
+    from posecam.analysis.filters import smooth_recording
 
     fused = smooth_recording(result.recording)
     names = angle_names(fused.joints)

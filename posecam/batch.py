@@ -26,7 +26,7 @@ from typing import TYPE_CHECKING
 
 from posecam.errors import InputError, OutputError, PosecamError, Terminated, last_signal, note_signal
 from posecam.estimate import EstimatorOptions, shared_estimator
-from posecam.filters import smooth_recording
+from posecam.analysis.filters import smooth_recording
 from posecam.io.atomic import (OutputSet, StagedOutputs, check_output, deferred_commit, remove_run_staging,
                                tagged_staging)
 from posecam.io.intrinsics import IntrinsicsOptions

@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from posecam.doubts import DoubtStage
+from posecam.analysis.doubts import DoubtStage
 from posecam.errors import InputError, ModelError
-from posecam.filters import StreamingSmoother
+from posecam.analysis.filters import StreamingSmoother
 from posecam.scale.metric import MetricOptions, MetricStage
 from posecam.geometry.boxes import boxes_overlap
 from posecam.geometry.camera import Intrinsics
@@ -119,7 +119,7 @@ class FileStream:
     def poses(self, smooth: bool = False, metric: MetricOptions | None = None,
               taps: Mapping[str, OnFrame | None] | None = None) -> Iterator[Frame]:
         """The input's frames through the rest of the chain: each frame's people have their
-        doubts marked (posecam.doubts; a video's frames come JUMP_WINDOW s late), then, with
+        doubts marked (posecam.analysis.doubts; a video's frames come JUMP_WINDOW s late), then, with
         `metric`, each track's metric scale (posecam.scale.metric: `recording.intrinsics` is the lens the frames were solved with
         when the first comes out, `recording.floor` the ground plane at the end, and `notes`
         holds the warnings), then, with `smooth` and a video or a sequence, the streaming

@@ -168,7 +168,7 @@ def make_frame_selection(kwargs: dict) -> FrameSelection | None:
 
 
 def angle_options(f: Callable) -> Callable:
-    """--angles and --plot, shared by `predict` and `fuse` (posecam.angles, posecam.viz.plot)."""
+    """--angles and --plot, shared by `predict` and `fuse` (posecam.analysis.angles, posecam.viz.plot)."""
     f = click.option("--plot", type=click.Path(),
                      help="FILE.png or FILE.html: each person's joint angles and root depth over time.")(f)
     return click.option("--angles", is_flag=True,

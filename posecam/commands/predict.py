@@ -24,7 +24,7 @@ class InputSummary:
         self.people: dict[int, list] = {}      # id -> [frames, sum of root (3,), sum of mean confidence, height]
         self.dropped: dict[str, int] = {}      # people seen but dropped, per stage ...
         self.best_dropped = 0.0                # ... and the highest presence among those the pose model dropped
-        self.doubtful = 0                      # poses written with doubts (posecam.doubts) ...
+        self.doubtful = 0                      # poses written with doubts (posecam.analysis.doubts) ...
         self.doubts: dict[str, int] = {}       # ... and how often each doubt was raised
 
     def add(self, frame) -> None:
@@ -224,7 +224,7 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     from posecam.viz.draw import draw_people
     from posecam.viz.sinks import PICTURE_SUFFIXES, VideoSink, WindowSink, check_window, write_image
     from posecam.viz.render3d import VIEW3D_SUFFIXES, write_3d_view
-    from posecam.angles import add_angles, angle_names
+    from posecam.analysis.angles import add_angles, angle_names
     from posecam.viz.plot import AngleSeries, write_plot
 
     paths, unreadable = expand_inputs(inputs, strict)   # a folder of photos: each photo an input

@@ -7,11 +7,11 @@ JSON: {"posecam", "model", "joints", "root_joint", "inputs": [{"source", "width"
 "bbox"}]}][, "floor": {"normal", "distance", "spread", "contacts", "tracks"}]}]}. The height fields (m; depth_sd in mm) are there when the
 person's metric scale was fixed (posecam.scale.metric); "floor" when a ground plane was fitted (camera
 frame, mm). "doubts" lists, for a person whose pose may not be theirs, the checks it failed
-(posecam.doubts: "off_body", "root_jump", "bones"); absent for a sound pose. Files without them
+(posecam.analysis.doubts: "off_body", "root_jump", "bones"); absent for a sound pose. Files without them
 (older posecam) read as before.
 CSV: one row per joint, header exactly CSV_HEADER (height and depth_sd empty where unknown;
 doubts the person's doubts joined by ";", empty for a sound pose).
-With angles (`posecam predict --angles`, posecam.angles) each person also holds "angles": {name:
+With angles (`posecam predict --angles`, posecam.analysis.angles) each person also holds "angles": {name:
 degrees}, and the CSV gains one column per angle after CSV_HEADER's (the person's angles in that
 frame, repeated on each of its joint rows).
 "dropped" lists the people seen but left out in the frame, with the stage that did it.
@@ -347,7 +347,7 @@ def _read_person(p: object, check: Field, shape: dict) -> Person:
 
 
 def _doubts(values: object, check: Field) -> tuple[str, ...]:
-    """A person's doubts (posecam.doubts), () for a sound pose."""
+    """A person's doubts (posecam.analysis.doubts), () for a sound pose."""
     return tuple(check.text(d, "doubts", limit=64) for d in check.items(values, "doubts", MAX_DOUBTS))
 
 

@@ -1,6 +1,6 @@
 """Temporal smoothing of pose trajectories, one track at a time.
 
-    from posecam.filters import SmoothOptions, smooth_recording
+    from posecam.analysis.filters import SmoothOptions, smooth_recording
     smoothed = smooth_recording(rec, SmoothOptions(cutoff_hz=6.0))
 
 Two standard filters over (F, ...) arrays whose missing frames are NaN:
