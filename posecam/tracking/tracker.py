@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from posecam.geometry.boxes import box_iou
-from posecam.inference.detector import MIN_KEYPOINT_SCORE, Detection
+from posecam.inference.detector import SEEN_KEYPOINT_SCORE, Detection
 from posecam.inference.embedder import AppearanceEmbedder
 from posecam.inference.roi import Roi
 from posecam.results import Dropped
@@ -176,7 +176,7 @@ class Tracker:
                     self._lost_now.add(t.id)
                 continue
             if t.detection is None and kp is not None:
-                seen = kp[sc >= MIN_KEYPOINT_SCORE]
+                seen = kp[sc >= SEEN_KEYPOINT_SCORE]
                 if len(seen) >= 2:
                     lo, hi = seen.min(axis=0), seen.max(axis=0)
                     t.kalman.update(np.concatenate([lo, hi]))
