@@ -138,7 +138,7 @@ MUTANTS = (
            "m, b, n = m_all - wi, b_all - wx, w.sum(axis=0) - w", "m, b, n = m_all, b_all, w.sum(axis=0)",
            (f"{CONSENSUS}::test_fused_points_trust_each_views_depth_less_than_its_image_plane",)),
     Mutant("consensus: every depth scaled with the focal length", "posecam/multiview/consensus.py",
-           "return xyz[..., 2] + (g - 1.0) * root[..., None]", "return g * xyz[..., 2]",
+           "return obs.xyz[..., 2] + (g - 1.0) * obs.root_depth()[..., None]", "return g * obs.xyz[..., 2]",
            (f"{CONSENSUS}::test_a_focal_scale_moves_the_root_depth_and_keeps_the_metric_skeleton",)),
     Mutant("consensus: fy refitted from fx", "posecam/multiview/consensus.py",
            "out[0], out[1] = g * assumed.intrinsics.fx, g * assumed.intrinsics.fy",
