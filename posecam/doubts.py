@@ -123,21 +123,27 @@ class DoubtStage(Generic[Item]):
         return out
 
     def _track_doubts(self, p: Person, time: float) -> tuple[str, ...]:
+        root, bones = self.track_measures(p, time)
+        return (("root_jump",) if root > ROOT_JUMP else ()) + (("bones",) if abs(bones) > BONES else ())
+
+    def track_measures(self, p: Person, time: float) -> tuple[float, float]:
+        """What the track checks compare with ROOT_JUMP and BONES, for a person of a frame still
+        held: the root's distance from the steady path over its distance from the camera, and the
+        limbs' median log ratio to the track's own (NaN where a check has too few samples)."""
         rows = self._tracks[p.id]
         times = np.array([t for t, _, _ in rows])
         span = (times >= time - SLOPE_SPAN - 1e-6) & (times <= time + self.window + 1e-6)
-        doubts = []
+        root = bones = float("nan")
         if (np.abs(times - time) <= self.window + 1e-6).sum() >= MIN_SAMPLES:
             roots = np.array([r for (_, r, _), s in zip(rows, span) if s])
             path = steady_path(times[span], roots, time, self.window)
-            if np.linalg.norm(p.root - path) > ROOT_JUMP * np.linalg.norm(p.root):
-                doubts.append("root_jump")
+            root = float(np.linalg.norm(p.root - path) / np.linalg.norm(p.root))
         limbs, own = np.array([x for _, _, x in rows]), self._limbs(p)
         known = (np.isfinite(limbs).sum(axis=0) >= MIN_SAMPLES) & np.isfinite(own) & (own > 0)
         ratio = [np.log(own[i] / np.nanmedian(limbs[:, i])) for i in np.flatnonzero(known)]
-        if len(ratio) >= MIN_SAMPLES and abs(np.median(ratio)) > BONES:
-            doubts.append("bones")
-        return tuple(doubts)
+        if len(ratio) >= MIN_SAMPLES:
+            bones = float(np.median(ratio))
+        return root, bones
 
     def _forget(self, time: float) -> None:
         """Drop what no frame still held needs: a track's frames older than BONE_HISTORY s."""
