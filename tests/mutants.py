@@ -192,6 +192,10 @@ MUTANTS = (
     Mutant("tracker: assignment of a tall matrix not transposed back", "posecam/tracking/assignment.py",
            "    if transposed:\n        rows, cols = cols, rows", "    if False:\n        rows, cols = cols, rows",
            (f"{TRACKING}::test_min_cost_assignment_matches_scipy_on_random_matrices",)),
+    # ---- the doubts -----------------------------------------------------------------------------
+    Mutant("doubts: the root tested votes for its own steady path", "posecam/doubts.py",
+           "(times <= time + self.window + 1e-6) & others", "(times <= time + self.window + 1e-6)",
+           ("tests/test_doubts.py::test_a_root_is_tested_against_a_path_drawn_without_it",)),
 )
 
 

@@ -7,16 +7,17 @@ Each person gets `Person.doubts`, the names of the checks it fails (empty: none)
                  intrinsics, over the confident joints, is more than OFF_BODY of the person's 2D
                  extent (a body cut by the border or turned away, where the model guesses)
     "root_jump"  (videos) the root leaves its track's steady path (`steady_path`: a robust line
-                 through the track's roots, its slope from SLOPE_SPAN s before to JUMP_WINDOW s
-                 after, its offset from +-JUMP_WINDOW s) by more than ROOT_JUMP of its distance
+                 through the track's other roots, its slope from SLOPE_SPAN s before to JUMP_WINDOW
+                 s after, its offset from +-JUMP_WINDOW s) by more than ROOT_JUMP of its distance
                  from the camera (the skeleton jumped to another body, or spans two); the line
                  follows steady motion, so a runner is not doubted, at a track's ends either
     "bones"      (videos) the limbs (upper and lower arms and legs) are, by their median, more than
                  BONES (log ratio) off the same limbs' median over the track's last BONE_HISTORY s
 
-The thresholds sit well clear of what sound poses reach on the Pose2Sim demo takes and OpenCV's
-pedestrian clip (off_body at most 0.086, root_jump 0.08, bones 0.18); the doubted poses are
-flagged, not dropped: their data stay in the files, fusion leaves them out.
+Sound poses of the Pose2Sim demo takes reach off_body 0.065, root_jump 0.097 and bones 0.18; on
+OpenCV's pedestrian clip (people 60-250 px tall, 10 frames/s) sound and wrong poses both come
+near the thresholds (docs/benchmarks.md, "Doubtful poses": what they flag, counted by eye). The
+doubted poses are flagged, not dropped: their data stay in the files, fusion leaves them out.
 """
 
 from __future__ import annotations
@@ -123,21 +124,30 @@ class DoubtStage(Generic[Item]):
         return out
 
     def _track_doubts(self, p: Person, time: float) -> tuple[str, ...]:
+        root, bones = self.track_measures(p, time)
+        return (("root_jump",) if root > ROOT_JUMP else ()) + (("bones",) if abs(bones) > BONES else ())
+
+    def track_measures(self, p: Person, time: float) -> tuple[float, float]:
+        """What the track checks compare with ROOT_JUMP and BONES, for a person of a frame still
+        held: the root's distance from the steady path over its distance from the camera, and the
+        limbs' median log ratio to the track's own (NaN where a check has too few samples)."""
         rows = self._tracks[p.id]
         times = np.array([t for t, _, _ in rows])
-        span = (times >= time - SLOPE_SPAN - 1e-6) & (times <= time + self.window + 1e-6)
-        doubts = []
+        # the path through the other frames' roots: the root tested has no vote in the line it is
+        # tested against (at a track's ends, where a few frames fit the line, it pulled it to itself)
+        others = np.abs(times - time) > 1e-6
+        span = (times >= time - SLOPE_SPAN - 1e-6) & (times <= time + self.window + 1e-6) & others
+        root = bones = float("nan")
         if (np.abs(times - time) <= self.window + 1e-6).sum() >= MIN_SAMPLES:
             roots = np.array([r for (_, r, _), s in zip(rows, span) if s])
             path = steady_path(times[span], roots, time, self.window)
-            if np.linalg.norm(p.root - path) > ROOT_JUMP * np.linalg.norm(p.root):
-                doubts.append("root_jump")
+            root = float(np.linalg.norm(p.root - path) / np.linalg.norm(p.root))
         limbs, own = np.array([x for _, _, x in rows]), self._limbs(p)
         known = (np.isfinite(limbs).sum(axis=0) >= MIN_SAMPLES) & np.isfinite(own) & (own > 0)
         ratio = [np.log(own[i] / np.nanmedian(limbs[:, i])) for i in np.flatnonzero(known)]
-        if len(ratio) >= MIN_SAMPLES and abs(np.median(ratio)) > BONES:
-            doubts.append("bones")
-        return tuple(doubts)
+        if len(ratio) >= MIN_SAMPLES:
+            bones = float(np.median(ratio))
+        return root, bones
 
     def _forget(self, time: float) -> None:
         """Drop what no frame still held needs: a track's frames older than BONE_HISTORY s."""
