@@ -52,7 +52,9 @@ class FuseOptions:
     calibration: Rig | None = None         # known cameras; None: estimate them
     method: str = "average"                # "average" (monocular poses) or "triangulate" (2D)
     offsets: list[float] | None = None     # per view, see posecam.multiview.sync; None: zeros or auto
-    sync: bool = False                     # estimate the offsets (`posecam fuse` does unless given a calibration)
+    # estimate the offsets; None (the default, `posecam fuse`'s): when neither a calibration nor
+    # offsets are given (cameras started by hand)
+    sync: bool | None = None
     # frames either way the offsets may reach; None: without a calibration, any that leaves the views
     # half the shorter one's frames (posecam.multiview.sync.coarse_offsets); with one, 10
     max_offset: int | None = None
@@ -77,6 +79,12 @@ class FusionResult:
     scale_source: str = "the calibration"   # what fixes the metric scale (see `metric_scale`)
 
 
+def finds_offsets(sync: bool | None, calibrated: bool, offsets_given: bool) -> bool:
+    """FuseOptions.sync resolved: None (the default) finds the offsets unless a calibration or
+    offsets are given."""
+    return sync if sync is not None else not (calibrated or offsets_given)
+
+
 def view_names(recordings: list[Recording]) -> list[str]:
     """Camera names: the input file stems, made unique."""
     names = []
@@ -91,10 +99,11 @@ def check_lengths(names: list[str], lengths: list[int], opts: FuseOptions) -> st
     (unsynchronised cameras started apart: the offsets found line them up): InputError when they
     differ by more than the offsets allow (`max_offset` and the largest `offsets`), a warning
     line when they differ at all."""
-    if not lengths or max(lengths) == min(lengths) or (opts.sync and opts.calibration is None):
+    sync = finds_offsets(opts.sync, opts.calibration is not None, opts.offsets is not None)
+    if not lengths or max(lengths) == min(lengths) or (sync and opts.calibration is None):
         return None
     shown = ", ".join(f"{n} {k}" for n, k in zip(names, lengths))
-    search = opts.max_offset if opts.max_offset is not None else RIG_MAX_OFFSET if opts.sync else 0
+    search = opts.max_offset if opts.max_offset is not None else RIG_MAX_OFFSET if sync else 0
     slack = search + max((abs(o) for o in opts.offsets or [0]), default=0)
     if max(lengths) - min(lengths) > slack:
         raise InputError(f"the views have different lengths ({shown} frames): fuse needs "
@@ -273,6 +282,7 @@ def fuse_recordings(recordings: list[Recording], options: FuseOptions | None = N
 
 def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[str], None] | None) -> FusionResult:
     say = progress or (lambda _msg: None)
+    opts = replace(opts, sync=finds_offsets(opts.sync, opts.calibration is not None, opts.offsets is not None))
     take = check_take(recordings, opts)
     opts = replace(opts, bundle_options=replace(opts.bundle_options, fixed_intrinsics=known_lenses(take, opts)))
     given = given_cameras(take, opts.calibration) if opts.calibration is not None else None
