@@ -112,8 +112,14 @@ def test_degenerate_views_trigger_the_quality_gate():
     twin = CameraCalibration("twin", cams[0].size, cams[0].intrinsics, cams[0].rotation,
                              cams[0].translation + np.array([5.0, 0.0, 0.0]))
     recs = monocular_views([cams[0], twin], world, seed=5)
-    with pytest.raises(FusionError):
+    with pytest.raises(FusionError, match="what would help: the lenses .*, more cameras, a longer take") as err:
         fuse_recordings(recs, FuseOptions(sync=False, bundle_options=BundleOptions(max_frames=40)))
+    assert "\n" not in str(err.value)
+    # lenses known: the refusal does not ask for them
+    recs = monocular_views([cams[0], twin], world, seed=5, known_lens=True)
+    with pytest.raises(FusionError, match="what would help: more cameras, a longer take") as err:
+        fuse_recordings(recs, FuseOptions(sync=False, bundle_options=BundleOptions(max_frames=40)))
+    assert "lenses" not in str(err.value)
 
 
 def _fractional(cams, offsets, n_frames=120, joint_noise=10.0, still=False):

@@ -252,16 +252,6 @@ def _offsets(take: Take, association: Association, rig: Rig | None, start: list[
     return synchronise(take, association.people, rig, start, opts.max_offset, opts.min_conf)
 
 
-def _estimated(take: Take, association: Association, sync: SyncResult, opts: FuseOptions,
-               say: Callable[[str], None]) -> KeptCameras:
-    """The cameras without a calibration (posecam.multiview.calibrate.cameras_from_people), and the
-    offsets with them where BundleOptions.refine_offsets asks."""
-    say("estimating the cameras")
-    if len(take.names) - len(sync.unpinned) < 2:
-        raise FusionError("fewer than two cameras can be fused: " + "; ".join(sync.warnings))
-    return cameras_from_people(take, association, sync, opts.min_conf, opts.bundle, opts.bundle_options)
-
-
 def refined_offsets(sync: SyncResult, cameras: KeptCameras) -> SyncResult:
     """The sync with the offsets (and their spreads) the bundle adjustment refined, where it did."""
     if cameras.offsets is None:
@@ -270,6 +260,53 @@ def refined_offsets(sync: SyncResult, cameras: KeptCameras) -> SyncResult:
     for v, o, s in zip(cameras.views, cameras.offsets, cameras.offset_spreads):
         offsets[v], spread[v] = o, s
     return replace(sync, offsets=offsets, spread=spread)
+
+
+def what_helps(take: Take, opts: FuseOptions) -> str:
+    """What would let the people pin the cameras, for a refusal line: the lenses where some are
+    guessed (a lens held leaves only where the cameras stand to estimate), more cameras, a
+    longer take in which the people move about, or known cameras."""
+    guessed = [n for n in take.names if n not in opts.bundle_options.fixed_intrinsics]
+    helps = []
+    if guessed:
+        which = "--intrinsics FILE or --fx" if len(guessed) == len(take.names) else "for " + ", ".join(guessed)
+        helps.append(f"the lenses ({which}: a known lens is held)")
+    if len(take.names) < 4:
+        helps.append("more cameras")
+    helps.append("a longer take in which the people move about the scene")
+    return f"what would help: {', '.join(helps)}; or known cameras (--calibration)"
+
+
+def _estimated(take: Take, association: Association, sync: SyncResult, opts: FuseOptions,
+               say: Callable[[str], None]) -> tuple[KeptCameras, SyncResult, list[Observations], np.ndarray, list[str]]:
+    """The cameras without a calibration (posecam.multiview.calibrate.cameras_from_people; the
+    offsets with them where BundleOptions.refine_offsets asks), estimated again without the
+    views' left/right swaps, their spreads bootstrapped and the loose ones dropped; with the sync
+    (refined), the people and swaps of the cameras kept, and the warnings. A FusionError says
+    what would help (`what_helps`)."""
+    say("estimating the cameras")
+    if len(take.names) - len(sync.unpinned) < 2:
+        raise FusionError("fewer than two cameras can be fused: " + "; ".join(sync.warnings))
+    try:
+        cameras = cameras_from_people(take, association, sync, opts.min_conf, opts.bundle, opts.bundle_options)
+        sync = refined_offsets(sync, cameras)
+        warnings = sync.warnings + cameras.warnings
+        say("checking left and right")
+        people, swaps = fix_people(cameras.rig, take.observations(association.people, sync.offsets, cameras.views),
+                                   take.joints)
+        if swaps.any():
+            say("estimating the cameras without the swaps")
+            cameras, people, swaps = cameras_without_swaps(take, cameras, people, swaps, opts.min_conf, opts.bundle,
+                                                           opts.bundle_options)
+            warnings += cameras.warnings
+        if opts.bundle:
+            say("bootstrapping the cameras' spreads")
+            cameras = bootstrap_spreads(cameras, people, take.joints, opts.min_conf, opts.bundle_options)
+            cameras, people, swaps = without_loose_cameras(cameras, people, swaps, take.names, take.reference)
+            warnings += cameras.warnings
+    except FusionError as exc:
+        raise FusionError(f"{exc}; {what_helps(take, opts)}") from None
+    return cameras, sync, people, swaps, warnings
 
 
 def fuse_recordings(recordings: list[Recording], options: FuseOptions | None = None,
@@ -294,26 +331,17 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
     sync = _offsets(take, association, rig, start, opts, say)
     if given and opts.sync:                  # through a rig, who is who depends on the offsets
         association = associate_people(take, rig, sync.offsets, opts.min_conf)
-    cameras = given or _estimated(take, association, sync, opts, say)
-    sync = refined_offsets(sync, cameras)
-    warnings = sync.warnings + cameras.warnings
+    if given:
+        cameras = given
+        say("checking left and right")
+        people, swaps = fix_people(cameras.rig, take.observations(association.people, sync.offsets, cameras.views),
+                                   take.joints)
+        warnings = sync.warnings + cameras.warnings
+    else:
+        cameras, sync, people, swaps, warnings = _estimated(take, association, sync, opts, say)
     if not opts.sync and opts.offsets is None:
         warnings.append("every view fused at offset 0, as if the cameras had started together: --sync auto finds "
                         "their offsets, --offsets sets them")
-
-    say("checking left and right")
-    people, swaps = fix_people(cameras.rig, take.observations(association.people, sync.offsets, cameras.views),
-                               take.joints)
-    if swaps.any() and not given:
-        say("estimating the cameras without the swaps")
-        cameras, people, swaps = cameras_without_swaps(take, cameras, people, swaps, opts.min_conf, opts.bundle,
-                                                       opts.bundle_options)
-        warnings += cameras.warnings
-    if not given and opts.bundle:
-        say("bootstrapping the cameras' spreads")
-        cameras = bootstrap_spreads(cameras, people, take.joints, opts.min_conf, opts.bundle_options)
-        cameras, people, swaps = without_loose_cameras(cameras, people, swaps, take.names, take.reference)
-        warnings += cameras.warnings
     if given:
         scale_source = "the calibration"
         if opts.heights:
