@@ -94,22 +94,35 @@ def view_names(recordings: list[Recording]) -> list[str]:
     return names
 
 
+MIN_SHARED = 0.5    # share of the shorter view's frames that views lined up by given offsets must share
+
+
 def check_lengths(names: list[str], lengths: list[int], opts: FuseOptions) -> str | None:
-    """Views of one take have one length unless they are synchronised without a calibration
-    (unsynchronised cameras started apart: the offsets found line them up): InputError when they
-    differ by more than the offsets allow (`max_offset` and the largest `offsets`), a warning
-    line when they differ at all."""
+    """Views of different lengths are what cameras started and stopped by hand give: lined up
+    by offsets found without a calibration, or by the offsets given, which must leave each view
+    MIN_SHARED of its frames (or of the reference's, if fewer) in common with the reference; a
+    warning line says they differ. Views taken as started together (no offsets, no search
+    without a calibration) may differ by at most the search of a calibrated sync (`max_offset`):
+    InputError past what they allow."""
     sync = finds_offsets(opts.sync, opts.calibration is not None, opts.offsets is not None)
     if not lengths or max(lengths) == min(lengths) or (sync and opts.calibration is None):
         return None
     shown = ", ".join(f"{n} {k}" for n, k in zip(names, lengths))
-    search = opts.max_offset if opts.max_offset is not None else RIG_MAX_OFFSET if sync else 0
-    slack = search + max((abs(o) for o in opts.offsets or [0]), default=0)
-    if max(lengths) - min(lengths) > slack:
-        raise InputError(f"the views have different lengths ({shown} frames): fuse needs "
-                         "recordings of the same take; trim them to it")
+    if opts.offsets is not None and len(opts.offsets) == len(lengths):
+        ref, o_ref = lengths[opts.reference], opts.offsets[opts.reference]
+        for name, n, o in zip(names, lengths, opts.offsets):       # reference frames i with i + o in the view
+            shared = max(0, int(np.floor(min(ref, n - (o - o_ref)) - max(0.0, o_ref - o))))
+            if shared < MIN_SHARED * min(n, ref):
+                raise InputError(f"the views have different lengths ({shown} frames) and at the offsets given "
+                                 f"{name} shares only {shared} of its frames with {names[opts.reference]}: "
+                                 "check --offsets, or fuse recordings of the same take")
+    else:
+        search = opts.max_offset if opts.max_offset is not None else RIG_MAX_OFFSET if sync else 0
+        if max(lengths) - min(lengths) > search:
+            raise InputError(f"the views have different lengths ({shown} frames): fuse needs "
+                             "recordings of the same take; trim them to it, or give --offsets")
     return (f"the views differ in length ({shown} frames): fuse lines them up by their first frames "
-            "(shifted by --offsets or --sync auto); are they one take, cut alike?")
+            "(shifted by --offsets or --sync auto); are they one take?")
 
 
 def check_take(recordings: list[Recording], opts: FuseOptions) -> Take:
