@@ -1,4 +1,4 @@
-"""Benchmark joint angles (posecam.angles) on Pose2Sim's single-person take, and what the
+"""Benchmark joint angles (posecam.analysis.angles) on Pose2Sim's single-person take, and what the
 options of predict cost.
 
     python bench/bench_angles.py [--model full] [--runs 3] [--cache .cache/bench_smooth]
@@ -34,9 +34,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_predict import OFFSETS, _first_person  # noqa: E402
 from bench_smooth import lab_joints as lab_smooth_joints, predictions, take_file  # noqa: E402
 
-from posecam.angles import angle_names, angles_of  # noqa: E402
-from posecam.filters import butterworth, smooth_recording  # noqa: E402
-from posecam.metric import MetricOptions, scale_recording  # noqa: E402
+from posecam.analysis.angles import angle_names, angles_of  # noqa: E402
+from posecam.analysis.filters import butterworth, smooth_recording  # noqa: E402
+from posecam.scale.metric import MetricOptions, scale_recording  # noqa: E402
 from posecam.skeleton import H36M_JOINTS  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
@@ -98,7 +98,7 @@ def _read_plain(video: Path) -> int:
 
 
 def _read_media(video: Path) -> int:
-    from posecam.media import open_media
+    from posecam.io.media import open_media
 
     return sum(1 for _ in open_media(video).frames())
 
@@ -106,7 +106,7 @@ def _read_media(video: Path) -> int:
 def cost(video: Path, runs: int) -> None:
     """In this process, alternated, medians: the frame reader against the loop it replaced, the
     angles of one frame, and `posecam predict` end to end with and without the new options."""
-    from posecam.angles import add_angles
+    from posecam.analysis.angles import add_angles
     from posecam.io.poses import read_poses
 
     reads = {"plain cv2 loop (before)": _read_plain, "Media.frames() (now)": _read_media}

@@ -1,11 +1,11 @@
-"""Benchmark posecam's monocular metric depth (posecam.metric) on both Pose2Sim takes and vtest.avi.
+"""Benchmark posecam's monocular metric depth (posecam.scale.metric) on both Pose2Sim takes and vtest.avi.
 
     python bench/bench_depth.py [--cache .cache/bench_depth] [--before DIR]
 
 Each camera of both takes (4 portrait cameras, 100 frames, 60 fps) is predicted once with the
 default pipeline and the lab's intrinsics (cached as posecam JSON, unsmoothed), then:
 - before: the per-frame poses as the pose model places them (today's posecam);
-- after: `posecam.metric` with its defaults (one scale per track, the floor), then without the
+- after: `posecam.scale.metric` with its defaults (one scale per track, the floor), then without the
   floor, then with `--height 1.72,1.21` (the heights of Pose2Sim's configuration of the takes);
   each unsmoothed and then smoothed as `posecam predict` does by default.
 Yardstick: the pelvis triangulated from the 4 views through the lab's Qualisys calibration with a
@@ -229,8 +229,8 @@ def heights(recs, ref) -> dict[str, list[float]]:
 
 
 def variants(take: str, measured: str | None = None):
-    from posecam.heights import Heights
-    from posecam.metric import MetricOptions
+    from posecam.scale.heights import Heights
+    from posecam.scale.metric import MetricOptions
 
     lists = HEIGHTS[take] + ((measured,) if measured else ())
     return {"before (per-frame scale)": None,
@@ -240,8 +240,8 @@ def variants(take: str, measured: str | None = None):
 
 
 def take_bench(take: str, cache: Path) -> None:
-    from posecam.filters import smooth_recording
-    from posecam.metric import scale_recording
+    from posecam.analysis.filters import smooth_recording
+    from posecam.scale.metric import scale_recording
 
     cams = lab_cameras(take)
     recs = predictions(take, cams, cache)
@@ -289,7 +289,7 @@ def lens_of(rec):
     import dataclasses
 
     from posecam.geometry.camera import Intrinsics
-    from posecam.metric import MetricOptions, MetricStage
+    from posecam.scale.metric import MetricOptions, MetricStage
 
     k = Intrinsics.default(rec.width, rec.height)
     stage = MetricStage(dataclasses.replace(rec, frames=[], intrinsics=k), MetricOptions(delay=len(rec.frames)))
@@ -326,7 +326,7 @@ def speed(runs: int = 5) -> None:
     """`posecam predict`'s path (FileStream.poses) on the single take's cam01, with the metric stage
     and without it (the code before), alternated in one run; medians."""
     from posecam import EstimatorOptions, IntrinsicsOptions, PoseEstimator
-    from posecam.metric import MetricOptions
+    from posecam.scale.metric import MetricOptions
 
     est = PoseEstimator(EstimatorOptions())
     video = REPO / "examples" / "demo" / "single" / "cam01.mp4"
@@ -371,7 +371,7 @@ def speed_against(before: Path, runs: int = 5) -> None:
 
 def vtest_bench(cache: Path) -> None:
     from posecam import EstimatorOptions, PoseEstimator, read_poses, write_poses
-    from posecam.metric import MetricStage
+    from posecam.scale.metric import MetricStage
 
     path = cache / "vtest_default.json"
     if not path.exists():
@@ -398,11 +398,12 @@ def vtest_bench(cache: Path) -> None:
 
 
 def model_size_bench(cache: Path) -> None:
-    """The pose model's one size (posecam.metric.MODEL_STATURE): each vtest.avi track's median
+    """The pose model's one size (posecam.scale.metric.MODEL_STATURE): each vtest.avi track's median
     stature (tracks measured in MIN_TRACK_FRAMES frames and more), their median and spread, per
     model, against the value posecam uses; and the lab's 1.72 m adult, one track per view."""
     from posecam import EstimatorOptions, PoseEstimator, read_poses, write_poses
-    from posecam.metric import MODEL_STATURE, stature
+    from posecam.scale.metric import MODEL_STATURE
+    from posecam.scale.stature import stature
 
     print("\n== the pose model's size: each track's median stature (its skeleton's bone chain), vtest.avi")
     for model, name in (("full", "vtest_default.json"), ("lite", "vtest_lite.json")):
@@ -418,7 +419,7 @@ def model_size_bench(cache: Path) -> None:
         mid = np.median(tracks)
         print(f"  {rec.model}: {len(tracks)} tracks, median {mid / 1000:.3f} m, spread (1.4826 MAD) "
               f"{100 * 1.4826 * np.median(np.abs(tracks - mid)) / mid:.1f} %, 5-95 % {np.percentile(tracks, 5) / 1000:.2f}-"
-              f"{np.percentile(tracks, 95) / 1000:.2f} m; posecam.metric uses {MODEL_STATURE.get(rec.model, float('nan')):.3f} m")
+              f"{np.percentile(tracks, 95) / 1000:.2f} m; posecam.scale.metric uses {MODEL_STATURE.get(rec.model, float('nan')):.3f} m")
     views = []
     for take in ("single", "multi"):
         cams = lab_cameras(take)

@@ -414,7 +414,7 @@ def worker(take: str, cache: Path, offsets: list[float], out: Path) -> None:
         if cfg.get("heights"):
             if "heights" not in has or (cfg["heights"] == 2 and TAKES[take][2] == TAKES[take][1]):
                 continue
-            from posecam.heights import Heights
+            from posecam.scale.heights import Heights
 
             kw["heights"] = Heights.parse([TAKES[take][cfg["heights"]]])
         if cfg.get("refine"):
@@ -665,8 +665,8 @@ def cut(rec, n: int):
 def _fused_angles(result) -> list[list[dict]]:
     """Per fused frame, per person: its pelvis as seen by the reference camera (uv) and its 8 big
     angles (smoothed as `posecam fuse` smooths)."""
-    from posecam.angles import angle_names, angles_of
-    from posecam.filters import smooth_recording
+    from posecam.analysis.angles import angle_names, angles_of
+    from posecam.analysis.filters import smooth_recording
 
     fused = smooth_recording(result.recording)
     names = angle_names(fused.joints)

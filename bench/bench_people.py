@@ -104,13 +104,13 @@ def demo_path(relative: str) -> Path:
 
 
 def read_frames(video: Path, limit: int | None = None) -> list[np.ndarray]:
-    from posecam.media import open_media   # posecam from PYTHONPATH: the code measured
+    from posecam.io.media import open_media   # posecam from PYTHONPATH: the code measured
 
     return [rgb for _, (_, _, rgb) in zip(range(limit or 10 ** 9), open_media(video).frames())]
 
 
 def video_fps(video: Path) -> float | None:
-    from posecam.media import open_media
+    from posecam.io.media import open_media
 
     return open_media(video).fps
 

@@ -35,7 +35,7 @@ FRAMES = ("175", "190", "205")
 
 
 def labelled() -> tuple[list[np.ndarray], list[np.ndarray], list[str]]:
-    from posecam.media import read_image
+    from posecam.io.media import read_image
 
     people = json.loads((DATA / "people.json").read_text())["people"]
     images, boxes, who = [], [], []

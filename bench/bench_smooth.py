@@ -1,4 +1,4 @@
-"""Benchmark temporal smoothing (posecam.filters) on Pose2Sim's real recordings.
+"""Benchmark temporal smoothing (posecam.analysis.filters) on Pose2Sim's real recordings.
 
     python bench/bench_smooth.py [--model full] [--cache .cache/bench_smooth]
 
@@ -28,7 +28,7 @@ from bench_predict import CAMERAS, OFFSETS, _first_person  # noqa: E402
 
 from export.assets import archive_path  # noqa: E402
 from posecam import EstimatorOptions, PoseEstimator, read_poses, write_poses  # noqa: E402
-from posecam.filters import SmoothOptions, smooth_recording  # noqa: E402
+from posecam.analysis.filters import SmoothOptions, smooth_recording  # noqa: E402
 from posecam.geometry.triangulate import triangulate  # noqa: E402
 from posecam.io.calibration import read_qualisys  # noqa: E402
 

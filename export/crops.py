@@ -9,7 +9,7 @@ import numpy as np
 
 from posecam.inference.detector import load_detector
 from posecam.errors import InputError
-from posecam.media import open_media
+from posecam.io.media import open_media
 from posecam.inference.roi import Roi
 
 

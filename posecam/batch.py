@@ -26,13 +26,13 @@ from typing import TYPE_CHECKING
 
 from posecam.errors import InputError, OutputError, PosecamError, Terminated, last_signal, note_signal
 from posecam.estimate import EstimatorOptions, shared_estimator
-from posecam.filters import smooth_recording
+from posecam.analysis.filters import smooth_recording
 from posecam.io.atomic import (OutputSet, StagedOutputs, check_output, deferred_commit, remove_run_staging,
                                tagged_staging)
 from posecam.io.intrinsics import IntrinsicsOptions
 from posecam.io.poses import PoseWriter, write_poses
-from posecam.media import VIDEO_SUFFIXES
-from posecam.metric import MetricOptions
+from posecam.io.media import VIDEO_SUFFIXES
+from posecam.scale.metric import MetricOptions
 
 if TYPE_CHECKING:
     from posecam.multiview.fuse import FuseOptions

@@ -30,9 +30,9 @@ from posecam.errors import (WRITE_ERRNOS, OutputError, PosecamError, ReaderLeft,
 ENVIRONMENT = {
     "OPENCV_LOG_LEVEL": "ERROR",         # posecam reports what goes wrong itself
     "OPENCV_FFMPEG_LOGLEVEL": "-8",      # AV_LOG_QUIET: FFmpeg's messages off; read when a video is opened
-    # OpenCV refuses to decode an image over this many pixels, whatever its format (posecam.media
+    # OpenCV refuses to decode an image over this many pixels, whatever its format (posecam.io.media
     # reads the headers it knows first, for a clearer message); read once, when cv2 is loaded.
-    # Equal to posecam.media.MAX_PIXELS (268 Mpx), which is not imported here: it loads cv2.
+    # Equal to posecam.io.media.MAX_PIXELS (268 Mpx), which is not imported here: it loads cv2.
     "OPENCV_IO_MAX_IMAGE_PIXELS": str(1 << 28),
     "ORT_DISABLE_TELEMETRY": "1",        # else onnxruntime leaves a session file (.ses) in the temporary folder
 }

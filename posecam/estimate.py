@@ -23,10 +23,10 @@ from pathlib import Path
 
 import numpy as np
 
-from posecam.doubts import DoubtStage
+from posecam.analysis.doubts import DoubtStage
 from posecam.errors import InputError, ModelError
-from posecam.filters import StreamingSmoother
-from posecam.metric import MetricOptions, MetricStage
+from posecam.analysis.filters import StreamingSmoother
+from posecam.scale.metric import MetricOptions, MetricStage
 from posecam.geometry.boxes import boxes_overlap
 from posecam.geometry.camera import Intrinsics
 from posecam.geometry.triangulate import MIN_CONFIDENCE
@@ -36,12 +36,19 @@ from posecam.inference.pose_model import PoseCandidate, make_lifter, make_pose_m
 from posecam.inference.roi import Roi
 from posecam.inference.session import load_model
 from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
-from posecam.media import FrameSelection, Media, open_media
+from posecam.io.media import FrameSelection, Media, open_media
 from posecam.results import Dropped, Frame, Person, Recording
 from posecam.skeleton import BLAZEPOSE33, BLAZEPOSE_LANDMARKS, H36M_JOINTS, SKELETONS, blazepose_to_h36m, skeleton_of
 from posecam.tracking import ConfirmedIds, Track, Tracker, TrackerOptions, foreign_joints, number_people, oks
 
 MIN_PERSON_PX = 40    # the detector searches for people at least this tall (image pixels)
+# The rate frames are tracked at when they come with none and no times (`PoseEstimator.track`
+# without `fps`; a file's frames always have one: their own, or posecam.io.media.DEFAULT_FPS, the
+# time base of a folder of frames). The tracker times its searches for people and its memory of
+# them in seconds: a rate assumed too low searches more often than needed and forgets sooner, one
+# too high searches too seldom (vtest.avi's first 150 frames, 10 fps, tracked as 30 fps: 540
+# person-frames, not 695). So a slow video's rate, the one the tracker was tuned at.
+UNTIMED_FPS = 10.0
 
 
 @dataclass
@@ -119,8 +126,8 @@ class FileStream:
     def poses(self, smooth: bool = False, metric: MetricOptions | None = None,
               taps: Mapping[str, OnFrame | None] | None = None) -> Iterator[Frame]:
         """The input's frames through the rest of the chain: each frame's people have their
-        doubts marked (posecam.doubts; a video's frames come JUMP_WINDOW s late), then, with
-        `metric`, each track's metric scale (posecam.metric: `recording.intrinsics` is the lens the frames were solved with
+        doubts marked (posecam.analysis.doubts; a video's frames come JUMP_WINDOW s late), then, with
+        `metric`, each track's metric scale (posecam.scale.metric: `recording.intrinsics` is the lens the frames were solved with
         when the first comes out, `recording.floor` the ground plane at the end, and `notes`
         holds the warnings), then, with `smooth` and a video or a sequence, the streaming
         smoother (a few seconds late; the whole video's smoothing). `taps`: stage name (TAPS)
@@ -310,13 +317,13 @@ class PoseEstimator:
         return c, None if c.score >= min_presence or agrees else "presence"
 
     def _tracker(self, video: bool = True, fps: float | None = None) -> Tracker:
-        """A tracker for one input at `fps` frames a second (None: tracking.DEFAULT_FPS); the looks are
+        """A tracker for one input at `fps` frames a second (None: UNTIMED_FPS); the looks are
         only for a video's frames (one image has no one to recognise), and in one image every
         person found is confirmed at once."""
         o, d = self.options, self.detector
         return Tracker(TrackerOptions(o.max_people, o.redetect_every, high_score=d.start_score, low_score=d.min_score,
                                       **({} if video else {"confirm_hits": 1, "confirm_frames": 1})),
-                       self.embedder if video else None, fps)
+                       self.embedder if video else None, fps=fps or UNTIMED_FPS)
 
     def _confirmed(self, decoded: Iterable[tuple[int, float, np.ndarray]], k: Intrinsics | None,
                    fps: float | None = None, still: bool = False) -> Iterator[tuple[Frame, np.ndarray]]:
@@ -324,7 +331,7 @@ class PoseEstimator:
         and tracked, lifted into camera space through `k` (None: the default lens of the first
         frame's size), their ids confirmed (a frame comes out at most `confirm_frames` frames
         late); each frame with its image, in order. `fps`: the frames' rate (None:
-        tracking.DEFAULT_FPS); `still`: one image, whose people are all confirmed at once."""
+        UNTIMED_FPS); `still`: one image, whose people are all confirmed at once."""
         tracker = self._tracker(video=not still, fps=fps)
         confirmed: ConfirmedIds[tuple[Frame, np.ndarray]] = ConfirmedIds(tracker)
         for index, time, rgb in decoded:
@@ -349,9 +356,10 @@ class PoseEstimator:
 
     def track(self, frames_rgb: Iterable[np.ndarray], intrinsics: Intrinsics | None = None,
               fps: float | None = None) -> Iterator[Frame]:
-        """Poses for the frames of one video (`fps` frames a second; None: DEFAULT_FPS), people
-        followed with stable ids: the chain's frames as they leave the "confirm" stage (at most
-        `confirm_frames` frames late). The tracks live in this generator: each call starts a
+        """Poses for the frames of one video (`fps` frames a second; None: UNTIMED_FPS, 10: give
+        the video's own rate, which times the tracker's searches), people followed with stable
+        ids: the chain's frames as they leave the "confirm" stage (at most `confirm_frames`
+        frames late). The tracks live in this generator: each call starts a
         new video."""
         decoded = ((index, 0.0, rgb) for index, rgb in enumerate(frames_rgb))
         yield from (frame for frame, _ in self._confirmed(decoded, intrinsics, fps))

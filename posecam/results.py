@@ -23,14 +23,14 @@ class Person:
     keypoints_2d: np.ndarray    # (J, 2) u, v in pixels
     keypoints_3d: np.ndarray    # (J, 3) x, y, z in mm, camera (or world) coordinates
     confidence: np.ndarray      # (J,) in [0, 1]
-    angles: dict[str, float] | None = None   # joint/segment angles in degrees (posecam.angles), when asked for
-    # metric scale (posecam.metric); NaN and "" where it was not fixed
+    angles: dict[str, float] | None = None   # joint/segment angles in degrees (posecam.analysis.angles), when asked for
+    # metric scale (posecam.scale.metric); NaN and "" where it was not fixed
     height: float = float("nan")            # m: the height the person's scale was fixed with
     height_source: str = ""                 # "given", "given, rank K", "floor" or "model"
     height_estimated: float = float("nan")  # m: the height estimated from the track, whatever was given
     height_sd: float = float("nan")         # m: its standard uncertainty
     depth_sd: float = float("nan")          # mm: standard uncertainty of the root's depth (z)
-    doubts: tuple[str, ...] = ()            # why the pose may not be this person's (posecam.doubts); () sound
+    doubts: tuple[str, ...] = ()            # why the pose may not be this person's (posecam.analysis.doubts); () sound
     skeleton: Skeleton = field(default=H36M, repr=False, compare=False)
     # the pose model's output of this person lifted through another lens (the estimator's lifter;
     # the metric stage's people's lens): (J, 3) mm; None for poses that were not predicted here
@@ -88,7 +88,7 @@ class Recording:
     model: str = ""
     fps: float | None = None
     frame_of_reference: str = "camera"   # "camera", "reference camera NAME" or "world"
-    floor: Floor | None = None           # the ground plane under the people (posecam.metric), camera frame
+    floor: Floor | None = None           # the ground plane under the people (posecam.scale.metric), camera frame
     cameras: list[dict] = field(default_factory=list)   # fused: what fusion says of each input camera
 
     @property

@@ -20,8 +20,8 @@ from posecam.geometry.camera import Rig
 from posecam.io.calibration import read_calibration
 from posecam.io.intrinsics import IntrinsicsOptions, is_calibration
 from posecam.io.poses import read_poses
-from posecam.media import DEFAULT_FPS, FrameSelection, folder_holds, open_media
-from posecam.metric import MetricOptions
+from posecam.io.media import DEFAULT_FPS, FrameSelection, folder_holds, open_media
+from posecam.scale.metric import MetricOptions
 from posecam.multiview.fuse import FuseOptions, check_lengths
 from posecam.results import Recording
 

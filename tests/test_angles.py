@@ -9,7 +9,7 @@ import cv2
 import numpy as np
 import pytest
 
-from posecam.angles import angle_names, angles_of
+from posecam.analysis.angles import angle_names, angles_of
 from posecam.io.poses import CSV_HEADER
 from posecam.viz.draw import RIGHT
 from posecam.viz.plot import COLUMN_W

@@ -7,7 +7,7 @@ import pytest
 from conftest import DATA
 from posecam import PoseEstimator
 from posecam.inference.detector import turned_back
-from posecam.media import read_image
+from posecam.io.media import read_image
 
 
 @pytest.fixture(scope="module")

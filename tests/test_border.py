@@ -410,7 +410,7 @@ def test_opencv_refuses_what_posecam_does_not_parse(tmp_path):
     """The same limit for every format OpenCV opens: its own (OPENCV_IO_MAX_IMAGE_PIXELS), which
     the command sets before OpenCV loads (a process of its own: this one loaded it long ago)."""
     from posecam.cli import ENVIRONMENT
-    from posecam.media import MAX_PIXELS
+    from posecam.io.media import MAX_PIXELS
 
     assert ENVIRONMENT["OPENCV_IO_MAX_IMAGE_PIXELS"] == str(MAX_PIXELS)
     photo = tmp_path / "big.png"   # a PGM (netpbm) of 400 Mpx: a header posecam does not parse
@@ -544,7 +544,7 @@ def variable_rate_mp4(path: Path, durations: list[int]) -> None:
 
 
 def test_a_variable_frame_rate_video_gets_its_real_times(tmp_path):
-    from posecam.media import open_media
+    from posecam.io.media import open_media
 
     unit = 15360 // 60                   # OpenCV's mp4 track: 15360 units a second; 1/60 s
     variable_rate_mp4(tmp_path / "vfr.mp4", [unit] * 5 + [3 * unit] * 5)   # 60 fps, then 20 fps

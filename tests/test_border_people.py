@@ -18,7 +18,7 @@ PEOPLE = json.loads((BORDER / "people.json").read_text())
 def test_people_at_the_border_are_found(estimator, name):
     """Every person the edge touches, and every one it cuts with half the body or more in view,
     is found; every person found lies on a hand-marked person (no skeleton off its person)."""
-    from posecam.media import read_image
+    from posecam.io.media import read_image
 
     marks = PEOPLE[name]
     people = estimator.predict_image(read_image(BORDER / name)).people

@@ -195,8 +195,8 @@ def test_camera_spread_grows_when_frames_are_removed(estimated):
 def test_heights_set_the_metric_scale():
     """The rig gives the people's heights relative to each other; a given height fixes the
     scale: the triangulated skeleton comes out that tall (here 10 % above the truth on purpose)."""
-    from posecam.heights import Heights
-    from posecam.metric import stature
+    from posecam.scale.heights import Heights
+    from posecam.scale.stature import stature
 
     cams = make_rig()
     recs = monocular_views(cams, skeleton_motion(80))
@@ -220,7 +220,7 @@ def test_heights_set_the_metric_scale():
 def test_heights_that_disagree_with_the_rig_are_warned_about():
     """Two people, the second 0.8 times the first's size: heights in that ratio fit one scale and
     pass in silence; a list that makes the second 0.6 times the first cannot, and says so."""
-    from posecam.heights import Heights
+    from posecam.scale.heights import Heights
 
     cams = make_rig()
     adult = skeleton_motion(80, centre=(-900.0, 0.0))
@@ -357,12 +357,18 @@ def test_a_focal_scale_moves_the_root_depth_and_keeps_the_metric_skeleton():
     """The depth model: under a focal length g times the assumed one the root goes g times as
     deep and the root-relative depths stay as they were (metric); fitting g from such depths
     gives it back, the aspect fy / fx kept."""
-    from posecam.multiview.consensus import fit_focal, scaled_depth
+    from posecam.multiview.consensus import fit_focal, focal_scale, scaled_depths
+    from posecam.multiview.observations import Observations
 
     xyz = skeleton_motion(10)[..., [0, 2, 1]] + [0.0, 0.0, 3000.0]      # (F, J, 3), depths about 3-4 m
-    root = xyz[:, 0, 2]
-    z = scaled_depth(xyz, root, 1.3)
-    np.testing.assert_allclose(z[:, 0], 1.3 * root)
+    conf = np.linspace(0.5, 1.0, xyz.shape[1]) * np.ones(xyz.shape[:2])
+    obs = Observations(np.zeros(xyz.shape[:2] + (2,))[None], xyz[None], conf[None], np.ones((1, len(xyz))))
+    root = obs.root_depth()[0]                                            # the confidence-weighted mean depth
+    np.testing.assert_allclose(root, (conf * xyz[..., 2]).sum(axis=1) / conf.sum(axis=1))
+    k0 = np.array([[1000.0, 1100.0]])
+    assert focal_scale(1.3 * k0, k0) == pytest.approx([1.3])
+    z = scaled_depths(obs, 1.3 * k0, k0)[0]
+    np.testing.assert_allclose((conf * z).sum(axis=1) / conf.sum(axis=1), 1.3 * root)
     np.testing.assert_allclose(z - z[:, :1], xyz[..., 2] - xyz[:, :1, 2])
     cam = CameraCalibration("c", (1280, 720), Intrinsics(1000.0, 1100.0, 640.0, 360.0))
     target = xyz.copy()

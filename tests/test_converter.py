@@ -10,7 +10,7 @@ assets = pytest.importorskip("export.assets")
 from conftest import DATA, EXAMPLES, assert_same_onnx_model  # noqa: E402
 from posecam.inference.roi import Roi  # noqa: E402
 from posecam.inference.session import load_model, to_input_tensor  # noqa: E402
-from posecam.media import read_image  # noqa: E402
+from posecam.io.media import read_image  # noqa: E402
 
 
 def _litert_outputs(tflite_name: str, x: np.ndarray) -> dict[str, np.ndarray]:

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from conftest import invoke_posecam
-from posecam.doubts import DoubtStage
+from posecam.analysis.doubts import DoubtStage
 from posecam.geometry.camera import project
 from posecam.io.poses import read_poses
 from posecam.multiview.observations import tracks_of

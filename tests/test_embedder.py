@@ -8,7 +8,7 @@ import pytest
 
 from conftest import DATA, assert_same_onnx_model, run_posecam
 from posecam.inference.embedder import colour_histograms, load_embedder
-from posecam.media import read_image
+from posecam.io.media import read_image
 from posecam.tracking import Tracker, TrackerOptions, unambiguous_pairs
 
 PEOPLE = json.loads((DATA / "vtest_people" / "people.json").read_text())["people"]

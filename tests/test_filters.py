@@ -9,7 +9,7 @@ import pytest
 
 from conftest import DATA, run_posecam, the_subject
 from posecam.errors import InputError
-from posecam.filters import SmoothOptions, butterworth, one_euro, runs, smooth_recording
+from posecam.analysis.filters import SmoothOptions, butterworth, one_euro, runs, smooth_recording
 
 
 def jitter(x: np.ndarray) -> float:
@@ -79,7 +79,7 @@ def test_smoothing_follows_each_track_on_a_real_clip(clip):
 
 
 def test_a_still_image_is_left_alone(estimator):
-    from posecam.media import read_image
+    from posecam.io.media import read_image
 
     frame = estimator.predict_image(read_image(DATA / "messi5.jpg"))
     from posecam.results import Recording
@@ -108,7 +108,7 @@ def test_numpy_butterworth_is_scipys(order, cutoff, padlen):
     """posecam's own design and filtfilt give scipy.signal's numbers (scipy is the reference)."""
     from scipy.signal import butter, filtfilt
 
-    from posecam.filters import _filtfilt, butter_lowpass
+    from posecam.analysis.filters import _filtfilt, butter_lowpass
 
     b, a = butter(order, cutoff)
     ours_b, ours_a = butter_lowpass(order, cutoff)
@@ -123,7 +123,7 @@ def test_numpy_butterworth_is_scipys(order, cutoff, padlen):
 def test_streaming_smoother_equals_smoothing_the_whole_video(method):
     """Frames pushed one by one through windows of bounded size come out as the whole video's
     smoothing: two people, one leaving for a while, over several blocks."""
-    from posecam.filters import StreamingSmoother
+    from posecam.analysis.filters import StreamingSmoother
     from posecam.geometry.camera import Intrinsics
     from posecam.results import Frame, Person, Recording
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from posecam.errors import InputError
-from posecam.media import FrameSelection, open_media
+from posecam.io.media import FrameSelection, open_media
 
 from conftest import DATA, run_posecam
 

@@ -17,7 +17,7 @@ import pytest
 from posecam.inference.detector import load_detector
 from posecam.inference.roi import Roi
 from posecam.inference.session import load_model, to_input_tensor
-from posecam.media import read_image
+from posecam.io.media import read_image
 
 HERE = Path(__file__).parent
 GOLDEN = HERE / "data" / "golden"

@@ -1,9 +1,9 @@
-"""--height parsing and matching (posecam.heights)."""
+"""--height parsing and matching (posecam.scale.heights)."""
 
 import pytest
 
 from posecam.errors import InputError
-from posecam.heights import Heights
+from posecam.scale.heights import Heights
 
 
 @pytest.mark.parametrize("values, ranked, by_id", [

@@ -404,7 +404,7 @@ sys.stdout.write(json.dumps([before, state(), sorted(m for m in sys.modules if m
     libraries = imported()[3]
     assert {"cv2", "numpy"} <= set(libraries)
     before, after, loaded, _ = imported(*libraries)
-    assert "posecam.media" in loaded and "posecam.estimate" in loaded   # the modules that used to set them
+    assert "posecam.io.media" in loaded and "posecam.estimate" in loaded   # the modules that used to set them
     assert after["signals"] == before["signals"]
     assert after["env"] == before["env"]
 
@@ -507,7 +507,7 @@ def test_fuse_and_export_on_a_full_disk(full_disk, tmp_path):
 def test_the_folder_rule(tmp_path, files, kind):
     import cv2
 
-    from posecam.media import folder_kind
+    from posecam.io.media import folder_kind
 
     for name, (w, h) in files.items():
         cv2.imwrite(str(tmp_path / name), np.zeros((h, w, 3), np.uint8))

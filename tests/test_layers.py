@@ -35,5 +35,5 @@ def test_import_posecam_loads_no_heavy_module():
 def test_the_predict_path_does_not_import_scipy():
     """scipy costs a third of a second to import; predict (estimator, tracker, smoothing) runs
     without it, only multi-view fusion uses it."""
-    assert _loaded_after("posecam.estimate, posecam.filters, posecam.batch, posecam.commands.predict",
+    assert _loaded_after("posecam.estimate, posecam.analysis.filters, posecam.batch, posecam.commands.predict",
                          ("scipy",)) == ""

@@ -1,4 +1,4 @@
-"""posecam.metric and posecam.geometry.floor: heights, one scale per track, the floor.
+"""posecam.scale and posecam.geometry.floor: heights, one scale per track, the floor.
 
 The scenes are built here: people of known heights standing and walking on a floor seen by a
 tilted camera, whose "pose model" output is what BlazePose gives, an adult-sized skeleton put on
@@ -12,9 +12,10 @@ import pytest
 from conftest import DATA, run_posecam
 from posecam.geometry.camera import Intrinsics, project
 from posecam.geometry.lift import solve_root_translation
-from posecam.heights import Heights
+from posecam.scale.heights import Heights
 from posecam.io.poses import read_poses, write_poses
-from posecam.metric import CHAIN_OF_STATURE, MODEL_STATURE, MetricOptions, MetricStage, _Sample, scale_recording, stature
+from posecam.scale.metric import MODEL_STATURE, MetricOptions, MetricStage, _Sample, scale_recording
+from posecam.scale.stature import CHAIN_OF_STATURE, stature
 from posecam.results import Frame, Person, Recording
 from posecam.skeleton import H36M_JOINTS
 
@@ -268,7 +269,7 @@ def heads_and_feet(poses: dict, seed: int = 0):
 
 
 def test_the_lens_from_people_walking_on_a_floor():
-    from posecam.geometry.floor import focal_from_people
+    from posecam.scale.lens import focal_from_people
 
     heads, feet, tracks = heads_and_feet(walkers())
     fit = focal_from_people(heads, feet, tracks, np.array([K.cx, K.cy]), 1080)

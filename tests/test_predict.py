@@ -8,7 +8,7 @@ import numpy as np
 
 from conftest import DATA, EXAMPLES, run_posecam
 from posecam import EstimatorOptions, PoseEstimator
-from posecam.media import read_image
+from posecam.io.media import read_image
 from posecam.skeleton import H36M_JOINTS, bone_lengths
 
 

@@ -1,5 +1,6 @@
 import numpy as np
 
+from posecam.inference.detector import CROP_KEYPOINT_SCORE
 from posecam.inference.roi import Roi, body_roi
 
 
@@ -45,7 +46,7 @@ HIPS, SHOULDERS = (11, 12), (5, 6)
 def test_body_roi_from_keypoints_is_centred_on_the_hips_and_holds_the_body():
     pts = _standing()
     box = np.concatenate([pts.min(axis=0), pts.max(axis=0)])
-    roi = body_roi(pts, np.ones(17), box, HIPS, SHOULDERS)
+    roi = body_roi(pts, np.ones(17), box, HIPS, SHOULDERS, CROP_KEYPOINT_SCORE)
     assert np.allclose([roi.cx, roi.cy], [300, 400]) and abs(roi.angle) < 1e-9
     corners = roi.box
     assert (corners[:2] <= pts.min(axis=0)).all() and (corners[2:] >= pts.max(axis=0)).all()
@@ -56,7 +57,7 @@ def test_body_roi_turns_with_the_torso():
     pts = _standing()
     lying = np.column_stack([400 + (pts[:, 1] - 400) * -1, 300 + (pts[:, 0] - 300)])  # head to the right
     box = np.concatenate([lying.min(axis=0), lying.max(axis=0)])
-    roi = body_roi(lying, np.ones(17), box, HIPS, SHOULDERS)
+    roi = body_roi(lying, np.ones(17), box, HIPS, SHOULDERS, CROP_KEYPOINT_SCORE)
     assert np.isclose(roi.angle, np.pi / 2)
 
 
@@ -64,5 +65,5 @@ def test_body_roi_falls_back_to_the_box_without_hips():
     pts = _standing()
     conf = np.ones(17)
     conf[list(HIPS)] = 0.0
-    roi = body_roi(pts, conf, np.array([100.0, 200.0, 200.0, 600.0]), HIPS, SHOULDERS)
+    roi = body_roi(pts, conf, np.array([100.0, 200.0, 200.0, 600.0]), HIPS, SHOULDERS, CROP_KEYPOINT_SCORE)
     assert (roi.cx, roi.cy, roi.angle) == (150.0, 400.0, 0.0) and roi.size == 400 * 1.25

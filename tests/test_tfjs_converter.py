@@ -98,7 +98,7 @@ def movenet_outputs(node_modules, tmp_path_factory):
     on one of them at 384 (the input size is free: any multiples of 32), and on the golden
     photo as posecam's detector prepares it ("golden": examples/balance.jpg)."""
     from posecam.inference.detector import load_detector
-    from posecam.media import read_image
+    from posecam.io.media import read_image
 
     inputs = {f"{name}_256": letterbox(rgb, 256) for name, rgb in real_images().items()}
     inputs["basketball2_384"] = letterbox(real_images()["basketball2"], 384)
@@ -125,7 +125,7 @@ def test_movenet_golden_is_the_tfjs_models_output(movenet_outputs):
     resized, padded photo and decoded here from MoveNet's output layout (per person 17 (y, x,
     score), then ymin, xmin, ymax, xmax, score, all normalised to the input), not by posecam."""
     from posecam.inference.detector import load_detector
-    from posecam.media import read_image
+    from posecam.io.media import read_image
 
     golden = json.loads((DATA / "golden" / "movenet_balance.json").read_text())
     detector = load_detector("movenet")

@@ -22,7 +22,7 @@ from export.model.resnet_u import (MAX_HEAD_CHANNELS, MAX_INPUT_SIZE, MAX_JOINTS
                                     ResNetUConfig)
 from posecam.errors import InputError, ModelError
 from posecam.io.atomic import atomic_path
-from posecam.validate import MAX_PIXEL, Field
+from posecam.io.validate import MAX_PIXEL, Field
 
 FORMAT = "posecam.resnet_u"
 VERSION = 1

@@ -15,14 +15,14 @@ import click
 
 from posecam.errors import InputError, OutputError, ReaderLeft, on_signal, printable
 from posecam.inference.contract import DETECTORS, POSE_MODELS
-from posecam.validate import MAX_PEOPLE, MAX_PIXEL
+from posecam.io.validate import MAX_PEOPLE, MAX_PIXEL
 
 if TYPE_CHECKING:
     from rich.progress import Progress
 
     from posecam.estimate import EstimatorOptions
     from posecam.io.intrinsics import IntrinsicsOptions
-    from posecam.media import FrameSelection, Media
+    from posecam.io.media import FrameSelection, Media
     from posecam.results import Frame
 
 
@@ -119,7 +119,7 @@ def make_intrinsics_options(kwargs: dict) -> IntrinsicsOptions:
 
 
 def height_option(f: Callable) -> Callable:
-    """--height, shared by `predict` and `fuse` (parsed by posecam.heights.Heights.parse)."""
+    """--height, shared by `predict` and `fuse` (parsed by posecam.scale.heights.Heights.parse)."""
     return click.option("--height", "heights", multiple=True, metavar="M[,M...]|ID=M",
                         help="People's heights in metres, which fix their metric scale: one value for everyone, "
                              "a list matched to the people tallest first (1.72,1.21), or per id (--height 0=1.72 "
@@ -161,14 +161,14 @@ def frame_options(f: Callable) -> Callable:
 
 def make_frame_selection(kwargs: dict) -> FrameSelection | None:
     """The FrameSelection of the `frame_options` flags, taken out of a command's kwargs (None: all frames)."""
-    from posecam.media import FrameSelection
+    from posecam.io.media import FrameSelection
 
     start, end, stride = (kwargs.pop(n) for n in ("start", "end", "stride"))
     return FrameSelection(start, end, stride) if (start, end, stride) != (None, None, None) else None
 
 
 def angle_options(f: Callable) -> Callable:
-    """--angles and --plot, shared by `predict` and `fuse` (posecam.angles, posecam.viz.plot)."""
+    """--angles and --plot, shared by `predict` and `fuse` (posecam.analysis.angles, posecam.viz.plot)."""
     f = click.option("--plot", type=click.Path(),
                      help="FILE.png or FILE.html: each person's joint angles and root depth over time.")(f)
     return click.option("--angles", is_flag=True,

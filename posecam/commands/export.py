@@ -36,7 +36,7 @@ def export_command(checkpoint, output, name, verify, quantize, images, max_crops
     if Path(output).suffix.lower() != ".onnx":
         raise InputError(f"output must end in .onnx, got {output}")
     from posecam.io.atomic import OutputSet
-    from posecam.media import check_input, expand_inputs
+    from posecam.io.media import check_input, expand_inputs
 
     check_input(checkpoint, "checkpoint")
     try:

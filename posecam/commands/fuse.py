@@ -160,17 +160,17 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     from rich.console import Console
 
     from posecam.io.atomic import OutputSet
-    from posecam.media import check_input
+    from posecam.io.media import check_input
     from posecam.io.calibration import read_calibration, write_toml
-    from posecam.filters import smooth_recording
+    from posecam.analysis.filters import smooth_recording
     from posecam.io.poses import POSE_SUFFIXES, write_poses
     from posecam.io.trc import MARKER_SUFFIXES, check_markers_output, write_markers
-    from posecam.media import VIDEO_SUFFIXES
+    from posecam.io.media import VIDEO_SUFFIXES
     from posecam.viz.sinks import PICTURE_SUFFIXES
-    from posecam.heights import Heights
+    from posecam.scale.heights import Heights
     from posecam.multiview.fuse import FuseOptions, finds_offsets, fuse_recordings
     from posecam.viz.render3d import VIEW3D_SUFFIXES, write_3d_view
-    from posecam.angles import angle_names
+    from posecam.analysis.angles import angle_names
     from posecam.views import check_views, load_views
 
     err = Console(stderr=True, highlight=False)
@@ -227,7 +227,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
         warn(line)
     fused = smooth_recording(result.recording) if smooth else result.recording
     if angles or plot:
-        from posecam.angles import add_angles
+        from posecam.analysis.angles import add_angles
 
         for frame in fused.frames:
             add_angles(frame, fused)

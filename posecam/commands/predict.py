@@ -24,7 +24,7 @@ class InputSummary:
         self.people: dict[int, list] = {}      # id -> [frames, sum of root (3,), sum of mean confidence, height]
         self.dropped: dict[str, int] = {}      # people seen but dropped, per stage ...
         self.best_dropped = 0.0                # ... and the highest presence among those the pose model dropped
-        self.doubtful = 0                      # poses written with doubts (posecam.doubts) ...
+        self.doubtful = 0                      # poses written with doubts (posecam.analysis.doubts) ...
         self.doubts: dict[str, int] = {}       # ... and how often each doubt was raised
 
     def add(self, frame) -> None:
@@ -162,7 +162,7 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
 def _picture_paths(inputs: list[str], folder: str) -> dict[str, str]:
     """`--viz DIR/` for several photos: each photo's picture, DIR/<name>_pose<its suffix> (.jpg
     for a suffix posecam does not write); refused for videos and when two names would clash."""
-    from posecam.media import IMAGE_SUFFIXES, is_stream
+    from posecam.io.media import IMAGE_SUFFIXES, is_stream
     from posecam.viz.sinks import PICTURE_SUFFIXES
 
     if not Path(folder).is_dir():
@@ -215,16 +215,16 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     z forward, the camera at the origin.
     """
     from posecam.estimate import shared_estimator
-    from posecam.heights import Heights
+    from posecam.scale.heights import Heights
     from posecam.io.atomic import OutputSet
-    from posecam.metric import MetricOptions
+    from posecam.scale.metric import MetricOptions
     from posecam.io.poses import POSE_SUFFIXES, PoseWriter
     from posecam.io.trc import MARKER_SUFFIXES, check_markers_output, write_markers
-    from posecam.media import VIDEO_SUFFIXES, expand_inputs, is_stream, open_media
+    from posecam.io.media import VIDEO_SUFFIXES, expand_inputs, is_stream, open_media
     from posecam.viz.draw import draw_people
     from posecam.viz.sinks import PICTURE_SUFFIXES, VideoSink, WindowSink, check_window, write_image
     from posecam.viz.render3d import VIEW3D_SUFFIXES, write_3d_view
-    from posecam.angles import add_angles, angle_names
+    from posecam.analysis.angles import add_angles, angle_names
     from posecam.viz.plot import AngleSeries, write_plot
 
     paths, unreadable = expand_inputs(inputs, strict)   # a folder of photos: each photo an input

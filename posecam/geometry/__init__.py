@@ -1,1 +1,2 @@
-"""Pure camera geometry, no files: cameras and rigs, lifting to camera space, triangulation."""
+"""Pure camera geometry, no files: cameras and rigs, lifting to camera space, triangulation, the
+floor plane."""

@@ -143,10 +143,10 @@ MAX_INPUT_SIDE = 2048      # pixels: a model input's height or width (a 40000 px
 
 
 def _checked(source: str, inp: object, outputs: object, joints: object, meta: dict[str, str]):
-    """The metadata's values, each checked (posecam.validate) before anything is allocated
+    """The metadata's values, each checked (posecam.io.validate) before anything is allocated
     from them: input size whole numbers in 1..MAX_INPUT_SIDE, mean and std 3 finite numbers
     (std not 0), multiple 0..256, outputs and joints strings, training camera positive."""
-    from posecam.validate import MAX_JOINTS, MAX_PIXEL, Field
+    from posecam.io.validate import MAX_JOINTS, MAX_PIXEL, Field
 
     check = Field(source, ModelError)
     check.table(inp, "posecam.input")

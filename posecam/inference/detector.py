@@ -225,7 +225,7 @@ class MoveNetDetector:
             box = row[3 * k:3 * k + 4][[1, 0, 3, 2]] * [in_w, in_h, in_w, in_h] * to_image + np.tile(offset, 2)
             conf = np.clip(kp[:, 2], 0.0, 1.0)
             result.append(Detection(score, box, points, conf,
-                                    body_roi(points, conf, box, self._hips, self._shoulders)))
+                                    body_roi(points, conf, box, self._hips, self._shoulders, CROP_KEYPOINT_SCORE)))
         return result
 
 
@@ -280,7 +280,14 @@ def turned_back(points: np.ndarray, turns: int, width: int, height: int) -> np.n
 # COCO keypoint sigmas (OKS), used when there are 17 keypoints; 0.07 for each otherwise.
 COCO_SIGMAS = np.array([.026, .025, .025, .035, .035, .079, .079, .072, .072, .062, .062,
                         .107, .107, .087, .087, .089, .089])
-MIN_KEYPOINT_SCORE = 0.3
+
+# Keypoint scores in the detector's joints, two rules and their one home. Wherever people are
+# matched by their keypoints (OKS, a neighbour's joints on a pose, the box of a track's seen
+# keypoints), a keypoint, a detection's or a pose's at the detector's joints, counts as seen from
+# SEEN_KEYPOINT_SCORE. The keypoints that place the pose model's crop (MoveNet's body ROI: hips,
+# shoulders, the farthest keypoint) need CROP_KEYPOINT_SCORE: a wrong one turns or stretches it.
+SEEN_KEYPOINT_SCORE = 0.3
+CROP_KEYPOINT_SCORE = 0.4
 
 
 def oks(points_a: np.ndarray, conf_a: np.ndarray, points_b: np.ndarray, conf_b: np.ndarray,
@@ -288,7 +295,7 @@ def oks(points_a: np.ndarray, conf_a: np.ndarray, points_b: np.ndarray, conf_b: 
     """Object keypoint similarity of two (K, 2) keypoint sets over the joints both see (0 if none)."""
     if len(points_a) != len(points_b):
         return 0.0
-    both = (conf_a >= MIN_KEYPOINT_SCORE) & (conf_b >= MIN_KEYPOINT_SCORE)
+    both = (conf_a >= SEEN_KEYPOINT_SCORE) & (conf_b >= SEEN_KEYPOINT_SCORE)
     if not both.any():
         return 0.0
     k = 2 * (COCO_SIGMAS if len(points_a) == len(COCO_SIGMAS) else np.full(len(points_a), 0.07))

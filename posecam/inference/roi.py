@@ -86,12 +86,13 @@ MAX_BOX_RATIO = 1.6    # largest ROI side over the box's longer side (upright bo
 
 
 def body_roi(points: np.ndarray, conf: np.ndarray, box: np.ndarray, hips: tuple[int, int],
-             shoulders: tuple[int, int], min_conf: float = 0.4) -> Roi:
+             shoulders: tuple[int, int], min_score: float) -> Roi:
     """Rotated ROI centred on the hip midpoint, upright along hips -> shoulders, sized to hold
-    every visible keypoint; an upright square about `box` (x0, y0, x1, y1) when the hips or
-    both shoulders are not visible, or when the keypoints' ROI is far larger than the box
-    (keypoints guessed outside the image)."""
-    seen = conf >= min_conf
+    every visible keypoint (scored `min_score` and more: the detector's CROP_KEYPOINT_SCORE);
+    an upright square about `box` (x0, y0, x1, y1) when the hips or both shoulders are not
+    visible, or when the keypoints' ROI is far larger than the box (keypoints guessed outside
+    the image)."""
+    seen = conf >= min_score
     hip_idx, top_idx = list(hips), [i for i in shoulders if seen[i]]
     if seen[hip_idx].all() and top_idx:
         centre = points[hip_idx].mean(axis=0)

@@ -36,7 +36,7 @@ from pathlib import Path
 from types import TracebackType
 
 from posecam.errors import WRITE_ERRNOS, OutputError, PosecamError, ReaderLeft, printable, raise_if_signalled, warn
-from posecam.media import VIDEO_SUFFIXES, readable_video
+from posecam.io.media import VIDEO_SUFFIXES, readable_video
 
 _MAX_SUFFIX = 16   # longer "extensions" are not kept in temporary names
 _STALE = re.compile(r"^\.posecam-(\d+)-")

@@ -17,7 +17,7 @@ import numpy as np
 
 from posecam.errors import InputError
 from posecam.io.atomic import OutputSet
-from posecam.media import DEFAULT_FPS
+from posecam.io.media import DEFAULT_FPS
 from posecam.io.trc import person_ids, to_y_up, trajectory, trc_paths, write_files
 from posecam.results import Recording
 

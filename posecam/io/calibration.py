@@ -22,11 +22,11 @@ import numpy as np
 from posecam.geometry.camera import CameraCalibration, Intrinsics, Rig, natural_key
 from posecam.errors import InputError
 from posecam.io.atomic import write_text
-from posecam.validate import MAX_MM, MAX_PIXEL, MAX_SIDE, Field, read_small
+from posecam.io.validate import MAX_MM, MAX_PIXEL, MAX_SIDE, Field, read_small
 
 
 def _toml_camera(table: dict, key: str, check: Field, source: str) -> CameraCalibration:
-    """One camera table of a calibration TOML, checked field by field (posecam.validate)."""
+    """One camera table of a calibration TOML, checked field by field (posecam.io.validate)."""
     if table.get("fisheye", False) is not False:
         if table.get("fisheye") is True:
             raise check.fail("fisheye", "fisheye cameras are not supported (posecam's cameras are pinhole "

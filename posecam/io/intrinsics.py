@@ -16,8 +16,8 @@ from pathlib import Path
 from posecam.geometry.camera import CameraCalibration, Intrinsics
 from posecam.errors import InputError
 from posecam.io.exif import focal_length_35mm
-from posecam.validate import MAX_PIXEL, Field, read_small
-from posecam.media import check_input
+from posecam.io.validate import MAX_PIXEL, Field, read_small
+from posecam.io.media import check_input
 
 
 @dataclass

@@ -5,13 +5,13 @@ JSON: {"posecam", "model", "joints", "root_joint", "inputs": [{"source", "width"
 "people": [{"id", "score", "bbox", "keypoints_2d", "keypoints_3d", "confidence", "root"[, "height",
 "height_source", "height_estimated", "height_sd", "depth_sd"][, "doubts"]}], "dropped": [{"stage", "score",
 "bbox"}]}][, "floor": {"normal", "distance", "spread", "contacts", "tracks"}]}]}. The height fields (m; depth_sd in mm) are there when the
-person's metric scale was fixed (posecam.metric); "floor" when a ground plane was fitted (camera
+person's metric scale was fixed (posecam.scale.metric); "floor" when a ground plane was fitted (camera
 frame, mm). "doubts" lists, for a person whose pose may not be theirs, the checks it failed
-(posecam.doubts: "off_body", "root_jump", "bones"); absent for a sound pose. Files without them
+(posecam.analysis.doubts: "off_body", "root_jump", "bones"); absent for a sound pose. Files without them
 (older posecam) read as before.
 CSV: one row per joint, header exactly CSV_HEADER (height and depth_sd empty where unknown;
 doubts the person's doubts joined by ";", empty for a sound pose).
-With angles (`posecam predict --angles`, posecam.angles) each person also holds "angles": {name:
+With angles (`posecam predict --angles`, posecam.analysis.angles) each person also holds "angles": {name:
 degrees}, and the CSV gains one column per angle after CSV_HEADER's (the person's angles in that
 frame, repeated on each of its joint rows).
 "dropped" lists the people seen but left out in the frame, with the stage that did it.
@@ -37,8 +37,8 @@ from posecam.geometry.floor import Floor
 from posecam.errors import InputError
 from posecam.io.atomic import atomic_path
 from posecam.io.jsonstream import JsonStream
-from posecam.validate import MAX_FPS, MAX_INDEX, MAX_JOINTS, MAX_MM, MAX_PEOPLE, MAX_PIXEL, MAX_SECONDS, Field
-from posecam.media import check_input
+from posecam.io.validate import MAX_FPS, MAX_INDEX, MAX_JOINTS, MAX_MM, MAX_PEOPLE, MAX_PIXEL, MAX_SECONDS, Field
+from posecam.io.media import check_input
 from posecam.results import Dropped, Frame, Person, Recording
 from posecam.skeleton import skeleton_of
 
@@ -119,7 +119,7 @@ class PoseWriter:
 
     def begin(self, rec: Recording) -> None:
         """A new input. Its header is written with its first frame (or when it ends), so that
-        what the first frames settle (the lens the people give, posecam.metric) is in it."""
+        what the first frames settle (the lens the people give, posecam.scale.metric) is in it."""
         self._end_input()
         if self.fmt == "csv" and not self._inputs:
             self._csv.writerow(CSV_HEADER + self.angles)
@@ -167,7 +167,7 @@ class PoseWriter:
         self._rec = None
 
     def _floor(self) -> str:
-        """The input's ground plane, known once its frames are all through (posecam.metric)."""
+        """The input's ground plane, known once its frames are all through (posecam.scale.metric)."""
         floor = getattr(self._rec, "floor", None)
         return f', "floor": {_dumps(floor.to_dict())}' if floor is not None else ""
 
@@ -210,7 +210,7 @@ def read_poses(path: str | os.PathLike) -> list[Recording]:
     """Read a JSON file written by `posecam predict` (or `fuse`) back into recordings.
 
     The file is streamed (posecam.io.jsonstream) and every field checked as it comes
-    (posecam.validate): at most MAX_PEOPLE people per frame, frame indices whole numbers
+    (posecam.io.validate): at most MAX_PEOPLE people per frame, frame indices whole numbers
     that increase, times, sizes, intrinsics and coordinates finite and in range."""
     check_input(path, "pose file")
     where = str(path)
@@ -347,7 +347,7 @@ def _read_person(p: object, check: Field, shape: dict) -> Person:
 
 
 def _doubts(values: object, check: Field) -> tuple[str, ...]:
-    """A person's doubts (posecam.doubts), () for a sound pose."""
+    """A person's doubts (posecam.analysis.doubts), () for a sound pose."""
     return tuple(check.text(d, "doubts", limit=64) for d in check.items(values, "doubts", MAX_DOUBTS))
 
 
@@ -363,7 +363,7 @@ def _angles(values: object, check: Field) -> dict[str, float] | None:
 
 
 def _person_metric(p: dict, check: Field) -> dict:
-    """The metric-scale fields of a person (posecam.metric; absent in older files)."""
+    """The metric-scale fields of a person (posecam.scale.metric; absent in older files)."""
     def number(key: str, hi: float) -> float:
         return _optional(check.number(p.get(key), key, 0, hi, optional=True))
 

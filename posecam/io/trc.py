@@ -21,7 +21,7 @@ import numpy as np
 
 from posecam.errors import InputError
 from posecam.io.atomic import OutputSet, atomic_path, check_output
-from posecam.media import DEFAULT_FPS
+from posecam.io.media import DEFAULT_FPS
 from posecam.results import Recording
 
 

@@ -64,19 +64,26 @@ class ConsensusResult:
     converged: bool
 
 
-def scaled_depth(xyz: np.ndarray, root: np.ndarray, g) -> np.ndarray:
-    """(..., F, J) depths of monocular poses (..., F, J, 3) whose root depths (..., F) grow by
-    g = f / f0 (a number, or one per view broadcast as (V, 1, 1)) (the depth model above:
-    z_i = (z0_i - z0_root) + g z0_root); the one place it is written."""
-    return xyz[..., 2] + (g - 1.0) * root[..., None]
+def focal_scale(k: np.ndarray, k0: np.ndarray) -> np.ndarray:
+    """(V,) g = f / f0 of each view: its focal lengths k (V, 2+) = (fx, fy, ...) over those its
+    poses were placed with, k0 (V, 2+), as one focal length each, f = sqrt(fx fy)."""
+    return np.sqrt(k[:, 0] * k[:, 1] / (k0[:, 0] * k0[:, 1]))
+
+
+def scaled_depths(obs: Observations, k: np.ndarray, k0: np.ndarray) -> np.ndarray:
+    """(V, F, J) the depths of each view's monocular poses under focal lengths k (V, 2+) =
+    (fx, fy, ...), the poses placed under k0 (V, 2+): the depth model above, z_i = (z0_i -
+    z0_root) + g z0_root, with g = `focal_scale(k, k0)` and z0_root `obs.root_depth()`; the one
+    place it is written (the consensus, association and fusion rebuild the views with it)."""
+    g = focal_scale(k, k0)[:, None, None]
+    return obs.xyz[..., 2] + (g - 1.0) * obs.root_depth()[..., None]
 
 
 def camera_points(obs: Observations, assumed: list[CameraCalibration], k: np.ndarray) -> np.ndarray:
     """(V, F, J, 3) each view's poses under intrinsics k (V, 4) = (fx, fy, cx, cy), the views'
     own cameras `assumed` (f0): depth model above, eq. 4."""
     k0 = np.array([[c.intrinsics.fx, c.intrinsics.fy] for c in assumed])
-    g = np.sqrt(k[:, 0] * k[:, 1] / (k0[:, 0] * k0[:, 1]))[:, None, None]
-    z = scaled_depth(obs.xyz, obs.root_depth(), g)
+    z = scaled_depths(obs, k, k0)
     x = (obs.uv[..., 0] - k[:, 2, None, None]) * z / k[:, 0, None, None]
     y = (obs.uv[..., 1] - k[:, 3, None, None]) * z / k[:, 1, None, None]
     return np.stack([x, y, z], axis=-1)
@@ -241,7 +248,7 @@ def estimate_rig(assumed: list[CameraCalibration], obs: Observations,
                for i, c in enumerate(assumed)]
     return ConsensusResult(
         rig=Rig(cameras, reference=assumed[ref].name),
-        focal_scale=np.sqrt(s.k[:, 0] * s.k[:, 1] / (k0[:, 0] * k0[:, 1])),
+        focal_scale=focal_scale(s.k, k0),
         residual_mm=np.nanmedian(dist.reshape(n, -1), axis=1),
         joints_used=(w0 > 0).reshape(n, -1).sum(axis=1),
         iterations=it1 + it2,

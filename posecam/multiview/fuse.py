@@ -32,8 +32,8 @@ from threadpoolctl import threadpool_limits
 from posecam.errors import FusionError, InputError
 from posecam.geometry.camera import Rig
 from posecam.geometry.triangulate import MIN_CONFIDENCE
-from posecam.heights import Heights
-from posecam.metric import stature
+from posecam.scale.heights import Heights
+from posecam.scale.stature import stature
 from posecam.multiview.associate import Association, associate_people
 from posecam.multiview.bundle import BundleOptions
 from posecam.multiview.calibrate import (KeptCameras, bootstrap_spreads, cameras_from_people, cameras_without_swaps,
@@ -178,9 +178,9 @@ def metric_scale(rig: Rig, people: list[Observations], joints: tuple[str, ...], 
     says of it, and a warning where the heights given disagree with the relative heights the rig
     measures (given / measured spread by more than HEIGHTS_AGREE: no one scale fits them all).
     The rig gives the people's relative heights exactly (one scale for all): each person's
-    height is the median over frames of posecam.metric.stature of the triangulation of its 2D
+    height is the median over frames of posecam.scale.stature.stature of the triangulation of its 2D
     keypoints (the rig's geometry alone, not the monocular skeletons' adult size); a list is
-    matched tallest first (posecam.heights) and the factor is the median of given / measured.
+    matched tallest first (posecam.scale.heights) and the factor is the median of given / measured.
     Without heights: 1 (the bundle adjustment's scale, from the monocular bone lengths)."""
     estimated = {}
     for pid, obs in enumerate(people):

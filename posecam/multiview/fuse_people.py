@@ -16,7 +16,7 @@ import numpy as np
 
 from posecam.geometry.camera import Intrinsics, Rig
 from posecam.geometry.triangulate import MIN_CONFIDENCE
-from posecam.multiview.consensus import fuse_points, scaled_depth
+from posecam.multiview.consensus import fuse_points, scaled_depths
 from posecam.multiview.observations import Observations
 
 MAX_VIEW_ANGLE = 0.04           # rad, about 70 px at f = 1700
@@ -40,14 +40,11 @@ def camera_space(rig: Rig, assumed: list[Intrinsics], obs: Observations, anchor:
     rig's frame. The depth of a monocular pose is its least certain part: where `anchor`
     (F, J, 3, the triangulation of the views' 2D keypoints) gives three joints or more, each
     view's pose is moved along its depth axis onto it; elsewhere its root depth scales with
-    f / f_assumed (posecam.multiview.consensus)."""
+    f / f_assumed (posecam.multiview.consensus.scaled_depths)."""
+    depths = scaled_depths(obs, np.array([[c.intrinsics.fx, c.intrinsics.fy] for c in rig.cameras]),
+                           np.array([[k0.fx, k0.fy] for k0 in assumed]))
     out = []
-    for cam, k0, uv, xyz, conf in zip(rig.cameras, assumed, obs.uv, obs.xyz, obs.conf):
-        k = cam.intrinsics
-        g = np.sqrt(k.fx * k.fy / (k0.fx * k0.fy))
-        w = np.where(conf > 0, conf, 1e-6)
-        root = np.sum(w * np.nan_to_num(xyz[..., 2]), axis=-1) / np.sum(w, axis=-1)
-        z = scaled_depth(xyz, root, g)
+    for cam, uv, z, conf in zip(rig.cameras, obs.uv, depths, obs.conf):
         if anchor is not None:
             target = cam.to_camera(anchor)[..., 2]                                   # (F, J)
             wa = np.where(np.isfinite(target) & np.isfinite(z) & (conf >= min_conf), conf, 0.0)

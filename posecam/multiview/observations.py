@@ -21,9 +21,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from posecam.geometry.camera import CameraCalibration
-from posecam.filters import butterworth
+from posecam.analysis.filters import butterworth
 from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
-from posecam.media import DEFAULT_FPS
+from posecam.io.media import DEFAULT_FPS
 from posecam.results import Recording
 
 MIN_TRACK_FRAMES = 8            # shorter tracks are left out (detector flicker)
@@ -49,7 +49,7 @@ def shift(a: np.ndarray, offset: float, length: int, fill=np.nan) -> np.ndarray:
 
 
 def lowpass(a: np.ndarray, seen: np.ndarray, fps: float, hz: float) -> np.ndarray:
-    """(F, J, D) tracks low-passed in time (posecam.filters.butterworth at `hz`: 2nd order,
+    """(F, J, D) tracks low-passed in time (posecam.analysis.filters.butterworth at `hz`: 2nd order,
     forwards and back), each joint's gaps bridged where it is not `seen` (F, J), held before
     and after; NaN for joints seen in fewer than 15 frames."""
     out = np.full(a.shape, np.nan)
@@ -222,7 +222,7 @@ def assumed_cameras(names: list[str], recordings: list[Recording]) -> list[Camer
 
 def tracks_of(rec: Recording, view: int, min_frames: int = MIN_TRACK_FRAMES) -> list[ViewTrack]:
     """Every person id of `rec` seen in at least `min_frames` frames, longest first; a pose with
-    doubts (posecam.doubts) counts as unseen."""
+    doubts (posecam.analysis.doubts) counts as unseen."""
     n, j = len(rec.frames), len(rec.joints)
     ids: dict[int, list[int]] = {}
     for i, f in enumerate(rec.frames):

@@ -29,7 +29,7 @@ import numpy as np
 from posecam.errors import FusionError
 from posecam.geometry.camera import CameraCalibration, Rig
 from posecam.geometry.triangulate import MIN_CONFIDENCE, reprojection_errors, triangulate
-from posecam.media import DEFAULT_FPS
+from posecam.io.media import DEFAULT_FPS
 from posecam.multiview.observations import PersonTracks, Take, ViewTrack, lowpass, shift
 from posecam.skeleton import skeleton_of
 

@@ -27,7 +27,7 @@ from posecam.tracking.ids import ConfirmedIds, number_people
 from posecam.tracking.motion import BoxKalman
 from posecam.tracking.schedule import DetectorRun, Search
 from posecam.tracking.track import Track, TrackerOptions
-from posecam.tracking.tracker import DEFAULT_FPS, Tracker
+from posecam.tracking.tracker import Tracker
 
-__all__ = ["DEFAULT_FPS", "BoxKalman", "ConfirmedIds", "DetectorRun", "Search", "Track", "Tracker", "TrackerOptions",
+__all__ = ["BoxKalman", "ConfirmedIds", "DetectorRun", "Search", "Track", "Tracker", "TrackerOptions",
            "foreign_joints", "min_cost_assignment", "number_people", "oks", "unambiguous_pairs"]

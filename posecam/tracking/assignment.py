@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from posecam.geometry.boxes import box_iou
-from posecam.inference.detector import MIN_KEYPOINT_SCORE, Detection, oks
+from posecam.inference.detector import SEEN_KEYPOINT_SCORE, Detection, oks
 from posecam.tracking.track import Track
 
 
@@ -108,9 +108,9 @@ def foreign_joints(points: np.ndarray, conf: np.ndarray, own: Detection, others:
         return np.zeros(len(points), bool)
     scale = float(np.hypot(*(own.box[2:] - own.box[:2])))
     d_own = np.linalg.norm(points - own.keypoints, axis=-1)
-    d_own[own.keypoint_scores < MIN_KEYPOINT_SCORE] = np.inf
+    d_own[own.keypoint_scores < SEEN_KEYPOINT_SCORE] = np.inf
     d_other = np.full(len(points), np.inf)
     for o in others:
         d = np.linalg.norm(points - o.keypoints, axis=-1)
-        d_other = np.minimum(d_other, np.where(o.keypoint_scores >= MIN_KEYPOINT_SCORE, d, np.inf))
-    return (conf >= MIN_KEYPOINT_SCORE) & (d_other < d_own) & (d_own > 0.1 * scale) & (d_other < 0.15 * scale)
+        d_other = np.minimum(d_other, np.where(o.keypoint_scores >= SEEN_KEYPOINT_SCORE, d, np.inf))
+    return (conf >= SEEN_KEYPOINT_SCORE) & (d_other < d_own) & (d_own > 0.1 * scale) & (d_other < 0.15 * scale)

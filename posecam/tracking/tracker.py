@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from posecam.geometry.boxes import box_iou
-from posecam.inference.detector import MIN_KEYPOINT_SCORE, Detection
+from posecam.inference.detector import SEEN_KEYPOINT_SCORE, Detection
 from posecam.inference.embedder import AppearanceEmbedder
 from posecam.inference.roi import Roi
 from posecam.results import Dropped
@@ -21,17 +21,16 @@ from posecam.tracking.reid import Looks
 from posecam.tracking.schedule import DetectorRun, Search
 from posecam.tracking.track import Track, TrackerOptions
 
-DEFAULT_FPS = 10.0   # a video's frame rate when none is given
-
 
 class Tracker:
-    """Ids, motion and ROIs of the people followed in one video."""
+    """Ids, motion and ROIs of the people followed in one video of `fps` frames a second: the
+    caller says the rate (the tracker assumes none; posecam.estimate gives it the media's)."""
 
-    def __init__(self, options: TrackerOptions | None = None, embedder: AppearanceEmbedder | None = None,
-                 fps: float | None = None):
+    def __init__(self, options: TrackerOptions | None = None, embedder: AppearanceEmbedder | None = None, *,
+                 fps: float):
         self.options = options or TrackerOptions()
         self.embedder = embedder             # None: ids from motion alone
-        self.fps = fps or DEFAULT_FPS        # the video's frame rate: the searches' schedule, the re-id memory and reach
+        self.fps = fps                       # the video's frame rate: the searches' schedule, the re-id memory and reach
         self.tracks: list[Track] = []
         self._frame = -1
         self._next_id = 0
@@ -177,7 +176,7 @@ class Tracker:
                     self._lost_now.add(t.id)
                 continue
             if t.detection is None and kp is not None:
-                seen = kp[sc >= MIN_KEYPOINT_SCORE]
+                seen = kp[sc >= SEEN_KEYPOINT_SCORE]
                 if len(seen) >= 2:
                     lo, hi = seen.min(axis=0), seen.max(axis=0)
                     t.kalman.update(np.concatenate([lo, hi]))

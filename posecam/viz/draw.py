@@ -9,7 +9,7 @@ from posecam.results import Person
 from posecam.skeleton import skeleton_of
 
 LEFT, RIGHT, CENTRE = (66, 135, 245), (245, 130, 48), (60, 200, 90)  # RGB
-DOUBTED = (150, 150, 150)   # a pose with doubts (posecam.doubts): grey, its label marked "?"
+DOUBTED = (150, 150, 150)   # a pose with doubts (posecam.analysis.doubts): grey, its label marked "?"
 
 
 def _side_colour(name: str) -> tuple[int, int, int]:

@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 
 from posecam.errors import InputError, PosecamError
-from posecam.media import DEFAULT_FPS, VIDEO_SUFFIXES, FrameSelection, open_media
+from posecam.io.media import DEFAULT_FPS, VIDEO_SUFFIXES, FrameSelection, open_media
 from posecam.multiview.fuse import FusionResult
 from posecam.results import Frame, Person, Recording
 from posecam.viz.draw import draw_people

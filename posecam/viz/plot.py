@@ -2,7 +2,7 @@
 HTML page (the same figure as inline SVG), no plotting library needed.
 
     series = AngleSeries(rec.joints)
-    for frame in frames:                 # frames whose people hold their angles (posecam.angles)
+    for frame in frames:                 # frames whose people hold their angles (posecam.analysis.angles)
         series.add(frame)
     write_plot("angles.png", series, title="clip.mp4")
 
@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from posecam.angles import angle_names
+from posecam.analysis.angles import angle_names
 from posecam.errors import InputError
 from posecam.io.atomic import write_text
 from posecam.results import Frame

@@ -23,9 +23,9 @@ import cv2
 import numpy as np
 
 from posecam.geometry.camera import Rig
-from posecam.media import DEFAULT_FPS
+from posecam.io.media import DEFAULT_FPS
 from posecam.results import Recording
-from posecam.media import VIDEO_SUFFIXES
+from posecam.io.media import VIDEO_SUFFIXES
 from posecam.viz.draw import place_labels
 from posecam.viz.sinks import VideoSink
 from posecam.viz.view3d import scene, write_view3d

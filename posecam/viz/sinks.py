@@ -18,7 +18,7 @@ import numpy as np
 
 from posecam.errors import InputError, OutputError
 from posecam.io.atomic import atomic_path
-from posecam.media import VIDEO_SUFFIXES
+from posecam.io.media import VIDEO_SUFFIXES
 
 PICTURE_SUFFIXES = (".png", ".jpg", ".jpeg")   # what `write_image` writes (--viz of an image, fuse's grid)
 

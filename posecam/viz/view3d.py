@@ -23,7 +23,7 @@ import numpy as np
 from posecam.geometry.camera import CameraCalibration, Rig
 from posecam.io.atomic import write_text
 from posecam.io.trc import to_y_up
-from posecam.media import DEFAULT_FPS
+from posecam.io.media import DEFAULT_FPS
 from posecam.results import Recording
 from posecam.skeleton import skeleton_of
 

@@ -1,6 +1,6 @@
 """Temporal smoothing of pose trajectories, one track at a time.
 
-    from posecam.filters import SmoothOptions, smooth_recording
+    from posecam.analysis.filters import SmoothOptions, smooth_recording
     smoothed = smooth_recording(rec, SmoothOptions(cutoff_hz=6.0))
 
 Two standard filters over (F, ...) arrays whose missing frames are NaN:
@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from posecam.errors import InputError
-from posecam.media import DEFAULT_FPS
+from posecam.io.media import DEFAULT_FPS
 from posecam.results import Frame, Recording
 
 METHODS = ("butterworth", "one_euro")

@@ -1,6 +1,6 @@
 """Joint and segment angles (degrees) from 3D joints, with Sports2D's conventions.
 
-    from posecam.angles import angles_of, angle_names
+    from posecam.analysis.angles import angles_of, angle_names
     names = angle_names(rec.joints)                    # the angles this skeleton has
     values = angles_of(xyz, rec.joints, rec.frame_of_reference)   # (..., J, 3) mm -> (..., A)
 

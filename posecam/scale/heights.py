@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 from posecam.errors import InputError
 
 # Two ranges of standing heights, on purpose: what a user may tell (anyone, a toddler to the
-# tallest adult), and what the feet's plane may make of someone it measures (posecam.metric:
+# tallest adult), and what the feet's plane may make of someone it measures (posecam.scale.metric:
 # a 4-year-old to the tallest adults). A wrong floor (feet cut by the border, off the ground)
 # makes people far too small or tall, so the second is narrower: a plane that makes a person
 # shorter than a 4-year-old is refused as a floor (then each person takes the pose model's size).

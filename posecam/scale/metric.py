@@ -1,7 +1,7 @@
 """Metric scale of every person: one scale per track, from a known height, the floor, or the pose
 model's adult-sized skeleton.
 
-    from posecam.metric import MetricOptions, scale_recording
+    from posecam.scale.metric import MetricOptions, scale_recording
     rec = scale_recording(rec, MetricOptions(heights=Heights.parse(["1.72,1.21"])))
 
 The pose model's metric skeleton has an adult's size, and the root translation is solved from
@@ -23,26 +23,20 @@ estimate too; the statistics of a track are a bounded, evenly thinned sample of 
 from __future__ import annotations
 
 import dataclasses
-import functools
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from posecam.errors import InputError
 from posecam.geometry.camera import Intrinsics
-from posecam.geometry.floor import Floor, FloorFit, LensFit, fit_floor, focal_from_people, robust_sd
+from posecam.geometry.floor import Floor, FloorFit, fit_floor, robust_sd
 from posecam.geometry.lift import place_on_keypoints
-from posecam.heights import FLOOR_STATURE_M, Heights
 from posecam.results import Frame, Person, Recording
-from posecam.skeleton import MIN_CONFIDENCE, SKELETONS
+from posecam.scale.heights import FLOOR_STATURE_M, Heights
+from posecam.scale.lens import LensFit, focal_from_people
+from posecam.scale.stature import ANKLE_OF_STATURE, down_and_ankles, segments, stature
+from posecam.skeleton import MIN_CONFIDENCE
 
-# The keypoint chain ankle-knee-hip, pelvis-thorax-head (mid-ears) as a fraction of the stature.
-# Anthropometry (Drillis & Contini 1966, in Winter, Biomechanics and Motor Control of Human
-# Movement, fig. 4.1: ankle 0.039, ear 0.936) gives 0.897 for the joints' heights; keypoints sit
-# inside the joints, and the chain of a 1.72 m adult triangulated from the 4 lab-calibrated views
-# of both Pose2Sim takes measures 0.851 and 0.854 of the stature (bench/bench_depth.py).
-CHAIN_OF_STATURE = 0.85
-ANKLE_OF_STATURE = 0.039        # the ankle's height above the sole
 SAMPLES = 512                   # per track: the most frames kept for its statistics
 ADULT_CLUSTER = 0.85            # tracks at least this fraction of the tallest are the adult-sized ones
 MODEL_SD = 0.06                 # relative uncertainty of the pose model's adult size for one person
@@ -67,7 +61,7 @@ LENS_DISAGREES = 2.0            # standard uncertainties between the default len
 
 @dataclass
 class MetricOptions:
-    heights: Heights = field(default_factory=Heights)   # known heights (posecam.heights)
+    heights: Heights = field(default_factory=Heights)   # known heights (posecam.scale.heights)
     floor: bool = True          # fit the floor (static camera) and scale each track to it
     lens: bool = True           # with the default lens, take the focal length from the people where they pin it
     delay: int = 120            # frames held back before they are given out (the lens is decided on them)
@@ -75,64 +69,6 @@ class MetricOptions:
     def __post_init__(self) -> None:
         if self.delay < 0:
             raise InputError(f"delay must be 0 or more frames, got {self.delay}")
-
-
-def _segments(joints: tuple[str, ...]) -> dict | None:
-    """The joints that measure a skeleton, by their roles (posecam.skeleton): the legs (hip,
-    knee, ankle per side), pelvis, thorax and head, as joint-index tuples to average; None for
-    joints that are not a posecam skeleton."""
-    return _segments_of(tuple(joints))
-
-
-@functools.lru_cache(maxsize=None)
-def _segments_of(joints: tuple[str, ...]) -> dict | None:
-    skeleton = next((s for s in SKELETONS.values() if s.joints == joints), None)
-    if skeleton is None:
-        return None
-    legs = tuple(tuple(skeleton.role(f"{side}_{j}")[0] for j in ("hip", "knee", "ankle")) for side in ("l", "r"))
-    return {"legs": legs, "pelvis": skeleton.role("mid_hip"), "thorax": skeleton.role("neck"),
-            "head": skeleton.role("head")}
-
-
-def stature(xyz: np.ndarray, conf: np.ndarray, joints: tuple[str, ...]) -> np.ndarray:
-    """(..., J, 3) poses (mm) and (..., J) confidences -> (...) standing height (mm) of each
-    skeleton from its bone lengths (so whatever the pose): mean leg (hip-knee + knee-ankle),
-    pelvis-thorax, thorax-head, over CHAIN_OF_STATURE. NaN where a joint is not confident."""
-    seg = _segments(joints)
-    xyz, conf = np.asarray(xyz, float), np.asarray(conf, float)
-    if seg is None:
-        return np.full(xyz.shape[:-2], np.nan)
-
-    def point(idx):
-        return xyz[..., list(idx), :].mean(axis=-2), conf[..., list(idx)].min(axis=-1)
-
-    legs, ok = [], []
-    for hip, knee, ankle in seg["legs"]:
-        legs.append(np.linalg.norm(xyz[..., hip, :] - xyz[..., knee, :], axis=-1)
-                    + np.linalg.norm(xyz[..., knee, :] - xyz[..., ankle, :], axis=-1))
-        ok.append(conf[..., [hip, knee, ankle]].min(axis=-1) >= MIN_CONFIDENCE)
-    pelvis, c_p = point(seg["pelvis"])
-    thorax, c_t = point(seg["thorax"])
-    head, c_h = point(seg["head"])
-    torso = np.linalg.norm(thorax - pelvis, axis=-1) + np.linalg.norm(head - thorax, axis=-1)
-    leg = (legs[0] + legs[1]) / 2
-    good = ok[0] & ok[1] & (np.minimum(np.minimum(c_p, c_t), c_h) >= MIN_CONFIDENCE)
-    return np.where(good, (leg + torso) / CHAIN_OF_STATURE, np.nan)
-
-
-def _down_and_ankles(xyz: np.ndarray, joints: tuple[str, ...]) -> tuple[np.ndarray | None, np.ndarray]:
-    """One pose: its down direction (head to mid-ankle, unit) when it stands upright (straight
-    legs, torso in line with them), else None; and its two ankles (2, 3)."""
-    seg = _segments(joints)
-    ankles = np.stack([xyz[leg[2]] for leg in seg["legs"]])
-    head = xyz[list(seg["head"])].mean(axis=0)
-    pelvis, thorax = xyz[list(seg["pelvis"])].mean(axis=0), xyz[list(seg["thorax"])].mean(axis=0)
-    straight = all(np.linalg.norm(xyz[h] - xyz[a]) >= 0.95 * (np.linalg.norm(xyz[h] - xyz[k]) + np.linalg.norm(xyz[k] - xyz[a]))
-                   for h, k, a in seg["legs"])
-    down = ankles.mean(axis=0) - head
-    down /= np.linalg.norm(down)
-    torso = (pelvis - thorax) / np.linalg.norm(pelvis - thorax)
-    return (down if straight and down @ torso > np.cos(np.radians(20)) else None), ankles
 
 
 class _Sample:
@@ -197,7 +133,7 @@ class MetricStage:
     (its header: joints, model, image size, intrinsics) is only read.
 
     With the default lens (`rec.intrinsics.source == "default"`), the people's focal length
-    (posecam.geometry.floor.focal_from_people) is tried on the first `delay` frames, before any
+    (posecam.scale.lens.focal_from_people) is tried on the first `delay` frames, before any
     is given out; where it is pinned, `intrinsics` (the lens of the frames given out) becomes it
     (source "people") and every person's root is solved again with it."""
 
@@ -214,7 +150,7 @@ class MetricStage:
         self.intrinsics = rec.intrinsics        # the lens of the frames given out
         self._k: Intrinsics | None = None       # the people's lens, once taken: every pose is solved again with it
         self._frames_seen = 0
-        self._measurable = _segments(rec.joints) is not None
+        self._measurable = segments(rec.joints) is not None
         self._model_mm = 1000.0 * MODEL_STATURE[rec.model] if rec.model in MODEL_STATURE else None
 
     def push(self, frame: Frame) -> list[Frame]:
@@ -297,11 +233,11 @@ class MetricStage:
         if not np.isfinite(h):
             return
         t.heights.add(h)
-        down, ankles = _down_and_ankles(p.keypoints_3d, self.rec.joints)
+        down, ankles = down_and_ankles(p.keypoints_3d, self.rec.joints)
         t.feet.add((h, ankles))
         if down is not None:
             t.downs.add(down)
-            seg = _segments(self.rec.joints)
+            seg = segments(self.rec.joints)
             ends = [list(seg["head"]), [leg[2] for leg in seg["legs"]]]
             if min(p.confidence[i].min() for i in ends) >= MIN_CONFIDENCE:
                 t.upright.add((p.keypoints_2d[ends[0]].mean(axis=0), p.keypoints_2d[ends[1]].mean(axis=0)))
