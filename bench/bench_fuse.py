@@ -217,7 +217,7 @@ class Truth:
         cams = lab_rig(take)
         docs = [json.loads((cache / take / f"{n}.json").read_text()) for n in NAMES]
         sizes = [(d["inputs"][0]["width"], d["inputs"][0]["height"]) for d in docs]
-        self.cams, self.sizes = cams, sizes
+        self.cams = cams
         self.raw = [tracks(cache / take / f"{n}.json", c, s) for n, c, s in zip(NAMES, cams, sizes)]
         self.views = [{pid: smoothed(t) for pid, t in v.items()} for v in self.raw]
         self.n = len(docs[0]["inputs"][0]["frames"])
@@ -333,16 +333,6 @@ class Truth:
             pts, _ = dlt(self.cams, uv[:, p, :, 0], (conf[:, p, :, 0] >= 0.5).astype(float))   # joint 0: pelvis
             out.append(pts)
         return np.stack(out, axis=1)
-
-    def project(self, v: int, points: np.ndarray) -> np.ndarray:
-        """(N, 3) lab points (mm) -> (N, 2) pixels of view v's video, through its lab camera."""
-        c = self.cams[v]
-        k = c["K"].copy()
-        k[0, 2] += (self.sizes[v][0] - c["size"][0]) / 2           # 1088-px Qualisys field, 1080-px video
-        k[1, 2] += (self.sizes[v][1] - c["size"][1]) / 2
-        uv, _ = cv2.projectPoints(np.asarray(points, float).reshape(-1, 1, 3), cv2.Rodrigues(c["R"])[0], c["t"], k,
-                                  c["dist"])
-        return uv.reshape(-1, 2)
 
     def score(self, run: dict, first: float = 0.0) -> dict:
         """Figures of one fuse run (see `worker`) against the truth; `first`: the cam01 frame (at
@@ -710,10 +700,12 @@ def rigs_worker(take: str, cache: Path, offsets: list[float], out: Path) -> None
     results = {}
     for lens, suffix in LENSES.items():
         recs = [read_poses(cache / f"{take}{suffix}" / f"{n}.json")[0] for n in NAMES]
-        results[f"{lens} lab"] = _run_case(recs, list(NAMES), new_user_options(calibration=lab, offsets=offsets))
         for views in SETS:
             names = [NAMES[v] for v in views]
             results[f"{lens} {'+'.join(names)}"] = _run_case([recs[v] for v in views], names, new_user_options())
+            results[f"{lens} {'+'.join(names)} lab"] = _run_case(
+                [recs[v] for v in views], names,
+                new_user_options(calibration=lab, offsets=[offsets[v] - offsets[views[0]] for v in views]))
     recs = [read_poses(cache / take / f"{n}.json")[0] for n in NAMES]
     for n_cut in CUTS:
         for c in range(1, 4):
@@ -733,23 +725,18 @@ def rigs_worker(take: str, cache: Path, offsets: list[float], out: Path) -> None
     out.write_text(json.dumps(results))
 
 
-def _angle_errors(run: dict, lab: dict, truth: Truth, ref: int, first: float) -> tuple[float, float]:
+def _angle_errors(run: dict, lab: dict) -> tuple[float, float]:
     """Median (over the 8 big angles) and worst of each angle's median |difference| over frames
-    and people between a run and the lab-calibrated fuse of the four views (`lab`, in the lab's
-    world): the run's frame i against the lab fuse's frame i + `first` (see `Truth.score`), each
-    run person against the lab person whose pelvis, projected into the run's reference camera
-    (view `ref`) through the lab calibration, lies nearest its own (within 100 px)."""
+    and people between a run and the same views fused through the lab calibration at the truth
+    offsets (`lab`: the same reference camera and frames), people matched by their pelvis in the
+    reference camera's image (within 100 px)."""
     diffs = []
-    for i, people in enumerate(run["angles"]):
-        k = int(round(i + first))
-        if not people or not 0 <= k < len(lab["angles"]) or not lab["angles"][k]:
-            continue
-        others = lab["angles"][k]
-        uv = truth.project(ref, np.array(lab["pelvis"][k], float))
-        for p in people:
-            d = np.linalg.norm(uv - np.array(p["uv"]), axis=1)
-            if np.nanmin(d) < 100:
-                q = others[int(np.nanargmin(d))]
+    for a, b in zip(run["angles"], lab["angles"]):
+        for p in a:
+            if not b:
+                continue
+            q = min(b, key=lambda q: np.linalg.norm(np.subtract(q["uv"], p["uv"])))
+            if np.linalg.norm(np.subtract(q["uv"], p["uv"])) < 100:
                 diffs.append(np.abs((np.subtract(p["angles"], q["angles"]) + 180) % 360 - 180))
     if not diffs:
         return np.nan, np.nan
@@ -776,16 +763,15 @@ def _coverage(r: dict, s: dict) -> str:
 def show_rigs(take: str, runs: dict[str, dict], truth: Truth) -> None:
     for code, res in runs.items():
         print(f"== {take} ({code}): every camera set as a new user fuses it (the command's defaults); angles "
-              "against the lab-calibrated fuse of the four views; err/sd: the worst camera's rotation error "
-              "over its reported spread")
+              "against the same views fused through the lab calibration; err/sd: the worst camera's rotation "
+              "error over its reported spread")
         print("   set                      lens     rot med/max deg  focal max %  pelvis mm  angles med/worst deg"
               "  err/sd  offsets found - lab")
         summary = {}
         for lens in LENSES:
-            lab = res.get(f"{lens} lab")
             for views in SETS:
                 label = "+".join(NAMES[v] for v in views)
-                r = res.get(f"{lens} {label}")
+                r, lab = res.get(f"{lens} {label}"), res.get(f"{lens} {label} lab")
                 if r is None:
                     continue
                 if "error" in r:
@@ -795,7 +781,7 @@ def show_rigs(take: str, runs: dict[str, dict], truth: Truth) -> None:
                 ref = NAMES.index(r["cameras_names"][0])
                 first = -truth.combination[ref]
                 s = truth.score(r, first)
-                ang = (_angle_errors(r, lab, truth, ref, first) if lab and "error" not in lab else (np.nan, np.nan))
+                ang = _angle_errors(r, lab) if lab and "error" not in lab else (np.nan, np.nan)
                 rots = list(s["rot"].values())
                 off = ", ".join(f"{e:+.1f}" for e in list(s["offset_error"].values())[1:])
                 held = " (lens held)" if all(r.get("fixed") or [False]) else ""
