@@ -334,8 +334,10 @@ class Truth:
             out.append(pts)
         return np.stack(out, axis=1)
 
-    def score(self, run: dict) -> dict:
-        """Figures of one fuse run (see `worker`) against the truth."""
+    def score(self, run: dict, first: float = 0.0) -> dict:
+        """Figures of one fuse run (see `worker`) against the truth; `first`: the cam01 frame (at
+        the truth offsets) that the run's frame 0 shows (its reference camera's offset, negated,
+        or the frames cut off cam01)."""
         names = run["cameras_names"]
         views = [NAMES.index(n) for n in names]
         R = [np.array(r) for r in run["R"]]
@@ -345,23 +347,27 @@ class Truth:
             d = (R[b] @ R[a].T) @ (lab[b]["R"] @ lab[a]["R"].T).T
             rot[f"{names[a]}-{names[b]}"] = float(np.degrees(np.linalg.norm(cv2.Rodrigues(d)[0])))
         focal = {n: 100 * (f / c["K"][0, 0] - 1) for n, f, c in zip(names, run["fx"], lab)}
-        c0 = self.cams[0]
+        c0 = lab[0]                                                       # the run's reference camera
         world = run["frame"] == "world"                                   # a given calibration's frame
         R0, t0 = R[0], np.array(run["t"][0])
         centre = {}
         for n, r, t, c in zip(names, R, run["t"], lab):
-            est = R0 @ (-r.T @ np.array(t)) + t0                          # in cam01's frame
+            est = R0 @ (-r.T @ np.array(t)) + t0                          # in the reference camera's frame
             true = c0["R"] @ (-c["R"].T @ c["t"]) + c0["t"]
             centre[n] = float(np.linalg.norm(est - true))
         errs, extra = [], 0   # each true pelvis to the nearest fused one of its frame; fused people the
         for i, people in enumerate(run["pelvis"]):   # truth lacks (seen by one view: a bystander) counted apart
-            truth = self.pelvis[i][np.isfinite(self.pelvis[i]).all(axis=1)]
+            k = int(round(i + first))
+            if not 0 <= k < len(self.pelvis):
+                continue
+            truth = self.pelvis[k][np.isfinite(self.pelvis[k]).all(axis=1)]
             fused = np.array([x if world else c0["R"].T @ (np.array(x) - c0["t"]) for x in people
                               if np.isfinite(x).all()]).reshape(-1, 3)
             if truth.size and fused.size:
                 errs += np.linalg.norm(truth[:, None] - fused[None], axis=2).min(axis=1).tolist()
             extra += max(len(fused) - len(truth), 0)
-        off = {n: float(o) - self.combination[v] for n, o, v in zip(names, run["offsets_kept"], views)}
+        off = {n: float(o) - self.combination[v] + self.combination[views[0]]   # against the run's reference
+               for n, o, v in zip(names, run["offsets_kept"], views)}
         return {"rot": rot, "rot_median": float(np.median(list(rot.values()))) if rot else np.nan,
                 "focal": focal, "focal_max": max(abs(e) for e in focal.values()), "centre": centre,
                 "centre_median": float(np.median(list(centre.values())[1:])) if len(centre) > 1 else np.nan,
@@ -608,6 +614,7 @@ BIG_ANGLES = tuple(f"{s}_{j}" for j in ("knee_flexion", "hip_flexion", "shoulder
                    for s in ("r", "l"))
 CUTS = (-40, -25, -12, 12, 25, 40)      # frames: N < 0 cuts -N off the camera, N > 0 cuts N off the reference
 LENSES = {"default": "", "lab": "_lab"}  # cache folder suffix: predicted with the default lens / the lab's
+SETS = [(0, 1, 2, 3), *itertools.combinations(range(4), 2)]    # the four cameras, every pair
 
 
 def predict_lab(cache: Path, take: str) -> None:
@@ -624,14 +631,13 @@ def predict_lab(cache: Path, take: str) -> None:
 
 
 def new_user_options(**kw):
-    """FuseOptions as `posecam fuse` builds them with no option typed (read off the command's
-    own defaults, so a --before checkout is measured with its own)."""
-    from posecam.commands.fuse import fuse_command
+    """FuseOptions as `posecam fuse` builds them with no option typed: `--sync auto` unless a
+    calibration or offsets are given, no `--max-offset` (the command's rule, written out here
+    so that a --before checkout is measured the same way)."""
     from posecam.multiview.fuse import FuseOptions
 
-    default = {p.name: p.default for p in fuse_command.params}
     has = {f.name for f in fields(FuseOptions)}
-    base = {"sync": default["sync"] == "auto", "max_offset": default["max_offset"]}
+    base = {"sync": kw.get("calibration") is None and kw.get("offsets") is None, "max_offset": None}
     return FuseOptions(**{k: v for k, v in {**base, **kw}.items() if k in has})
 
 
@@ -694,10 +700,12 @@ def rigs_worker(take: str, cache: Path, offsets: list[float], out: Path) -> None
     results = {}
     for lens, suffix in LENSES.items():
         recs = [read_poses(cache / f"{take}{suffix}" / f"{n}.json")[0] for n in NAMES]
-        results[f"{lens} lab"] = _run_case(recs, list(NAMES), new_user_options(calibration=lab, offsets=offsets))
-        for views in [(0, 1, 2, 3), *itertools.combinations(range(4), 2)]:
+        for views in SETS:
             names = [NAMES[v] for v in views]
             results[f"{lens} {'+'.join(names)}"] = _run_case([recs[v] for v in views], names, new_user_options())
+            results[f"{lens} {'+'.join(names)} lab"] = _run_case(
+                [recs[v] for v in views], names,
+                new_user_options(calibration=lab, offsets=[offsets[v] - offsets[views[0]] for v in views]))
     recs = [read_poses(cache / take / f"{n}.json")[0] for n in NAMES]
     for n_cut in CUTS:
         for c in range(1, 4):
@@ -707,14 +715,21 @@ def rigs_worker(take: str, cache: Path, offsets: list[float], out: Path) -> None
                 edited = [cut(r, abs(n_cut)) if (v == 0 and n_cut > 0) or (v == c and n_cut < 0) else r
                           for v, r in enumerate(recs)]
                 names = [NAMES[v] for v in views]
-                results[f"cut {n_cut} {NAMES[c]} {'+'.join(names)}"] = _run_case([edited[v] for v in views], names,
-                                                                                new_user_options())
+                run = _run_case([edited[v] for v in views], names, new_user_options())
+                if "error" in run:           # refused: would the right offsets have fused it?
+                    right = [offsets[v] - offsets[views[0]] + (n_cut if v != views[0] and (n_cut > 0 or v == c) else 0)
+                             for v in views]
+                    given = _run_case([edited[v] for v in views], names, new_user_options(offsets=right))
+                    run["with_offsets"] = given.get("error", "fused")
+                results[f"cut {n_cut} {NAMES[c]} {'+'.join(names)}"] = run
     out.write_text(json.dumps(results))
 
 
 def _angle_errors(run: dict, lab: dict) -> tuple[float, float]:
     """Median (over the 8 big angles) and worst of each angle's median |difference| over frames
-    and people, people matched by their pelvis in the reference camera."""
+    and people between a run and the same views fused through the lab calibration at the truth
+    offsets (`lab`: the same reference camera and frames), people matched by their pelvis in the
+    reference camera's image (within 100 px)."""
     diffs = []
     for a, b in zip(run["angles"], lab["angles"]):
         for p in a:
@@ -725,44 +740,70 @@ def _angle_errors(run: dict, lab: dict) -> tuple[float, float]:
                 diffs.append(np.abs((np.subtract(p["angles"], q["angles"]) + 180) % 360 - 180))
     if not diffs:
         return np.nan, np.nan
-    per_angle = np.nanmedian(np.array(diffs), axis=0)
-    return float(np.median(per_angle)), float(np.max(per_angle))
+    per_angle = np.nanmedian(np.array(diffs, float), axis=0)
+    return float(np.nanmedian(per_angle)), float(np.nanmax(per_angle))
 
 
 def _expected(truth: Truth, n_cut: int, c: int, views) -> list[float]:
-    """The offsets the cut views should get: the lab's, plus N for the cut camera, or for every
-    camera when the reference is cut."""
-    return [truth.combination[v] + (n_cut if v and (n_cut > 0 or v == c) else 0) for v in views]
+    """The offsets the cut views should get against the first of `views`: the lab's, plus N for
+    the cut camera, or for every camera when the reference is cut."""
+    return [truth.combination[v] - truth.combination[views[0]] + (n_cut if v != views[0] and (n_cut > 0 or v == c)
+                                                                    else 0) for v in views]
+
+
+
+def _coverage(r: dict, s: dict) -> str:
+    """Each estimated camera's rotation error against the reference over its reported spread
+    (one standard deviation), the worst: under 2 the spread covers the error."""
+    ratios = [s["rot"][f"{r['cameras_names'][0]}-{n}"] / sp[0]
+              for n, sp in zip(r["cameras_names"][1:], (r.get("spreads") or [None])[1:]) if sp and sp[0] > 0]
+    return f"{max(ratios):5.1f}" if ratios else "    -"
 
 
 def show_rigs(take: str, runs: dict[str, dict], truth: Truth) -> None:
     for code, res in runs.items():
-        print(f"== {take} ({code}): every camera set as a new user fuses it (the command's defaults)")
+        print(f"== {take} ({code}): every camera set as a new user fuses it (the command's defaults); angles "
+              "against the same views fused through the lab calibration; err/sd: the worst camera's rotation "
+              "error over its reported spread")
         print("   set                      lens     rot med/max deg  focal max %  pelvis mm  angles med/worst deg"
-              "  offsets found - lab")
+              "  err/sd  offsets found - lab")
+        summary = {}
         for lens in LENSES:
-            lab = res.get(f"{lens} lab")
-            for views in [(0, 1, 2, 3), *itertools.combinations(range(4), 2)]:
+            for views in SETS:
                 label = "+".join(NAMES[v] for v in views)
-                r = res.get(f"{lens} {label}")
+                r, lab = res.get(f"{lens} {label}"), res.get(f"{lens} {label} lab")
                 if r is None:
                     continue
                 if "error" in r:
                     print(f"   {label:24s} {lens:8s} REFUSED {r['error'][:150]}")
+                    summary.setdefault((lens, len(views)), []).append(None)
                     continue
-                s = truth.score(r)
+                ref = NAMES.index(r["cameras_names"][0])
+                first = -truth.combination[ref]
+                s = truth.score(r, first)
                 ang = _angle_errors(r, lab) if lab and "error" not in lab else (np.nan, np.nan)
                 rots = list(s["rot"].values())
                 off = ", ".join(f"{e:+.1f}" for e in list(s["offset_error"].values())[1:])
                 held = " (lens held)" if all(r.get("fixed") or [False]) else ""
+                dropped = [n for n in label.split("+") if n not in r["cameras_names"]]
                 print(f"   {label:24s} {lens:8s} {np.median(rots):5.2f} / {max(rots):5.2f}    {s['focal_max']:6.1f}"
-                      f"      {s['pelvis_median']:6.0f}     {ang[0]:5.2f} / {ang[1]:5.2f}        {off}{held}"
+                      f"      {s['pelvis_median']:6.0f}     {ang[0]:5.2f} / {ang[1]:5.2f}        {_coverage(r, s)}  "
+                      f"{off}{held}" + (f"; dropped {', '.join(dropped)}" if dropped else "")
                       + (f"  [{len(r['warnings'])} warnings]" if r["warnings"] else ""))
-        print(f"== {take} ({code}): cut views, default lens: found - expected (lab + N) per camera, "
-              "and against the uncut fuse + N")
+                summary.setdefault((lens, len(views)), []).append((np.median(rots), max(rots), ang[0], ang[1],
+                                                                   s["pelvis_median"]))
+        for (lens, n), rows in summary.items():
+            fused = [x for x in rows if x is not None]
+            if n == 2 and fused:
+                a = np.array(fused)
+                print(f"   pairs, {lens} lens: {len(fused)} of {len(rows)} fused; rotation median {np.median(a[:, 0]):.2f}, "
+                      f"worst {a[:, 1].max():.2f} deg; angles median {np.nanmedian(a[:, 2]):.2f}, worst "
+                      f"{np.nanmax(a[:, 3]):.2f} deg; pelvis median {np.nanmedian(a[:, 4]):.0f} mm")
+        print(f"== {take} ({code}): cut views, default lens: found - expected (lab + N, against the set's first "
+              "camera) per camera, and found - (the uncut fuse's + N)")
         uncut = {"+".join(NAMES[v] for v in views): res.get(f"default {'+'.join(NAMES[v] for v in views)}")
-                 for views in [(0, 1, 2, 3), *[(0, c) for c in range(1, 4)]]}
-        worst, refused, n_runs = 0.0, 0, 0
+                 for views in SETS}
+        worst, worst_uncut, refused, n_runs, cams = 0.0, 0.0, 0, 0, 0
         for key, r in res.items():
             if not key.startswith("cut "):
                 continue
@@ -772,7 +813,8 @@ def show_rigs(take: str, runs: dict[str, dict], truth: Truth) -> None:
             n_runs += 1
             if "error" in r:
                 refused += 1
-                print(f"   N {n_cut:+3d} cut {'cam01' if n_cut > 0 else cam} {label:24s} REFUSED {r['error'][:140]}")
+                print(f"   N {n_cut:+3d} cut {'cam01' if n_cut > 0 else cam} {label:24s} REFUSED {r['error'][:140]}"
+                      f" (with the right --offsets: {r.get('with_offsets', '?')[:60]})")
                 continue
             want = dict(zip([NAMES[v] for v in views], _expected(truth, n_cut, c, views)))
             base = uncut.get(label)
@@ -780,14 +822,20 @@ def show_rigs(take: str, runs: dict[str, dict], truth: Truth) -> None:
             rows = []
             for name, o in zip(r["cameras_names"][1:], r["offsets_kept"][1:]):
                 err = o - want[name]
+                cams += 1
                 worst = max(worst, abs(err))
-                vs_uncut = (f", uncut+N {o - base_off[name] - (want[name] - truth.combination[NAMES.index(name)]):+.1f}"
-                            if name in base_off else "")
+                shift = n_cut if (n_cut > 0 or name == cam) else 0
+                vs_uncut = ""
+                if name in base_off:
+                    d = o - base_off[name] - shift
+                    worst_uncut = max(worst_uncut, abs(d))
+                    vs_uncut = f", uncut+N {d:+.1f}"
                 rows.append(f"{name} {o:+.1f} (want {want[name]:+.1f}: {err:+.1f}{vs_uncut})")
             dropped = [n for n in label.split("+") if n not in r["cameras_names"]]
             print(f"   N {n_cut:+3d} cut {'cam01' if n_cut > 0 else cam} {label:24s} " + "; ".join(rows)
                   + (f"; dropped {', '.join(dropped)}" if dropped else ""))
-        print(f"   cut runs: {n_runs}, refused {refused}, worst |found - expected| of the fused cameras {worst:.1f} frames")
+        print(f"   cut runs: {n_runs}, refused {refused}; {cams} cameras fused: worst |found - (lab + N)| {worst:.1f} "
+              f"frames, worst |found - (uncut + N)| {worst_uncut:.1f} frames")
 
 
 def rigs(cache: Path, take: str, before: Path | None) -> None:

@@ -17,7 +17,7 @@ from synth_rig import make_rig, monocular_views, relative_rotation_error_deg, sk
 def estimated():
     cams = make_rig()
     recs = monocular_views(cams, skeleton_motion(150))
-    result = fuse_recordings(recs, FuseOptions(bundle_options=BundleOptions(max_frames=150)))
+    result = fuse_recordings(recs, FuseOptions(sync=False, bundle_options=BundleOptions(max_frames=150)))
     return cams, result
 
 
@@ -48,7 +48,7 @@ def test_views_without_common_person_fail():
     for f in recs[1].frames:
         f.people = []
     with pytest.raises(FusionError, match="no person"):
-        fuse_recordings(recs)
+        fuse_recordings(recs, FuseOptions(sync=False))
 
 
 def _crossing(n_frames: int, n_people: int) -> np.ndarray:
@@ -80,7 +80,7 @@ def test_several_people_rotations_within_1_deg(n_people):
     if n_people == 3:
         visible[2, 0] = False                        # the third person: not in the reference view
     recs = monocular_views(cams, world, visible=visible, id_switch={(0, 1): 70})
-    result = fuse_recordings(recs, FuseOptions(bundle_options=BundleOptions(max_frames=150)))
+    result = fuse_recordings(recs, FuseOptions(sync=False, bundle_options=BundleOptions(max_frames=150)))
     errors = _rotation_errors(cams, result)
     assert len(errors) == 3 and max(errors.values()) < 1.0, errors
     # every fused person is one true person: its pelvis stays near one of them, frame by frame
@@ -104,7 +104,7 @@ def test_degenerate_views_trigger_the_quality_gate():
     # a third view that sees the person in only a handful of frames: dropped with a warning
     for f in recs[2].frames[5:]:
         f.people = []
-    result = fuse_recordings(recs, FuseOptions(bundle_options=BundleOptions(max_frames=40)))
+    result = fuse_recordings(recs, FuseOptions(sync=False, bundle_options=BundleOptions(max_frames=40)))
     assert [c.name for c in result.rig.cameras] == [cams[0].name, cams[1].name]
     assert result.views == [0, 1]
     assert any(cams[2].name in w and "dropped" in w for w in result.warnings), result.warnings
@@ -112,8 +112,14 @@ def test_degenerate_views_trigger_the_quality_gate():
     twin = CameraCalibration("twin", cams[0].size, cams[0].intrinsics, cams[0].rotation,
                              cams[0].translation + np.array([5.0, 0.0, 0.0]))
     recs = monocular_views([cams[0], twin], world, seed=5)
-    with pytest.raises(FusionError):
-        fuse_recordings(recs, FuseOptions(bundle_options=BundleOptions(max_frames=40)))
+    with pytest.raises(FusionError, match="what would help: the lenses .*, more cameras, a longer take") as err:
+        fuse_recordings(recs, FuseOptions(sync=False, bundle_options=BundleOptions(max_frames=40)))
+    assert "\n" not in str(err.value)
+    # lenses known: the refusal does not ask for them
+    recs = monocular_views([cams[0], twin], world, seed=5, known_lens=True)
+    with pytest.raises(FusionError, match="what would help: more cameras, a longer take") as err:
+        fuse_recordings(recs, FuseOptions(sync=False, bundle_options=BundleOptions(max_frames=40)))
+    assert "lenses" not in str(err.value)
 
 
 def _fractional(cams, offsets, n_frames=120, joint_noise=10.0, still=False):
@@ -141,7 +147,7 @@ def test_bundle_adjustment_refines_fractional_offsets_started_a_frame_off():
     of the one estimated at the true offsets."""
     cams, true = make_rig(), np.array([0.0, 2.4, -1.7, 0.6])
     recs = _fractional(cams, true)
-    take = check_take(recs, FuseOptions())
+    take = check_take(recs, FuseOptions(sync=False))
     start = true + np.array([0.0, 0.9, -0.8, 0.7])
     association = associate_people(take, None, start.tolist())
     rotation = {}
@@ -175,7 +181,7 @@ def test_camera_spread_grows_when_frames_are_removed(estimated):
     recs = monocular_views(cams, skeleton_motion(150))
     for r in recs:
         r.frames = r.frames[:30]
-    few = fuse_recordings(recs, FuseOptions(bundle_options=BundleOptions(max_frames=150)))
+    few = fuse_recordings(recs, FuseOptions(sync=False, bundle_options=BundleOptions(max_frames=150)))
     for a, b in zip(full.cameras[1:], few.cameras[1:]):
         assert b.spread.rotation_deg > 1.3 * a.spread.rotation_deg, (a.name, a.spread, b.spread)
         assert b.spread.focal_pct > 1.3 * a.spread.focal_pct, (a.name, a.spread, b.spread)
@@ -194,8 +200,8 @@ def test_heights_set_the_metric_scale():
 
     cams = make_rig()
     recs = monocular_views(cams, skeleton_motion(80))
-    plain = fuse_recordings(recs)
-    tall = fuse_recordings(recs, FuseOptions(heights=Heights.parse(["2.0"])))
+    plain = fuse_recordings(recs, FuseOptions(sync=False))
+    tall = fuse_recordings(recs, FuseOptions(sync=False, heights=Heights.parse(["2.0"])))
     assert "bone lengths" in plain.scale_source and "heights given" in tall.scale_source
 
     def spread(result):
@@ -221,9 +227,9 @@ def test_heights_that_disagree_with_the_rig_are_warned_about():
     child = skeleton_motion(80, seed=3, centre=(900.0, 0.0))
     child = child[:, :1] + 0.8 * (child - child[:, :1])
     recs = monocular_views(cams, np.stack([adult, child]))
-    agree = fuse_recordings(recs, FuseOptions(heights=Heights.parse(["1.75,1.40"])))
+    agree = fuse_recordings(recs, FuseOptions(sync=False, heights=Heights.parse(["1.75,1.40"])))
     assert not [w for w in agree.warnings if "heights" in w], agree.warnings
-    disagree = fuse_recordings(recs, FuseOptions(heights=Heights.parse(["1.75,1.05"])))
+    disagree = fuse_recordings(recs, FuseOptions(sync=False, heights=Heights.parse(["1.75,1.05"])))
     said = [w for w in disagree.warnings if "heights given disagree" in w]
     assert len(said) == 1 and "given 1.05" in said[0] and "given 1.75" in said[0], disagree.warnings
 
@@ -241,7 +247,7 @@ def test_camera_spread_counts_a_joint_bias_of_the_detector(estimated):
         for f in r.frames:
             for p in f.people:
                 p.keypoints_2d = p.keypoints_2d + b
-    biased = fuse_recordings(recs, FuseOptions(bundle_options=BundleOptions(max_frames=150)))
+    biased = fuse_recordings(recs, FuseOptions(sync=False, bundle_options=BundleOptions(max_frames=150)))
     errors = [relative_rotation_error_deg(cams[0].rotation, true.rotation, np.eye(3), est.rotation)
               for true, est in zip(cams[1:], biased.rig.cameras[1:])]
     spreads = [rep.spread.rotation_deg for rep in biased.cameras[1:]]
@@ -259,7 +265,8 @@ def _principal_point_case(cams, world, fix: bool, bias_px: float = 0.0) -> float
         for f in r.frames:
             for p in f.people:
                 p.keypoints_2d = p.keypoints_2d + b
-    result = fuse_recordings(recs, FuseOptions(bundle_options=BundleOptions(max_frames=150, fix_principal_point=fix)))
+    result = fuse_recordings(recs, FuseOptions(sync=False, bundle_options=BundleOptions(max_frames=150,
+                                                                                    fix_principal_point=fix)))
     return float(np.median([relative_rotation_error_deg(cams[0].rotation, true.rotation, np.eye(3), est.rotation)
                             for true, est in zip(cams[1:], result.rig.cameras[1:])]))
 
@@ -443,8 +450,8 @@ def test_a_known_lens_stays_known_and_can_be_freed():
     cams = make_rig()
     world = skeleton_motion(100)
     recs = monocular_views(cams, world, known_lens=True)
-    held = fuse_recordings(recs, FuseOptions())
-    freed = fuse_recordings(recs, FuseOptions(free_intrinsics=True))
+    held = fuse_recordings(recs, FuseOptions(sync=False))
+    freed = fuse_recordings(recs, FuseOptions(sync=False, free_intrinsics=True))
     for true, est, rep in zip(cams, held.rig.cameras, held.cameras):
         k, e = true.intrinsics, est.intrinsics
         assert (e.fx, e.fy, e.cx, e.cy) == (k.fx, k.fy, k.cx, k.cy) and e.source == "flags", (true.name, e)
@@ -458,5 +465,5 @@ def test_a_known_lens_stays_known_and_can_be_freed():
                    for t, e in zip(cams[1:], result.rig.cameras[1:]))
 
     assert worst(held) < 1.0 and worst(held) <= worst(freed) + 0.2, (worst(held), worst(freed))
-    default = fuse_recordings(monocular_views(cams, world), FuseOptions())
+    default = fuse_recordings(monocular_views(cams, world), FuseOptions(sync=False))
     assert not any(rep.intrinsics_fixed for rep in default.cameras)          # the default lens: estimated

@@ -12,7 +12,7 @@ from posecam.geometry.camera import CameraCalibration, Intrinsics
 from posecam.io.calibration import write_toml
 from posecam.io.intrinsics import IntrinsicsOptions
 from posecam.io.poses import read_poses, write_poses
-from posecam.multiview.fuse import FuseOptions
+from posecam.multiview.fuse import FuseOptions, check_lengths
 from posecam.views import load_views, view_intrinsics
 
 VIEWS = [str(DATA / "messi5.jpg"), str(EXAMPLES / "balance.jpg")]   # 548x342 and 1080x1920
@@ -70,6 +70,22 @@ def test_lengths_are_compared_from_the_headers_before_any_prediction(estimator, 
         with pytest.raises(InputError, match=r"different lengths \(balance_cam01_30f.mp4 30, short.json 5 frames\)"):
             load_views([video, str(tmp_path / "short.json")], fuse=given, on_frame=lambda *a: pytest.fail("predicted"))
     assert not seen
+
+
+@pytest.mark.parametrize("lengths, offsets, shared", [
+    ((100, 88), [0, -11.77], None),     # 12 frames cut off the second view's start: lined up, a warning
+    ((100, 88), [12.4, 0], None),       # the same, the first view's offset given instead
+    ((100, 60), [0, 30], None),         # started earlier and stopped earlier: 30 frames of 60 shared
+    ((100, 60), [0, 45], 15),           # 15 of 60 shared: not one take, or the offsets are wrong
+    ((100, 30), [0, -90], 10),          # the second view starts 90 frames into the first: 10 shared
+])
+def test_offsets_given_line_up_views_of_different_lengths(lengths, offsets, shared):
+    """Views cut apart by hand: with the offsets given, what counts is the frames they share."""
+    if shared is None:
+        assert "differ in length" in check_lengths(["a", "b"], list(lengths), FuseOptions(offsets=offsets))
+    else:
+        with pytest.raises(InputError, match=f"shares only {shared} of its frames"):
+            check_lengths(["a", "b"], list(lengths), FuseOptions(offsets=offsets))
 
 
 def test_out_dir_writes_what_dash_o_writes(tmp_path):

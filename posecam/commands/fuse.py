@@ -168,7 +168,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     from posecam.io.media import VIDEO_SUFFIXES
     from posecam.viz.sinks import PICTURE_SUFFIXES
     from posecam.scale.heights import Heights
-    from posecam.multiview.fuse import FuseOptions, fuse_recordings
+    from posecam.multiview.fuse import FuseOptions, finds_offsets, fuse_recordings
     from posecam.viz.render3d import VIEW3D_SUFFIXES, write_3d_view
     from posecam.analysis.angles import angle_names
     from posecam.views import check_views, load_views
@@ -184,8 +184,8 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     check_output(viz, (*PICTURE_SUFFIXES, *VIDEO_SUFFIXES), "--viz")
     if offsets and sync == "auto":
         raise InputError("give either --offsets or --sync auto")
-    sync = sync or ("none" if calibration or offsets else "auto")
-    refuse_alone("max_offset", "--sync auto", sync == "auto")
+    auto = finds_offsets(None if sync is None else sync == "auto", bool(calibration), bool(offsets))
+    refuse_alone("max_offset", "--sync auto", auto)
     refuse_alone("trc_y_up", "-o FILE.trc or FILE.c3d", bool(markers))
     refuse_alone("free_intrinsics", "cameras to estimate (no --calibration)", not calibration)
     offset_list = parse_offsets(offsets) if offsets else None
@@ -202,7 +202,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     selection = make_frame_selection(flags)
     if selection and many:
         raise InputError("--start, --end and --stride pick frames of one take; they do not go with --out-dir")
-    if selection and selection.stride not in (None, "1") and (sync == "auto" or any(offset_list or [])):
+    if selection and selection.stride not in (None, "1") and (auto or any(offset_list or [])):
         raise InputError("--stride does not go with --sync auto or non-zero --offsets: the views' offsets would fall "
                          "between the frames kept; use --start/--end alone")
     if calibration and (intrinsics.file or intrinsics.fx is not None or intrinsics.fy is not None):
@@ -211,7 +211,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
                        [*inputs, calibration, intrinsics.file, estimator.model],
                        per_person=markers)  # every output checked before the work
     rig = read_calibration(calibration) if calibration else None
-    opts = FuseOptions(calibration=rig, method=method, offsets=offset_list, sync=sync == "auto",
+    opts = FuseOptions(calibration=rig, method=method, offsets=offset_list, sync=auto,
                        max_offset=max_offset, heights=Heights.parse(heights), free_intrinsics=free_intrinsics)
     if many:
         from posecam.commands.many import fuse_many

@@ -161,7 +161,7 @@ def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations
     adjustment refines the offsets too (posecam.multiview.bundle) and KeptCameras has them.
     The cameras named in BundleOptions.fixed_intrinsics keep their intrinsics throughout."""
     views = list(range(len(assumed)))
-    warnings = []
+    warnings, notes = [], []            # cameras dropped and why; what else the estimation met
     people = [p for p in people if ((p.conf.max(axis=-1) > 0).sum(axis=0) >= 2).any()]   # seen twice
     usable = _usable_frames(people, len(assumed), min_conf)
     for v in list(views):
@@ -185,9 +185,9 @@ def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations
                                     None if timed is None else timed.take(views), start)
                 rig, med, points, spreads = fit.rig, fit.median_error_px, fit.points, fit.spreads
                 refined = fit
-                if not fit.converged and not any("iteration limit" in w for w in warnings):
-                    warnings.append("the bundle adjustment stopped at its iteration limit: the cameras may be "
-                                    "short of their best")
+                if not fit.converged and not notes:
+                    notes.append("the bundle adjustment stopped at its iteration limit: the cameras may be "
+                                 "short of their best")
             else:
                 spreads = None
                 points = rig.triangulate(obs.uv, obs.conf, min_conf)
@@ -207,8 +207,8 @@ def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations
                               f"{reasons[views.index(reference)]}")
         if not bad:
             if refined is None or refined.offsets is None:
-                return KeptCameras(rig, views, warnings, spreads)
-            return KeptCameras(rig, views, warnings, spreads, refined.offsets.tolist(),
+                return KeptCameras(rig, views, warnings + notes, spreads)
+            return KeptCameras(rig, views, warnings + notes, spreads, refined.offsets.tolist(),
                                refined.offset_spreads.tolist())
         worst = max(bad, key=lambda i: np.nan_to_num(med[i], nan=np.inf))
         warnings.append(f"camera {assumed[views[worst]].name} dropped: {reasons[worst]}")

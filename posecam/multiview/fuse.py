@@ -52,7 +52,9 @@ class FuseOptions:
     calibration: Rig | None = None         # known cameras; None: estimate them
     method: str = "average"                # "average" (monocular poses) or "triangulate" (2D)
     offsets: list[float] | None = None     # per view, see posecam.multiview.sync; None: zeros or auto
-    sync: bool = False                     # estimate the offsets (`posecam fuse` does unless given a calibration)
+    # estimate the offsets; None (the default, `posecam fuse`'s): when neither a calibration nor
+    # offsets are given (cameras started by hand)
+    sync: bool | None = None
     # frames either way the offsets may reach; None: without a calibration, any that leaves the views
     # half the shorter one's frames (posecam.multiview.sync.coarse_offsets); with one, 10
     max_offset: int | None = None
@@ -77,6 +79,12 @@ class FusionResult:
     scale_source: str = "the calibration"   # what fixes the metric scale (see `metric_scale`)
 
 
+def finds_offsets(sync: bool | None, calibrated: bool, offsets_given: bool) -> bool:
+    """FuseOptions.sync resolved: None (the default) finds the offsets unless a calibration or
+    offsets are given."""
+    return sync if sync is not None else not (calibrated or offsets_given)
+
+
 def view_names(recordings: list[Recording]) -> list[str]:
     """Camera names: the input file stems, made unique."""
     names = []
@@ -86,21 +94,35 @@ def view_names(recordings: list[Recording]) -> list[str]:
     return names
 
 
+MIN_SHARED = 0.5    # share of the shorter view's frames that views lined up by given offsets must share
+
+
 def check_lengths(names: list[str], lengths: list[int], opts: FuseOptions) -> str | None:
-    """Views of one take have one length unless they are synchronised without a calibration
-    (unsynchronised cameras started apart: the offsets found line them up): InputError when they
-    differ by more than the offsets allow (`max_offset` and the largest `offsets`), a warning
-    line when they differ at all."""
-    if not lengths or max(lengths) == min(lengths) or (opts.sync and opts.calibration is None):
+    """Views of different lengths are what cameras started and stopped by hand give: lined up
+    by offsets found without a calibration, or by the offsets given, which must leave each view
+    MIN_SHARED of its frames (or of the reference's, if fewer) in common with the reference; a
+    warning line says they differ. Views taken as started together (no offsets, no search
+    without a calibration) may differ by at most the search of a calibrated sync (`max_offset`):
+    InputError past what they allow."""
+    sync = finds_offsets(opts.sync, opts.calibration is not None, opts.offsets is not None)
+    if not lengths or max(lengths) == min(lengths) or (sync and opts.calibration is None):
         return None
     shown = ", ".join(f"{n} {k}" for n, k in zip(names, lengths))
-    search = opts.max_offset if opts.max_offset is not None else RIG_MAX_OFFSET if opts.sync else 0
-    slack = search + max((abs(o) for o in opts.offsets or [0]), default=0)
-    if max(lengths) - min(lengths) > slack:
-        raise InputError(f"the views have different lengths ({shown} frames): fuse needs "
-                         "recordings of the same take; trim them to it")
+    if opts.offsets is not None and len(opts.offsets) == len(lengths):
+        ref, o_ref = lengths[opts.reference], opts.offsets[opts.reference]
+        for name, n, o in zip(names, lengths, opts.offsets):       # reference frames i with i + o in the view
+            shared = max(0, int(np.floor(min(ref, n - (o - o_ref)) - max(0.0, o_ref - o))))
+            if shared < MIN_SHARED * min(n, ref):
+                raise InputError(f"the views have different lengths ({shown} frames) and at the offsets given "
+                                 f"{name} shares only {shared} of its frames with {names[opts.reference]}: "
+                                 "check --offsets, or fuse recordings of the same take")
+    else:
+        search = opts.max_offset if opts.max_offset is not None else RIG_MAX_OFFSET if sync else 0
+        if max(lengths) - min(lengths) > search:
+            raise InputError(f"the views have different lengths ({shown} frames): fuse needs "
+                             "recordings of the same take; trim them to it, or give --offsets")
     return (f"the views differ in length ({shown} frames): fuse lines them up by their first frames "
-            "(shifted by --offsets or --sync auto); are they one take, cut alike?")
+            "(shifted by --offsets or --sync auto); are they one take?")
 
 
 def check_take(recordings: list[Recording], opts: FuseOptions) -> Take:
@@ -243,16 +265,6 @@ def _offsets(take: Take, association: Association, rig: Rig | None, start: list[
     return synchronise(take, association.people, rig, start, opts.max_offset, opts.min_conf)
 
 
-def _estimated(take: Take, association: Association, sync: SyncResult, opts: FuseOptions,
-               say: Callable[[str], None]) -> KeptCameras:
-    """The cameras without a calibration (posecam.multiview.calibrate.cameras_from_people), and the
-    offsets with them where BundleOptions.refine_offsets asks."""
-    say("estimating the cameras")
-    if len(take.names) - len(sync.unpinned) < 2:
-        raise FusionError("fewer than two cameras can be fused: " + "; ".join(sync.warnings))
-    return cameras_from_people(take, association, sync, opts.min_conf, opts.bundle, opts.bundle_options)
-
-
 def refined_offsets(sync: SyncResult, cameras: KeptCameras) -> SyncResult:
     """The sync with the offsets (and their spreads) the bundle adjustment refined, where it did."""
     if cameras.offsets is None:
@@ -261,6 +273,53 @@ def refined_offsets(sync: SyncResult, cameras: KeptCameras) -> SyncResult:
     for v, o, s in zip(cameras.views, cameras.offsets, cameras.offset_spreads):
         offsets[v], spread[v] = o, s
     return replace(sync, offsets=offsets, spread=spread)
+
+
+def what_helps(take: Take, opts: FuseOptions) -> str:
+    """What would let the people pin the cameras, for a refusal line: the lenses where some are
+    guessed (a lens held leaves only where the cameras stand to estimate), more cameras, a
+    longer take in which the people move about, or known cameras."""
+    guessed = [n for n in take.names if n not in opts.bundle_options.fixed_intrinsics]
+    helps = []
+    if guessed:
+        which = "--intrinsics FILE or --fx" if len(guessed) == len(take.names) else "for " + ", ".join(guessed)
+        helps.append(f"the lenses ({which}: a known lens is held)")
+    if len(take.names) < 4:
+        helps.append("more cameras")
+    helps.append("a longer take in which the people move about the scene")
+    return f"what would help: {', '.join(helps)}; or known cameras (--calibration)"
+
+
+def _estimated(take: Take, association: Association, sync: SyncResult, opts: FuseOptions,
+               say: Callable[[str], None]) -> tuple[KeptCameras, SyncResult, list[Observations], np.ndarray, list[str]]:
+    """The cameras without a calibration (posecam.multiview.calibrate.cameras_from_people; the
+    offsets with them where BundleOptions.refine_offsets asks), estimated again without the
+    views' left/right swaps, their spreads bootstrapped and the loose ones dropped; with the sync
+    (refined), the people and swaps of the cameras kept, and the warnings. A FusionError says
+    what would help (`what_helps`)."""
+    say("estimating the cameras")
+    if len(take.names) - len(sync.unpinned) < 2:
+        raise FusionError("fewer than two cameras can be fused: " + "; ".join(sync.warnings))
+    try:
+        cameras = cameras_from_people(take, association, sync, opts.min_conf, opts.bundle, opts.bundle_options)
+        sync = refined_offsets(sync, cameras)
+        warnings = sync.warnings + cameras.warnings
+        say("checking left and right")
+        people, swaps = fix_people(cameras.rig, take.observations(association.people, sync.offsets, cameras.views),
+                                   take.joints)
+        if swaps.any():
+            say("estimating the cameras without the swaps")
+            cameras, people, swaps = cameras_without_swaps(take, cameras, people, swaps, opts.min_conf, opts.bundle,
+                                                           opts.bundle_options)
+            warnings += cameras.warnings
+        if opts.bundle:
+            say("bootstrapping the cameras' spreads")
+            cameras = bootstrap_spreads(cameras, people, take.joints, opts.min_conf, opts.bundle_options)
+            cameras, people, swaps = without_loose_cameras(cameras, people, swaps, take.names, take.reference)
+            warnings += cameras.warnings
+    except FusionError as exc:
+        raise FusionError(f"{exc}; {what_helps(take, opts)}") from None
+    return cameras, sync, people, swaps, warnings
 
 
 def fuse_recordings(recordings: list[Recording], options: FuseOptions | None = None,
@@ -273,6 +332,7 @@ def fuse_recordings(recordings: list[Recording], options: FuseOptions | None = N
 
 def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[str], None] | None) -> FusionResult:
     say = progress or (lambda _msg: None)
+    opts = replace(opts, sync=finds_offsets(opts.sync, opts.calibration is not None, opts.offsets is not None))
     take = check_take(recordings, opts)
     opts = replace(opts, bundle_options=replace(opts.bundle_options, fixed_intrinsics=known_lenses(take, opts)))
     given = given_cameras(take, opts.calibration) if opts.calibration is not None else None
@@ -284,26 +344,17 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
     sync = _offsets(take, association, rig, start, opts, say)
     if given and opts.sync:                  # through a rig, who is who depends on the offsets
         association = associate_people(take, rig, sync.offsets, opts.min_conf)
-    cameras = given or _estimated(take, association, sync, opts, say)
-    sync = refined_offsets(sync, cameras)
-    warnings = sync.warnings + cameras.warnings
+    if given:
+        cameras = given
+        say("checking left and right")
+        people, swaps = fix_people(cameras.rig, take.observations(association.people, sync.offsets, cameras.views),
+                                   take.joints)
+        warnings = sync.warnings + cameras.warnings
+    else:
+        cameras, sync, people, swaps, warnings = _estimated(take, association, sync, opts, say)
     if not opts.sync and opts.offsets is None:
         warnings.append("every view fused at offset 0, as if the cameras had started together: --sync auto finds "
                         "their offsets, --offsets sets them")
-
-    say("checking left and right")
-    people, swaps = fix_people(cameras.rig, take.observations(association.people, sync.offsets, cameras.views),
-                               take.joints)
-    if swaps.any() and not given:
-        say("estimating the cameras without the swaps")
-        cameras, people, swaps = cameras_without_swaps(take, cameras, people, swaps, opts.min_conf, opts.bundle,
-                                                       opts.bundle_options)
-        warnings += cameras.warnings
-    if not given and opts.bundle:
-        say("bootstrapping the cameras' spreads")
-        cameras = bootstrap_spreads(cameras, people, take.joints, opts.min_conf, opts.bundle_options)
-        cameras, people, swaps = without_loose_cameras(cameras, people, swaps, take.names, take.reference)
-        warnings += cameras.warnings
     if given:
         scale_source = "the calibration"
         if opts.heights:

@@ -126,7 +126,12 @@ LAG_STEP = 0.1                  # frames: the lag grid before the parabolic refi
 MIN_MOTION = 45.0               # mm: below this excursion of the joints about the root (the
                                 # median over joints of their low-passed standard deviation over
                                 # time) the people are too still to pin an offset
-MAX_SPREAD = 1.0                # frames: a bootstrap spread above this is no offset either
+# px: an offset is pinned when one standard deviation of it (its bootstrap spread) moves its
+# view's keypoints by less than this (the spread times their median speed): less than the
+# detector's own bias per joint, which is what limits the rig (8-12 px on Pose2Sim's takes:
+# bench/bench_rig_limit.py). A spread in frames alone says nothing of the harm: a 1.3-frame
+# spread costs 5 px on Pose2Sim's balancing man and would cost 40 px on a sprinter.
+MAX_SHIFT_PX = 8.0
 BOOTSTRAP = 30                  # resamples of blocks of frames and of joints for the offset's spread
 
 
@@ -151,6 +156,16 @@ def motion_signals(xyz: np.ndarray, conf: np.ndarray, fps: float, min_conf: floa
         spread = np.nanstd(np.where(seen[..., None], smooth, np.nan), axis=0)          # (J, 3)
         excursion = float(np.nanmedian(np.linalg.norm(spread, axis=-1)[1:]))
     return np.where(seen, speed, np.nan), excursion if np.isfinite(excursion) else 0.0
+
+
+def keypoint_speed(uv: np.ndarray, conf: np.ndarray, fps: float, min_conf: float = MIN_CONFIDENCE) -> float:
+    """Median speed (px a frame) of a view's keypoints (F, J, 2) seen with conf >= min_conf,
+    low-passed at LOWPASS_HZ; NaN where none is seen twice in a row."""
+    seen = (conf >= min_conf) & np.isfinite(uv).all(axis=-1)
+    speed = np.linalg.norm(np.gradient(lowpass(uv, seen, fps, LOWPASS_HZ), axis=0), axis=-1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return float(np.nanmedian(np.where(seen, speed, np.nan)))
 
 
 def _shifted_pair(ref: np.ndarray, other: np.ndarray, lag: float, frames: np.ndarray | None,
@@ -226,7 +241,7 @@ def motion_offset(score: Callable[[float, np.ndarray | None, np.ndarray | None],
         if np.isfinite(c).any():
             peaks.append(_peak(near, c))
     spread = float(np.std(peaks)) if len(peaks) > 2 else np.inf
-    return MotionOffset(round(best, 2), float(np.nanmax(corr)), spread)
+    return MotionOffset(round(best, 2) + 0.0, float(np.nanmax(corr)), spread)      # + 0.0: no -0
 
 
 # ---- the coarse offsets: bone directions, the same from every camera up to its rotation -------
@@ -449,8 +464,9 @@ def _motion_offsets(take: Take, people: list[PersonTracks], start: list[float], 
     """Offsets without a rig: per view, the sub-frame lag within FINE_WINDOW frames of its start
     (`coarse_offsets`) at which the bones of the people it shares with the reference move
     alike (`bone_correlation`, `motion_offset`); a view whose offset that does not pin (people
-    too still, a spread above MAX_SPREAD, a peak at the window's edge) is left out (`unpinned`),
-    with a warning: fused at a wrong offset, its camera would be estimated wrong too."""
+    too still, a spread that moves its keypoints by more than MAX_SHIFT_PX, a peak at the
+    window's edge) is left out (`unpinned`), with a warning: fused at a wrong offset, its camera
+    would be estimated wrong too."""
     ref, n_views = take.reference, len(take.names)
     offsets, confidence, spread, warnings = list(start), [1.0] * n_views, [0.0] * n_views, []
     unpinned = []
@@ -465,11 +481,15 @@ def _motion_offsets(take: Take, people: list[PersonTracks], start: list[float], 
         m = motion_offset(lambda lag, frames, columns: bone_correlation(a, b, lag, frames, columns),
                           len(a), a.shape[1], start[v], FINE_WINDOW)
         confidence[v], spread[v] = max(float(np.nan_to_num(m.correlation)), 0.0), m.spread
+        fps = take.fps or DEFAULT_FPS
+        speed = np.nanmedian([keypoint_speed(uv, conf, fps, min_conf) for uv, _, conf, _ in
+                              (p.view_arrays(v, take.lengths[v]) for p in people if ref in p.views and v in p.views)])
         why = None
         if shared[2] < MIN_MOTION:
             why = f"the people move too little to synchronise it (their joints move {shared[2]:.0f} mm about the root)"
-        elif not m.spread <= MAX_SPREAD:
-            why = f"its motion pins the offset poorly (best {m.offset:+.1f} frames, spread {m.spread:.1f})"
+        elif not m.spread * speed <= MAX_SHIFT_PX:
+            why = (f"its motion pins the offset poorly (best {m.offset:+.1f} ± {m.spread:.1f} frames, which moves "
+                   f"its keypoints by ± {m.spread * speed:.0f} px)")
         elif abs(m.offset - start[v]) >= FINE_WINDOW - 0.5:
             why = f"its motion's best offset ({m.offset:+.1f}) lies far from where its bones put it ({start[v]:+.0f})"
         if why is None:
