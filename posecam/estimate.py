@@ -86,15 +86,16 @@ IntrinsicsSource = Intrinsics | IntrinsicsOptions | None
 # kind, where a predicted pose meets its lens), confirm the ids (`PoseEstimator._confirmed`), then
 # metric scale and smoothing over time (`FileStream.poses`), then the sinks (pose files, tables:
 # whoever reads the poses). No stage changes what it is handed. A tap sees each frame as it
-# leaves one of these stages: "confirm" as soon as its ids are known (progress bars), "metric"
-# at its metric scale, the depth the pose files are given (overlays: a video's frames are
-# smoothed after it, as `--viz` says).
-TAPS = ("confirm", "metric")
+# leaves one of these stages: "confirm" as soon as its ids are known (progress bars), "written"
+# as it leaves the last stage, as the pose files get it (overlays: what is drawn is what is
+# written, a video's frames a few seconds late).
+TAPS = ("confirm", "written")
 
 
 class _Images:
-    """The RGB image of each frame as it leaves the metric stage, which holds frames back: a
-    file's frames decoded a second time, in step (memory stays flat), a live source's held."""
+    """The RGB image of each frame as it leaves the last stage, the stages having held frames
+    back: a file's frames decoded a second time, in step (memory stays flat), a live source's
+    held as they come."""
 
     def __init__(self, media: Media):
         self.held: deque[np.ndarray] | None = deque() if media.kind == "stream" else None
@@ -135,17 +136,18 @@ class FileStream:
         taps = {stage: tap for stage, tap in (taps or {}).items() if tap}
         if set(taps) - set(TAPS):
             raise ValueError(f"taps are at the stages {', '.join(TAPS)}, not {', '.join(sorted(set(taps) - set(TAPS)))}")
-        frames = _tapped(self._doubted(), taps.get("confirm"), self.media)
+        written = taps.get("written")
+        images = _Images(self.media) if written else None
+        frames: Iterator[Frame] = (frame for frame, _ in _tapped(self._doubted(), taps.get("confirm"), self.media,
+                                                                 images))
         if metric:
-            frames = self._scaled(frames, metric, "metric" in taps)
-        frames = _tapped(frames, taps.get("metric"), self.media)
-        if not (smooth and self.media.kind not in ("image", "stream")):
-            yield from (frame for frame, _ in frames)
-            return
-        smoother = StreamingSmoother(self.recording)
-        for frame, _ in frames:
-            yield from smoother.push(frame)
-        yield from smoother.flush()
+            frames = self._scaled(frames, metric)
+        if smooth and self.media.kind not in ("image", "stream"):
+            frames = _smoothed(frames, StreamingSmoother(self.recording))
+        for frame in frames:
+            if written:
+                written(frame, images.pop(frame), self.media)
+            yield frame
 
     def _doubted(self) -> Iterator[tuple[Frame, np.ndarray]]:
         """The doubts stage: each frame with its people's doubts marked (held back while a
@@ -155,34 +157,34 @@ class FileStream:
             yield from doubts.push(frame, (frame, rgb))
         yield from doubts.flush()
 
-    def _scaled(self, frames: Iterator[tuple[Frame, np.ndarray]], options: MetricOptions,
-                images: bool) -> Iterator[tuple[Frame, np.ndarray | None]]:
-        """The metric stage: frames at their tracks' metric scale, with their images where a
-        tap needs them (None otherwise)."""
+    def _scaled(self, frames: Iterator[Frame], options: MetricOptions) -> Iterator[Frame]:
+        """The metric stage: frames at their tracks' metric scale."""
         scaler = MetricStage(replace(self.recording), options)
-        held = _Images(self.media) if images else None
-
-        def out(done: list[Frame]) -> Iterator[tuple[Frame, np.ndarray | None]]:
+        for frame in frames:
+            done = scaler.push(frame)
             self.recording.intrinsics = scaler.intrinsics   # the header tells the lens the poses were solved with
-            for frame in done:
-                yield frame, held.pop(frame) if held else None
-
-        for frame, rgb in frames:
-            if held:
-                held.push(rgb)
-            yield from out(scaler.push(frame))
-        yield from out(scaler.flush())
+            yield from done
+        yield from scaler.flush()
+        self.recording.intrinsics = scaler.intrinsics
         self.recording.floor, self.notes = scaler.floor, scaler.notes
 
 
-def _tapped(frames: Iterator[tuple[Frame, np.ndarray]], tap: OnFrame | None,
-            media: Media) -> Iterator[tuple[Frame, np.ndarray]]:
+def _smoothed(frames: Iterator[Frame], smoother: StreamingSmoother) -> Iterator[Frame]:
+    """The smoothing stage (a few seconds late; the whole video's smoothing)."""
+    for frame in frames:
+        yield from smoother.push(frame)
+    yield from smoother.flush()
+
+
+def _tapped(frames: Iterator[tuple[Frame, np.ndarray]], tap: OnFrame | None, media: Media,
+            images: _Images | None = None) -> Iterator[tuple[Frame, np.ndarray]]:
+    """The frames, each shown to `tap` and its image held for a later stage's tap (`images`)."""
     for frame, rgb in frames:
         if tap:
             tap(frame, rgb, media)
+        if images:
+            images.push(rgb)
         yield frame, rgb
-
-
 
 
 class PoseEstimator:
@@ -388,9 +390,9 @@ class PoseEstimator:
         """Poses for every frame of an image, a video or a folder of images, held in the
         Recording (`stream_file(...).poses()` for long videos): the chain, each frame decoded
         once and handed to `on_frame` (overlays, progress bars) with its result as it leaves
-        the metric stage (with `metric`) or its ids are confirmed (without)."""
+        the chain (as the Recording holds it)."""
         stream = self.stream_file(path, intrinsics, frames)
-        stream.recording.frames = list(stream.poses(smooth, metric, {"metric": on_frame}))
+        stream.recording.frames = list(stream.poses(smooth, metric, {"written": on_frame}))
         return stream.recording
 
 

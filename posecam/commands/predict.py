@@ -123,15 +123,15 @@ def explain_empty(sm: InputSummary, min_detection_score: float, min_presence: fl
 def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=None, draw=None, smooth: bool = True,
                    keep: bool = False, emitted=None, metric=None, frames=None, stop=None) -> tuple[list, list[InputSummary]]:
     """Predict each input through the chain (`FileStream.poses`): a progress bar moves as each
-    frame's ids are confirmed; each frame is drawn (`draw(frame, rgb, media)`) at its track's
-    metric scale (`metric`, MetricOptions), then smoothed (videos), handed to `emitted(frame,
+    frame's ids are confirmed; each frame is scaled (`metric`, MetricOptions), smoothed
+    (videos), drawn (`draw(frame, rgb, media)`) as it is written, handed to `emitted(frame,
     recording)` (angles, plots), written (`writer`, a PoseWriter) and counted. The recordings
     hold their frames only with `keep` (markers and the 3D view need them); `frames`: the
     FrameSelection of each video or sequence; `stop` (an Event): a live source ends when it is set,
     and its pose file is flushed frame by frame."""
     from posecam.commands.common import frame_progress
 
-    taps = {"confirm": frame_progress(progress), "metric": draw}
+    taps = {"confirm": frame_progress(progress), "written": draw}
     recordings, summaries = [], []
     for path in inputs:
         stream = estimator.stream_file(path, intrinsics, frames)
