@@ -27,15 +27,26 @@ predictions' truth offsets and matched across views by the bench's yardstick.
    what fuse reports now (`calibrate.bootstrap_spreads`: the adjustment alone, warm-started),
    and the camera's error against the lab (rotation of the pair with the reference, focal length,
    centre). The ratio spread / error, median over the cameras, says which one means something.
+4. `--volume` (alone): the volume the people cover, the frames, the bias. The single take's man
+   (his joints DLT-triangulated through the lab rig) in place as recorded, carried along a 2 m
+   line, and over a 4 x 3 m area turning about the vertical (Human3.6M's subjects walk such an
+   area), in takes of 100, 400 and 1600 frames (his 100 poses played forwards and back); seen
+   through the lab cameras (joints behind a camera or outside its image unseen), his keypoints
+   the lab projections plus the bias vectors measured in part 1 per (view, joint), and/or
+   Gaussian noise at part 1's level per (view, joint); each view a Recording as
+   tests/synth_rig.monocular_views makes them with the lab lens given. The rig
+   `fuse_recordings` estimates (offsets 0) against the lab's, lens held and every lens
+   estimated; and each pair of cameras alone on the largest volume. Seeded: it repeats.
 
 Usage: python bench/bench_rig_limit.py [--cache DIR] [--heavy MODEL.onnx] [--take single|multi|both]
-       [--boot N] [--skip-movenet]
+       [--boot N] [--skip-movenet] [--volume]
 Predictions are cached under DIR/<set>/<take>/camNN.json (made once with `posecam predict`).
 """
 
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import os
 import shutil
@@ -52,6 +63,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import bench_fuse as bf  # noqa: E402  (the yardstick: lab rig, truth offsets, plain DLT)
 
 ROOT = bf.ROOT
+sys.path.insert(0, str(ROOT / "tests"))   # synth_rig: the tests' synthetic recordings
 BIAS_CELLS = 8          # the largest (view, joint) biases taken out in the "a few" variant
 BLOCK = 10              # frames per block of the bootstrap
 MOVENET_SIZES = (256, 384)
@@ -140,23 +152,24 @@ def keypoint_sets(cache: Path, take: str, heavy: str | None, movenet: bool) -> d
 
 # ---- 1. at the lab rig ------------------------------------------------------------------------
 
-def lab_residuals(truth: bf.Truth) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def lab_residuals(truth: bf.Truth) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(V, P, F, J, 2) normalised keypoints and (V, P, F, J) confidences of the people at the
-    truth offsets, and their DLT reprojection residual vectors through the lab rig in pixels
-    (NaN where unused)."""
+    truth offsets, their DLT reprojection residual vectors through the lab rig in pixels
+    (NaN where unused) and the DLT points (P, F, J, 3) lab mm."""
     uv, conf = truth._matched(truth.combination, smooth=False)                  # as detected, not low-passed
     v, p, f, j = conf.shape
     w = (conf >= 0.5).astype(float).reshape(v, p * f, j)
     flat = uv.reshape(v, p * f, j, 2)
     P = np.stack([np.c_[c["R"], c["t"]] for c in truth.cams])
     fx = np.array([c["K"][0, 0] for c in truth.cams])
-    res = np.full(flat.shape, np.nan)
+    res, points = np.full(flat.shape, np.nan), np.full((p * f, j, 3), np.nan)
     for k in range(j):
         pts, _ = bf.dlt(truth.cams, flat[:, :, k], w[:, :, k])
+        points[:, k] = pts
         pc = np.einsum("vij,nj->vni", P[:, :, :3], pts) + P[:, None, :, 3]
         r = (pc[..., :2] / pc[..., 2:3] - flat[:, :, k]) * fx[:, None, None]
         res[:, :, k] = np.where((w[:, :, k] > 0)[..., None] & np.isfinite(pts).all(axis=1)[None, :, None], r, np.nan)
-    return uv, conf, res.reshape(uv.shape)
+    return uv, conf, res.reshape(uv.shape), points.reshape(p, f, j, 3)
 
 
 def bias_noise(res: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -198,7 +211,7 @@ def adjust_from_lab(truth: bf.Truth, uv: np.ndarray, conf: np.ndarray, joints: t
 def at_lab(label: str, truth: bf.Truth, joints: tuple) -> dict:
     from posecam.multiview.bundle import LEFT_OUT
 
-    uv, conf, res = lab_residuals(truth)
+    uv, conf, res, _ = lab_residuals(truth)
     bias, noise, count = bias_noise(res)
     size = np.linalg.norm(bias, axis=-1)                                          # (V, P, J) px
     n_v, n_p, n_f, n_j = conf.shape
@@ -350,6 +363,150 @@ def spreads(truth: bf.Truth, folder: Path, n_boot: int, seed: int = 0) -> None:
           f"reported {np.median(ratios['reported']):.2f}")
 
 
+# ---- 4. the volume the people cover: the real bias and noise on the real poses, carried about --
+
+PATHS = ("in place", "2 m line", "4 x 3 m area")
+TAKE_FRAMES = (100, 400, 1600)
+ERRORS = ("bias", "noise", "both")
+BIAS_SCALES = (0.5, 0.25)
+GAUSS_MEDIAN = np.sqrt(2 * np.log(2))   # median distance of a 2D Gaussian from its centre, in sigmas
+MIN_SEEN = 9                            # joints inside an image for its camera to detect the person
+
+
+def real_person(truth: bf.Truth) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The take's person (F, J, 3): the frames where every joint is DLT-triangulated through the
+    lab rig (lab mm, z up); their (V, J, 2) bias vectors (detected - lab reprojection) and (V, J)
+    Gaussian sigmas in px, as measured at the lab rig (part 1)."""
+    _, _, res, points = lab_residuals(truth)
+    whole = np.isfinite(points).all(axis=(2, 3))                                 # (P, F)
+    person = int(np.argmax(whole.sum(axis=1)))
+    bias, noise, _ = bias_noise(res)
+    sigma = noise[:, person] / GAUSS_MEDIAN
+    return (points[person][whole[person]], -np.nan_to_num(bias[:, person]),
+            np.where(np.isfinite(sigma), sigma, np.nanmedian(sigma)))
+
+
+def carried(world: np.ndarray, path: str, n: int) -> np.ndarray:
+    """The real poses (F, J, 3) played forwards and back to n frames, carried over the take: in
+    place (as recorded), along a 2 m line (the lab's x), or on a Lissajous path over a 4 x 3 m
+    area centred on the take, turning twice about the vertical through the pelvis."""
+    from scipy.spatial.transform import Rotation
+
+    f = len(world)
+    k = np.arange(n) % (2 * f)
+    poses = world[np.where(k < f, k, 2 * f - 1 - k)]
+    s = np.arange(n) / n
+    if path == "in place":
+        return poses
+    if path == "2 m line":
+        return poses + np.c_[2000 * s - 1000, 0 * s, 0 * s][:, None]
+    root = poses[:, :1] * [1, 1, 0]
+    turned = np.einsum("fij,fkj->fki", Rotation.from_rotvec(np.c_[0 * s, 0 * s, 4 * np.pi * s]).as_matrix(),
+                       poses - root)
+    return turned + root + np.c_[2000 * np.sin(6 * np.pi * s), 1500 * np.sin(4 * np.pi * s + 0.5), 0 * s][:, None]
+
+
+def synthetic_views(cams: list, world: np.ndarray, bias: np.ndarray, sigma: np.ndarray, errors: str,
+                    seed: int) -> tuple[list, float]:
+    """Per lab camera, the Recording `posecam predict` would write with the lab lens given
+    (tests/synth_rig.monocular_views: monocular 3D with 25 mm joint and 50 mm root-depth noise),
+    its keypoints the undistorted projections (a user who knows the lens takes it out) plus the
+    measured bias and/or Gaussian noise; joints behind the camera or outside its (distorted)
+    image unseen, the person undetected with fewer than MIN_SEEN joints in. And the share of
+    (view, frame) that detect the person."""
+    from dataclasses import replace
+
+    from synth_rig import monocular_views
+
+    pc = np.stack([c.to_camera(world) for c in cams])                            # (V, F, J, 3)
+    px = np.stack([c.project(world) for c in cams])
+    size = np.array([c.size for c in cams])[:, None, None]
+    inside = (pc[..., 2] > 0) & (px >= 0).all(axis=-1) & (px < size).all(axis=-1)
+    visible = inside.sum(axis=-1) >= MIN_SEEN                                     # (V, F)
+    recs = monocular_views([replace(c, distortion=np.zeros(4)) for c in cams], world, seed=seed, pixel_noise=0.0,
+                           outlier_rate=0.0, visible=visible[None], known_lens=True)
+    rng = np.random.default_rng(seed)
+    err = np.zeros(px.shape)                                                      # (V, F, J, 2)
+    if errors in ("bias", "both"):
+        err += bias[:, None]
+    if errors in ("noise", "both"):
+        err += rng.normal(size=px.shape) * sigma[:, None, :, None]
+    for v, rec in enumerate(recs):
+        rec.fps = 60.0
+        for frame in rec.frames:
+            for person in frame.people:
+                person.keypoints_2d = person.keypoints_2d + err[v, frame.index]
+                person.confidence = np.where(inside[v, frame.index], person.confidence, 0.0)
+    return recs, float(visible.mean())
+
+
+def rig_errors(recs: list, cams: list, **options) -> tuple[float, float, float, int]:
+    """`fuse_recordings` without a calibration, offsets 0: the relative rotation error against
+    the lab's (median and worst over the pairs of kept cameras, deg), the worst focal length error
+    (%) and the cameras kept; NaNs if it refuses."""
+    from posecam.multiview.fuse import FuseOptions, fuse_recordings
+    from synth_rig import relative_rotation_error_deg
+
+    try:
+        res = fuse_recordings(recs, FuseOptions(sync=False, **options))
+    except Exception as exc:  # a refusal is a figure too
+        print(f"      refused: {type(exc).__name__}: {str(exc)[:120]}")
+        return np.nan, np.nan, np.nan, 0
+    lab = {c.name: c for c in cams}
+    est = res.rig.cameras
+    rot = [relative_rotation_error_deg(a.rotation, b.rotation, lab[a.name].rotation, lab[b.name].rotation)
+           for a, b in itertools.combinations(est, 2)]
+    focal = max(abs(100 * (c.intrinsics.fx / lab[c.name].intrinsics.fx - 1)) for c in est)
+    return float(np.median(rot)) if rot else np.nan, max(rot, default=np.nan), focal, len(est)
+
+
+def volume(truth: bf.Truth, seed: int = 0) -> None:
+    """The real bias and noise of the single take's keypoints, on its real poses carried over
+    larger paths and longer takes, through the lab cameras: the rig `fuse_recordings` estimates
+    with the lab lens held and with every lens estimated, and each pair of cameras alone on the
+    largest volume."""
+    from posecam.io.calibration import read_calibration
+
+    rig = read_calibration(ROOT / bf.TAKES["single"][0] / "Calib.qca.txt")
+    cams = [rig.camera(n) for n in bf.NAMES]
+    world, bias, sigma = real_person(truth)
+    common = np.linalg.norm(bias.mean(axis=1), axis=-1)                          # (V,) px
+    print(f"== volume: {len(world)} real poses; bias median {np.median(np.linalg.norm(bias, axis=-1)):.1f} px "
+          f"(per view, mean vector over the joints: {', '.join(f'{c:.1f}' for c in common)}), noise sigma median "
+          f"{np.median(sigma):.1f} px; rotation median / worst pair (deg), held lens | every lens estimated, "
+          "+ worst focal (%)")
+    print(f"   {'path':14s} {'frames':>6s} {'seen':>5s}  " + "  ".join(f"{e:>24s}" for e in ERRORS) + "   time")
+    for path in PATHS:
+        for n in TAKE_FRAMES:
+            t0 = time.perf_counter()
+            cells, seen = [], 0.0
+            for errors in ERRORS:
+                recs, seen = synthetic_views(cams, carried(world, path, n), bias, sigma, errors, seed)
+                held, free = rig_errors(recs, cams), rig_errors(recs, cams, free_intrinsics=True)
+                cells.append(f"{held[0]:4.2f}/{held[1]:4.2f} | {free[0]:4.2f}/{free[1]:4.2f} {free[2]:4.1f}"
+                             + ("" if held[3] == free[3] == 4 else f" ({held[3]}|{free[3]} cams)"))
+            print(f"   {path:14s} {n:6d} {100 * seen:4.0f}%  " + "  ".join(f"{c:>24s}" for c in cells)
+                  + f"   {time.perf_counter() - t0:.0f} s", flush=True)
+    print(f"   both, the bias scaled (a less biased keypoint model), held lens, {TAKE_FRAMES[0]} frames: rotation "
+          "median / worst pair (deg)")
+    for path in PATHS:
+        row = []
+        for scale in BIAS_SCALES:
+            recs, _ = synthetic_views(cams, carried(world, path, TAKE_FRAMES[0]), scale * bias, sigma, "both", seed)
+            row.append(f"x{scale:g} {'{:.2f}/{:.2f}'.format(*rig_errors(recs, cams)[:2])}")
+        print(f"      {path:14s} {', '.join(row)}", flush=True)
+    path, n = PATHS[-1], TAKE_FRAMES[-1]
+    print(f"   each pair alone, held lens, {path}, {n} frames: rotation error (deg) [frames both cameras see]")
+    for errors in ERRORS:
+        recs, _ = synthetic_views(cams, carried(world, path, n), bias, sigma, errors, seed)
+        rows = []
+        for a, b in itertools.combinations(range(len(cams)), 2):
+            both = np.mean([bool(fa.people and fb.people) for fa, fb in zip(recs[a].frames, recs[b].frames)])
+            rows.append(f"{bf.NAMES[a][-2:]}+{bf.NAMES[b][-2:]} {rig_errors([recs[a], recs[b]], cams)[0]:.2f} "
+                        f"[{100 * both:.0f}%]")
+        print(f"      {errors:5s}: {', '.join(rows)}", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--cache", type=Path, default=Path("/tmp/rig_limit_cache"))
@@ -357,7 +514,12 @@ def main() -> None:
     ap.add_argument("--take", choices=[*bf.TAKES, "both"], default="both")
     ap.add_argument("--boot", type=int, default=20, help="bootstrap replicates (0: no spreads part)")
     ap.add_argument("--skip-movenet", action="store_true")
+    ap.add_argument("--volume", action="store_true", help="only part 4: the single take's bias and noise on its "
+                    "poses carried over larger paths and longer takes")
     args = ap.parse_args()
+    if args.volume:
+        predict(args.cache, "full", "single", None)
+        return volume(bf.Truth("single", args.cache / "full"))
     for take in bf.TAKES:
         if args.take not in (take, "both"):
             continue
