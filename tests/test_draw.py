@@ -1,4 +1,5 @@
-"""Overlays: each person's label stays inside the image and clear of the others' labels."""
+"""Overlays: each person's label stays inside the image, clear of the others' labels and, where
+there is room, of the other people."""
 
 import numpy as np
 
@@ -26,3 +27,14 @@ def test_labels_of_a_crowd_stay_inside_and_apart():
 def test_a_label_with_room_sits_just_above_its_person():
     (corner,) = place_labels([(100, 20)], [(200.0, 150.0)], 768, 576)
     assert corner == (200, 130)
+
+
+def test_a_label_keeps_off_a_neighbour_where_it_can():
+    """vtest frame 720: a label at its person's top-left ran across a taller neighbour's legs."""
+    owners = [(300.0, 120.0, 330.0, 200.0), (310.0, 60.0, 340.0, 180.0)]    # the second stands behind, higher
+    sizes = [(110, 18), (110, 18)]
+    corners = place_labels(sizes, [(300.0, 116.0), (310.0, 56.0)], 768, 576, owners=owners)
+    (x, y), (w, h) = corners[0], sizes[0]
+    x0, y0, x1, y1 = owners[1]
+    assert x + w <= x0 or x1 <= x or y + h <= y0 or y1 <= y, (corners[0], owners[1])
+    assert corners == place_labels(sizes, [(300.0, 116.0), (310.0, 56.0)], 768, 576, owners=owners)

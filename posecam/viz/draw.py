@@ -20,24 +20,33 @@ def _side_colour(name: str) -> tuple[int, int, int]:
     return CENTRE
 
 
+def _apart(a: tuple[int, int, int, int], b: tuple[int, int, int, int], gap: int) -> bool:
+    """Whether boxes (x, y, w, h) a and b are at least `gap` px apart."""
+    (x, y, w, h), (x0, y0, w0, h0) = a, b
+    return x + w + gap <= x0 or x0 + w0 + gap <= x or y + h + gap <= y0 or y0 + h0 + gap <= y
+
+
 def place_labels(sizes: list[tuple[int, int]], anchors: list[tuple[float, float]], width: int,
-                 height: int, gap: int = 2) -> list[tuple[int, int]]:
+                 height: int, gap: int = 2, owners: list[tuple[float, float, float, float]] | None = None
+                 ) -> list[tuple[int, int]]:
     """Top-left corners for text boxes of `sizes` (w, h), each as near as it can be to its
     anchor (the bottom-left corner it wants), inside the image and clear of the boxes placed
-    before it: tried at the anchor, then stepped down and up a box height at a time."""
+    before it: tried at the anchor, then stepped down and up a box height at a time. With
+    `owners` (the x0, y0, x1, y1 box of what each label names), a label also keeps off the
+    other owners' boxes where a step allows (a label across a neighbour's body hides it)."""
+    others = [(int(x0), int(y0), int(x1 - x0), int(y1 - y0)) for x0, y0, x1, y1 in owners or []]
     placed: list[tuple[int, int, int, int]] = []
     corners = []
-    for (w, h), (ax, ay) in zip(sizes, anchors):
+    for i, ((w, h), (ax, ay)) in enumerate(zip(sizes, anchors)):
         x = int(np.clip(ax, 0, max(width - w, 0)))
         want = int(np.clip(ay - h, 0, max(height - h, 0)))
         steps = [0] + [sign * k for k in range(1, 2 * len(sizes) + 1) for sign in (1, -1)]
-        for step in steps:
-            y = int(np.clip(want + step * (h + gap), 0, max(height - h, 0)))
-            if all(x + w + gap <= x0 or x0 + w0 + gap <= x or y + h + gap <= y0 or y0 + h0 + gap <= y
-                   for x0, y0, w0, h0 in placed):
-                break
-        placed.append((x, y, w, h))
-        corners.append((x, y))
+        boxes = [(x, int(np.clip(want + step * (h + gap), 0, max(height - h, 0))), w, h) for step in steps]
+        free = [b for b in boxes if all(_apart(b, q, gap) for q in placed)] or boxes[:1]
+        clear = [b for b in free if all(_apart(b, q, 0) for j, q in enumerate(others) if j != i)]
+        box = (clear or free)[0]
+        placed.append(box)
+        corners.append(box[:2])
     return corners
 
 
@@ -54,19 +63,21 @@ def draw_people(image_rgb: np.ndarray, people: list[Person], joints: tuple[str, 
     for p in people:
         uv = p.keypoints_2d
         ok = p.confidence >= min_confidence
+        line = int(np.clip(round((p.bbox[3] - p.bbox[1]) / 40), 1, thick))   # a small person's joints stay apart
         for a, b in skeleton.bone_indices:
             if ok[a] and ok[b]:
                 cv2.line(out, tuple(np.round(uv[a]).astype(int)), tuple(np.round(uv[b]).astype(int)),
-                         DOUBTED if p.doubts else _side_colour(joints[b]), thick, cv2.LINE_AA)
+                         DOUBTED if p.doubts else _side_colour(joints[b]), line, cv2.LINE_AA)
         for j in np.flatnonzero(ok):
-            cv2.circle(out, tuple(np.round(uv[j]).astype(int)), thick + 1, (255, 255, 255), -1, cv2.LINE_AA)
+            cv2.circle(out, tuple(np.round(uv[j]).astype(int)), line + 1, (255, 255, 255), -1, cv2.LINE_AA)
     labels = [f"#{p.id}{'?' if p.doubts else ''} z={p.root[2] / 1000:.2f} m" for p in people]
     sizes, baselines = [], []
     for label in labels:
         (w, h), base = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, font, thick + 2)
         sizes.append((w + 2, h + base + 2))
         baselines.append(base)
-    corners = place_labels(sizes, [(p.bbox[0], p.bbox[1] - 4) for p in people], out.shape[1], out.shape[0])
+    corners = place_labels(sizes, [(p.bbox[0], p.bbox[1] - 4) for p in people], out.shape[1], out.shape[0],
+                           owners=[tuple(p.bbox) for p in people])
     for label, (x, y), (w, h), base in zip(labels, corners, sizes, baselines):
         org = (x + 1, y + h - base - 1)
         cv2.putText(out, label, org, cv2.FONT_HERSHEY_SIMPLEX, font, (0, 0, 0), thick + 2, cv2.LINE_AA)
