@@ -37,9 +37,16 @@ predictions' truth offsets and matched across views by the bench's yardstick.
    tests/synth_rig.monocular_views makes them with the lab lens given. The rig
    `fuse_recordings` estimates (offsets 0) against the lab's, lens held and every lens
    estimated; and each pair of cameras alone on the largest volume. Seeded: it repeats.
+5. `--essential` (alone): two cameras whose lenses are known (each view predicted with its lab
+   intrinsics, `bench_fuse.predict_lab`), at the truth offsets: the relative pose from their 2D
+   joints (OpenCV's five-point essential matrix with RANSAC on the associated joints, then
+   recoverPose; the baseline at the consensus's length) against posecam's start (the consensus
+   of the monocular poses), each then refined by the same bundle adjustment (lens held): the
+   rotation against the lab's at the start and after, the reprojection error, and how far the
+   monocular poses sit from each other under the refined rig (mm, `stretch_residuals`).
 
 Usage: python bench/bench_rig_limit.py [--cache DIR] [--heavy MODEL.onnx] [--take single|multi|both]
-       [--boot N] [--skip-movenet] [--volume]
+       [--boot N] [--skip-movenet] [--volume] [--essential]
 Predictions are cached under DIR/<set>/<take>/camNN.json (made once with `posecam predict`).
 """
 
@@ -507,6 +514,51 @@ def volume(truth: bf.Truth, seed: int = 0) -> None:
         print(f"      {errors:5s}: {', '.join(rows)}", flush=True)
 
 
+def essential(truth: bf.Truth, folder: Path) -> None:
+    """Part 5 (module docstring): every pair, the essential-matrix start against the consensus's."""
+    from dataclasses import replace
+
+    from posecam import read_poses
+    from posecam.geometry.camera import Rig
+    from posecam.multiview.associate import associate_people
+    from posecam.multiview.bundle import bundle_adjust
+    from posecam.multiview.calibrate import _bone_lengths, _consensus
+    from posecam.multiview.consensus import stretch_residuals
+    from posecam.multiview.fuse import FuseOptions, check_take, known_lenses
+    from posecam.multiview.observations import Observations
+
+    recs = [read_poses(folder / f"{n}.json")[0] for n in bf.NAMES]
+
+    def error(r: np.ndarray, a: int, b: int) -> float:
+        lab = truth.cams[b]["R"] @ truth.cams[a]["R"].T
+        return float(np.degrees(np.linalg.norm(cv2.Rodrigues(r @ lab.T)[0])))
+
+    print("   pair         start: consensus / essential (RANSAC inliers)  refined: deg, px, monocular poses apart mm")
+    for a, b in itertools.combinations(range(4), 2):
+        opts = FuseOptions(offsets=[0.0, truth.combination[b] - truth.combination[a]])
+        take = check_take([recs[a], recs[b]], opts)
+        opts = replace(opts, bundle_options=replace(opts.bundle_options, fixed_intrinsics=known_lenses(take, opts)))
+        people = take.observations(associate_people(take, None, opts.offsets, 0.5).people, opts.offsets, [0, 1])
+        obs = Observations.side_by_side(people)
+        seen = (obs.conf >= 0.5).all(axis=0) & np.isfinite(obs.uv).all(axis=(0, -1))
+        na, nb = (take.assumed[v].normalise(obs.uv[v][seen]) for v in (0, 1))
+        e, inliers = cv2.findEssentialMat(na, nb, np.eye(3), cv2.RANSAC, 0.999, 3.0 / take.assumed[0].intrinsics.fx)
+        _, r, t, _ = cv2.recoverPose(e, na, nb, np.eye(3), mask=inliers)
+        start = _consensus(take.assumed, people, [0, 1], 0, 0.5, opts.bundle_options.fixed_intrinsics)
+        ess = Rig([start.cameras[0], replace(start.cameras[1], rotation=r,
+                                             translation=t.ravel() * np.linalg.norm(start.cameras[1].translation))],
+                  start.reference)
+        row = []
+        for rig in (start, ess):
+            fit = bundle_adjust(rig, obs.uv, obs.conf, _bone_lengths(obs, take.joints, 0.5), take.joints,
+                                opts.bundle_options)
+            apart = stretch_residuals(fit.rig, take.assumed, obs, np.array([0, obs.conf.shape[1]]), 0.5)
+            row.append(f"{error(fit.rig.cameras[1].rotation, a, b):5.2f}, {np.nanmedian(fit.median_error_px):.1f}, "
+                       f"{np.nanmedian(apart):.0f}")
+        print(f"   {bf.NAMES[a]}+{bf.NAMES[b]}  {error(start.cameras[1].rotation, a, b):5.2f} / {error(r, a, b):5.2f} "
+              f"({int(inliers.sum())} of {len(na)})     consensus {row[0]}; essential {row[1]}", flush=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--cache", type=Path, default=Path("/tmp/rig_limit_cache"))
@@ -516,7 +568,17 @@ def main() -> None:
     ap.add_argument("--skip-movenet", action="store_true")
     ap.add_argument("--volume", action="store_true", help="only part 4: the single take's bias and noise on its "
                     "poses carried over larger paths and longer takes")
+    ap.add_argument("--essential", action="store_true", help="only part 5: two cameras with known lenses, the "
+                    "essential-matrix start against the consensus's")
     args = ap.parse_args()
+    if args.essential:
+        for take in bf.TAKES:
+            if args.take in (take, "both"):
+                predict(args.cache, "full", take, None)
+                bf.predict_lab(args.cache / "full", take)
+                print(f"== {take}: pairs with the lab lens, at the truth offsets")
+                essential(bf.Truth(take, args.cache / "full"), args.cache / "full" / f"{take}_lab")
+        return
     if args.volume:
         predict(args.cache, "full", "single", None)
         return volume(bf.Truth("single", args.cache / "full"))
