@@ -27,24 +27,29 @@ def _apart(a: tuple[int, int, int, int], b: tuple[int, int, int, int], gap: int)
 
 
 def place_labels(sizes: list[tuple[int, int]], anchors: list[tuple[float, float]], width: int,
-                 height: int, gap: int = 2, owners: list[tuple[float, float, float, float]] | None = None
-                 ) -> list[tuple[int, int]]:
+                 height: int, gap: int = 2, owners: list[tuple[float, float, float, float]] | None = None,
+                 near: int = 2) -> list[tuple[int, int]]:
     """Top-left corners for text boxes of `sizes` (w, h), each as near as it can be to its
     anchor (the bottom-left corner it wants), inside the image and clear of the boxes placed
     before it: tried at the anchor, then stepped down and up a box height at a time. With
-    `owners` (the x0, y0, x1, y1 box of what each label names), a label also keeps off the
-    other owners' boxes where a step allows (a label across a neighbour's body hides it)."""
+    `owners` (the x0, y0, x1, y1 box of what each label names), a label first tries to keep off
+    the other owners' boxes within `near` steps of its anchor, left-aligned with its owner or
+    right-aligned (a label across a neighbour's body hides it; one far off loses its owner)."""
     others = [(int(x0), int(y0), int(x1 - x0), int(y1 - y0)) for x0, y0, x1, y1 in owners or []]
     placed: list[tuple[int, int, int, int]] = []
     corners = []
     for i, ((w, h), (ax, ay)) in enumerate(zip(sizes, anchors)):
-        x = int(np.clip(ax, 0, max(width - w, 0)))
         want = int(np.clip(ay - h, 0, max(height - h, 0)))
         steps = [0] + [sign * k for k in range(1, 2 * len(sizes) + 1) for sign in (1, -1)]
-        boxes = [(x, int(np.clip(want + step * (h + gap), 0, max(height - h, 0))), w, h) for step in steps]
-        free = [b for b in boxes if all(_apart(b, q, gap) for q in placed)] or boxes[:1]
-        clear = [b for b in free if all(_apart(b, q, 0) for j, q in enumerate(others) if j != i)]
-        box = (clear or free)[0]
+        xs = [int(np.clip(ax, 0, max(width - w, 0)))]
+        if owners:
+            xs.append(int(np.clip(owners[i][2] - w, 0, max(width - w, 0))))
+        boxes = [(x, int(np.clip(want + step * (h + gap), 0, max(height - h, 0))), w, h, abs(step))
+                 for step in steps for x in xs]
+        free = [b[:4] for b in boxes if all(_apart(b[:4], q, gap) for q in placed)]
+        clear = [b[:4] for b in boxes if b[4] <= near and b[:4] in free
+                 and all(_apart(b[:4], q, 0) for j, q in enumerate(others) if j != i)]
+        box = (clear or [b for b in free if b[0] == xs[0]] or [boxes[0][:4]])[0]
         placed.append(box)
         corners.append(box[:2])
     return corners
