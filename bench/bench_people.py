@@ -4,6 +4,7 @@
                                  [--vtest PATH [--vtest-frames N] [--overlay OUT.mp4]]
                                  [--before CHECKOUT [--runs 3]] [--appearance on|off]
                                  [--ids-table [--contact-sheet OUT.png]]
+                                 [--vtest PATH --jitter K]
 
 1. Pose2Sim's two-person take (`Demo_MultiPerson`, 4 portrait cameras 1088x1920, 100 frames,
    the lab's Qualisys calibration), each camera run with the lab intrinsics. The reference
@@ -43,6 +44,14 @@ off` gives ids from motion alone (the tracker before the embedder). With --befor
 older `posecam/`) the bench runs --runs times, each time the older code then this one, each in
 its own process, and prints both side by side: medians of the frames per second, the other
 figures of the last run (they do not change from run to run: it says so if they did).
+With --jitter K (needs --vtest) vtest.avi runs K + 1 times, each in its own process: once as
+decoded, then K times with a perturbation no one could see: in every frame each pixel, with
+probability JITTER (1 in 20000, the share on which two OpenCV builds' decodings of vtest.avi
+differ), moves one grey level up or down in all three channels, drawn from a generator seeded
+with the run number (1..K: the same frames every time). It prints each run's found, frames with
+nobody, ids, people per frame and the first frame whose count of people differs from the plain
+run's, then their median, min and max: the tracker's figures move with such noise, so one run
+is one draw.
 """
 
 from __future__ import annotations
@@ -95,6 +104,7 @@ VTEST_MATCH = 0.5       # a posecam person's box centre within this many heights
 FALSE_START = 10        # frames: an id seen on fewer is a false start (--ids-table)
 SLID = 5                # frames: an id that ends this soon after another is born on its person slid off them
 BACK, WALK = 100, 0.05  # frames, heights a frame: an id that ended this long before, within 1 + WALK * gap heights
+JITTER = 1 / 20000      # --jitter: share of a frame's pixels moved by one grey level
 
 
 def demo_path(relative: str) -> Path:
@@ -107,6 +117,19 @@ def read_frames(video: Path, limit: int | None = None) -> list[np.ndarray]:
     from posecam.io.media import open_media   # posecam from PYTHONPATH: the code measured
 
     return [rgb for _, (_, _, rgb) in zip(range(limit or 10 ** 9), open_media(video).frames())]
+
+
+def jittered(frames: list[np.ndarray], seed: int) -> list[np.ndarray]:
+    """The frames with each pixel, with probability JITTER, one grey level up or down in all
+    three channels (clipped to 0..255), drawn from a generator seeded with `seed` (see --jitter)."""
+    rng, out = np.random.default_rng(seed), []
+    for rgb in frames:
+        ys, xs = np.nonzero(rng.random(rgb.shape[:2]) < JITTER)
+        step = rng.choice(np.array([-1, 1], np.int16), size=len(ys))[:, None]
+        rgb = rgb.copy()
+        rgb[ys, xs] = np.clip(rgb[ys, xs] + step, 0, 255).astype(np.uint8)
+        out.append(rgb)
+    return out
 
 
 def video_fps(video: Path) -> float | None:
@@ -364,6 +387,8 @@ def vtest(args) -> dict:
     from posecam.viz.sinks import VideoSink
 
     frames = read_frames(Path(args.vtest), args.vtest_frames)
+    if args.noise:
+        frames = jittered(frames, args.noise)
     est = estimator(args)
     work = {"detector": count_runs(est.detector.model), "pose": count_runs(est.pose_model.model)}
     t0 = time.perf_counter()
@@ -397,7 +422,8 @@ def vtest(args) -> dict:
     return {"found": f"{found}/{total}", "empty": int((c == 0).sum()), "ids": ids,
             "per_frame": round(float(c.mean()), 2), "fps": fps, "embed_ms": embedder_ms(est, len(c)),
             **{f"{n} images/frame": round(w["images"] / len(c), 2) for n, w in work.items()},
-            **{f"{n} ms/frame": w["seconds"] / len(c) * 1000 for n, w in work.items()}}
+            **{f"{n} ms/frame": w["seconds"] / len(c) * 1000 for n, w in work.items()},
+            **({"counts": c.tolist()} if args.noise is not None else {})}   # a --jitter run's
 
 
 def id_rows(people: list[list]) -> list[dict]:
@@ -509,6 +535,36 @@ def before_after(args) -> None:
             print(f"{part + ' ' + name:26s}{cells[0]:>14s}{cells[1]:>14s}")
 
 
+def jitter(args) -> None:
+    """vtest's figures as decoded and with --jitter K perturbations (seeds 1..K), each run in a
+    fresh process: one row a run, then their median, min and max."""
+    i = next(i for i, a in enumerate(sys.argv) if a.startswith("--jitter"))
+    child = sys.argv[1:i] + sys.argv[i + (1 if "=" in sys.argv[i] else 2):]
+    print(f"\nvtest.avi as decoded (run 0) and with 1 pixel in {round(1 / JITTER)} one grey level off "
+          f"(runs 1..{args.jitter}), {options_text(args)}:")
+    print(f"{'run':>4s}{'found':>7s}{'nobody':>8s}{'ids':>5s}{'people/frame':>14s}{'counts differ from':>20s}"
+          f"{'frames/s':>10s}{'s':>6s}")
+    rows = []
+    for seed in range(args.jitter + 1):
+        t0 = time.perf_counter()
+        out = subprocess.run([sys.executable, __file__, *child, "--skip-take", "--json", "--noise", str(seed)],
+                             capture_output=True, text=True, check=True).stdout
+        v = json.loads(out.strip().splitlines()[-1])["vtest"]
+        counts = np.array(v["counts"])
+        plain = rows[0]["counts"] if rows else counts
+        differ = np.flatnonzero(counts != plain)
+        rows.append({"found": int(v["found"].split("/")[0]), "nobody": v["empty"], "ids": v["ids"],
+                     "per_frame": v["per_frame"], "counts": counts, "fps": v["fps"]})
+        print(f"{seed:4d}{rows[-1]['found']:7d}{v['empty']:8d}{v['ids']:5d}{v['per_frame']:14.2f}"
+              f"{'frame ' + str(differ[0]) if len(differ) else '-':>20s}{v['fps']:10.1f}"
+              f"{time.perf_counter() - t0:6.0f}", flush=True)
+    total = sum(len(m) for m in VTEST_PEOPLE.values())
+    for name, pick in (("median", statistics.median), ("min", min), ("max", max)):
+        print(f"{name:>6s} found {pick(r['found'] for r in rows)}/{total}, nobody {pick(r['nobody'] for r in rows)}, "
+              f"ids {pick(r['ids'] for r in rows)}, people/frame {pick(r['per_frame'] for r in rows):.2f}, "
+              f"frames/s {pick(r['fps'] for r in rows):.1f}")
+
+
 def options_text(args) -> str:
     given = {n: getattr(args, n) for n in ("detector", "detector_size", "max_people", "redetect_every",
                                            "min_detection_score", "model") if getattr(args, n) is not None}
@@ -546,10 +602,18 @@ def main() -> None:
                     help="re-identify people by their looks (on: the default) or ids from motion alone (off)")
     ap.add_argument("--ids-table", action="store_true", help="where vtest's ids come from, one row an id (see above)")
     ap.add_argument("--contact-sheet", help="with --ids-table: crops along each id, written to this picture")
+    ap.add_argument("--jitter", type=int, metavar="K",
+                    help="vtest: K more runs, each with its frames perturbed unseen (see above)")
     ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)   # a child's figures, for --before
+    ap.add_argument("--noise", type=int, help=argparse.SUPPRESS)   # a --jitter child's seed (0: frames as decoded)
     a = ap.parse_args()
     if a.before:
         before_after(a)
+        return
+    if a.jitter is not None:
+        if not a.vtest:
+            ap.error("--jitter needs --vtest")
+        jitter(a)
         return
     figures = {}
     if not a.skip_take:
