@@ -30,9 +30,13 @@ and triangulated through the refined rig for its bone-length scale).
 Optionally (`BundleOptions.refine_offsets`, with timed keypoints: posecam.multiview.observations.
 TimedKeypoints) each camera's time offset but the reference's is one more slot of its vector:
 its keypoints are interpolated at it between whole frames (Catmull-Rom), the keypoint's speed
-its exact derivative. Not the default: on Pose2Sim's takes the minimum over rig and offsets
-together lies frames from the lab's offsets (started at them, cam03 of the single take goes
-from 4.2 to 0.8 frames) and the two-person rig's rotation worsens (docs/benchmarks.md).
+its exact derivative. `posecam fuse` does it where it finds the offsets itself (no
+calibration, none given): on Pose2Sim's takes, against the offsets the motion alone gives, the
+worst of the two takes' figures all improve (rotation 5.47 -> 5.06 deg, focal 20.2 -> 15.5 %,
+pelvis 149 -> 87 mm, offsets 4.19 -> 3.60 frames off the lab's), the single take's rotation
+alone worsening (4.27 -> 4.66 deg); started at the lab's offsets the minimum lies frames from
+them (cam03 of the single take goes from 4.2 to 0.8): the offsets are pinned no better than the
+people's motion pins them (docs/benchmarks.md).
 
 The spreads (`CameraSpread`) are cluster-robust: a joint's errors in one view are correlated
 over every frame (the detector's bias for that joint there), so the covariance is a sandwich
@@ -80,8 +84,9 @@ class BundleOptions:
     max_error_px: float = 60.0        # median reprojection error above this: did not converge
     left_out: tuple[str, ...] = LEFT_OUT   # joint names the adjustment does not use
     # with timed keypoints (`bundle_adjust`), each camera's time offset is one more unknown, within
-    # this many frames of where it starts, on keypoints low-passed at offset_lowpass_hz
-    refine_offsets: bool = False
+    # this many frames of where it starts, on keypoints low-passed at offset_lowpass_hz; None:
+    # where fusion finds the offsets itself (posecam.multiview.fuse)
+    refine_offsets: bool | None = None
     offset_window: int = 4
     offset_lowpass_hz: float = 6.0
     # names of the cameras whose intrinsics are known (given, not guessed): focal length and

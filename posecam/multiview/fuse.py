@@ -334,7 +334,10 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
     say = progress or (lambda _msg: None)
     opts = replace(opts, sync=finds_offsets(opts.sync, opts.calibration is not None, opts.offsets is not None))
     take = check_take(recordings, opts)
-    opts = replace(opts, bundle_options=replace(opts.bundle_options, fixed_intrinsics=known_lenses(take, opts)))
+    refine = opts.bundle_options.refine_offsets
+    opts = replace(opts, bundle_options=replace(opts.bundle_options, fixed_intrinsics=known_lenses(take, opts),
+                                                refine_offsets=opts.sync and opts.calibration is None
+                                                if refine is None else refine))
     given = given_cameras(take, opts.calibration) if opts.calibration is not None else None
     rig = given.rig if given else None
     start = _start(take, opts)
