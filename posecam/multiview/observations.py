@@ -54,12 +54,12 @@ def lowpass(a: np.ndarray, seen: np.ndarray, fps: float, hz: float) -> np.ndarra
     and after; NaN for joints seen in fewer than 15 frames."""
     out = np.full(a.shape, np.nan)
     idx = np.arange(len(a))
-    for k in range(a.shape[1]):
-        ok = seen[:, k]
-        if ok.sum() < 15:
-            continue
-        filled = np.stack([np.interp(idx, idx[ok], a[ok, k, d]) for d in range(a.shape[2])], axis=1)
-        out[:, k] = butterworth(filled, fps, hz, order=4)
+    kept = [k for k in range(a.shape[1]) if seen[:, k].sum() >= 15]
+    if not kept:
+        return out
+    filled = np.stack([np.stack([np.interp(idx, idx[seen[:, k]], a[seen[:, k], k, d]) for d in range(a.shape[2])],
+                                axis=1) for k in kept], axis=1)
+    out[:, kept] = butterworth(filled, fps, hz, order=4)       # every joint at once: one pass over the frames
     return out
 
 

@@ -250,6 +250,16 @@ COARSE_SHARE = 0.5              # the coarse search's lags leave each pair of vi
                                 # share of the shorter one's frames
 COARSE_TRACKS = 3               # the longest tracks of each view that the coarse search pairs
 MIN_BONE_PAIRS = 150            # bone observations two views must share at a lag to score it
+# a long take's searches run on every k-th frame (`sampling_step`; the coarse search's cost grows
+# with frames times lags): the bones are low-passed at LOWPASS_HZ, so SAMPLE_RATE samples a
+# second keep them, and at least SAMPLED_FRAMES of the shorter view are kept
+SAMPLE_RATE = 4 * LOWPASS_HZ
+SAMPLED_FRAMES = 300
+
+
+def sampling_step(fps: float, frames: int) -> int:
+    """Every how many frames a search over `frames` frames at `fps` reads its signals."""
+    return max(1, min(int(fps // SAMPLE_RATE), frames // SAMPLED_FRAMES))
 FINE_WINDOW = 3                 # frames either way of the coarse lag that the motion correlation scans
 
 
@@ -351,7 +361,8 @@ def epipolar_px(ref: list[ViewTrack], other: list[ViewTrack], pairing: tuple[tup
 def coarse_offset(ref: list[ViewTrack], other: list[ViewTrack], joints: tuple[str, ...], fps: float,
                   min_conf: float, min_overlap: int) -> CoarseOffset | None:
     """The whole-frame lag of a view against the reference from their people (tracks), over
-    every lag that leaves the two views min_overlap frames: each camera sees every bone
+    every lag that leaves the two views min_overlap frames (a long take's on every
+    `sampling_step`-th frame, the best then refined frame by frame): each camera sees every bone
     (`bone_directions`) turned by its own rotation, so at the right lag one rotation turns all of
     the view's bones onto the reference's and their motions correlate (`_motion_match`), people
     paired one to one with one rotation for them all. Every pairing of the tracks is tried; its
@@ -360,8 +371,10 @@ def coarse_offset(ref: list[ViewTrack], other: list[ViewTrack], joints: tuple[st
     there (`epipolar_px`) wins. None when no lag shares enough bones."""
     bones = [[bone_directions(t.xyz, t.conf, joints, fps, min_conf) for t in view] for view in (ref, other)]
     n_ref, n_other = len(ref[0].conf), len(other[0].conf)
-    lags = np.arange(min_overlap - n_ref, n_other - min_overlap + 1)
-    products = {(i, j): _bone_products(a, b, lags) for i, a in enumerate(bones[0]) for j, b in enumerate(bones[1])}
+    step = sampling_step(fps, min(n_ref, n_other))
+    lags = np.arange(-((n_ref - min_overlap) // step), (n_other - min_overlap) // step + 1)    # in steps
+    products = {(i, j): _bone_products(a[::step], b[::step], lags)
+                for i, a in enumerate(bones[0]) for j, b in enumerate(bones[1])}
     k = min(len(ref), len(other))
     pairings = ([tuple(zip(range(len(ref)), p)) for p in itertools.permutations(range(len(other)), k)]
                 if len(ref) <= len(other) else
@@ -370,8 +383,12 @@ def coarse_offset(ref: list[ViewTrack], other: list[ViewTrack], joints: tuple[st
     for pairing in pairings:
         score = _motion_match(sum(products[pair] for pair in pairing))
         if np.isfinite(score).any():
-            at = int(np.nanargmax(score))
-            found.append(CoarseOffset(int(lags[at]), float(score[at]), np.nan))
+            at = int(lags[np.nanargmax(score)]) * step
+            if step > 1:                     # refined frame by frame about the sampled best
+                near = np.arange(at - step + 1, at + step)
+                fine = _motion_match(sum(_bone_products(bones[0][i], bones[1][j], near) for i, j in pairing))
+                at, score = int(near[np.nanargmax(fine)]), fine
+            found.append(CoarseOffset(at, float(np.nanmax(score)), np.nan))
     if len(found) > 1:
         found = [CoarseOffset(c.offset, c.score, epipolar_px(ref, other, pairing, c.offset, min_conf))
                  for c, pairing in zip(found, pairings)]
@@ -478,8 +495,10 @@ def _motion_offsets(take: Take, people: list[PersonTracks], start: list[float], 
             confidence[v], spread[v] = 0.0, np.inf
             continue
         a, b = _shared_bones(take, people, v, min_conf)
-        m = motion_offset(lambda lag, frames, columns: bone_correlation(a, b, lag, frames, columns),
-                          len(a), a.shape[1], start[v], FINE_WINDOW)
+        sampled = np.arange(0, len(a), sampling_step(take.fps or DEFAULT_FPS, len(a)))     # a long take's
+        m = motion_offset(lambda lag, frames, columns: bone_correlation(
+            a, b, lag, sampled if frames is None else sampled[frames], columns), len(sampled), a.shape[1], start[v],
+            FINE_WINDOW)
         confidence[v], spread[v] = max(float(np.nan_to_num(m.correlation)), 0.0), m.spread
         fps = take.fps or DEFAULT_FPS
         speed = np.nanmedian([keypoint_speed(uv, conf, fps, min_conf) for uv, _, conf, _ in
