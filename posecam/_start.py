@@ -1,12 +1,12 @@
 """Ctrl-C or SIGTERM while `posecam` is starting: one line and the documented code, no traceback.
 
 Installed by `posecam.__main__` first thing (importing the package installs nothing);
-`posecam.cli.main` replaces it with the handlers it keeps when the command runs.
+`posecam.cli.main` replaces it with the handlers it keeps when the command runs. It imports
+nothing but `os` and `signal`, so that the window before it is set stays as short as it can be.
 """
 
 import os
 import signal
-import threading
 
 
 def _interrupted_while_starting(signum, frame) -> None:
@@ -15,6 +15,8 @@ def _interrupted_while_starting(signum, frame) -> None:
 
 
 def guard_start() -> None:
-    if threading.current_thread() is threading.main_thread():
-        for signum in (signal.SIGINT, signal.SIGTERM):
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        try:
             signal.signal(signum, _interrupted_while_starting)
+        except ValueError:   # not the main thread: whoever runs us keeps their handlers
+            return

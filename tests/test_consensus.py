@@ -65,7 +65,7 @@ def _rotation_errors(cams, result):
             for c in cams[1:] if c.name in est}
 
 
-@pytest.mark.parametrize("n_people", [2, 3])
+@pytest.mark.parametrize("n_people", [2, pytest.param(3, marks=pytest.mark.slow)])
 def test_several_people_rotations_within_1_deg(n_people):
     """People crossing paths, one person missed by one view for a while, one view that sees only
     one person, an id switch in another view: the rig is still found to within a degree."""
@@ -97,6 +97,7 @@ def test_several_people_rotations_within_1_deg(n_people):
     assert np.median(nearest) < 150 and np.median(nearest / second) < 0.2, (np.median(nearest), np.median(second))
 
 
+@pytest.mark.slow
 def test_degenerate_views_trigger_the_quality_gate():
     cams = make_rig()
     world = skeleton_motion(60)
@@ -131,6 +132,7 @@ def _fractional(cams, offsets, n_frames=120, joint_noise=10.0, still=False):
             for i, (c, o) in enumerate(zip(cams, offsets))]
 
 
+@pytest.mark.slow
 def test_sync_without_calibration_recovers_fractional_offsets():
     cams, true = make_rig(), [0.0, 2.4, -1.7, 0.6]
     result = fuse_recordings(_fractional(cams, true), FuseOptions(sync=True))
@@ -140,6 +142,7 @@ def test_sync_without_calibration_recovers_fractional_offsets():
     assert not result.warnings, result.warnings
 
 
+@pytest.mark.slow
 def test_bundle_adjustment_refines_fractional_offsets_started_a_frame_off():
     """Offsets inside the bundle adjustment: started up to a frame from the true sub-frame
     offsets, the joint adjustment of rig and offsets ends within 0.2 frame of them, its rig
@@ -165,6 +168,7 @@ def test_bundle_adjustment_refines_fractional_offsets_started_a_frame_off():
     assert rotation[True] < rotation[False] and rotation[True] < rotation["true"] + 0.2, rotation
 
 
+@pytest.mark.slow
 def test_sync_of_a_still_person_refuses_the_cameras_it_cannot_pin():
     """People too still to pin an offset: no camera is fused at a guessed offset; the refusal
     names every camera and says what would fuse it."""
@@ -192,6 +196,7 @@ def test_camera_spread_grows_when_frames_are_removed(estimated):
         assert err < 10 * rep.spread.rotation_deg + 0.2, (true.name, err, rep.spread)
 
 
+@pytest.mark.slow
 def test_heights_set_the_metric_scale():
     """The rig gives the people's heights relative to each other; a given height fixes the
     scale: the triangulated skeleton comes out that tall (here 10 % above the truth on purpose)."""
@@ -217,6 +222,7 @@ def test_heights_set_the_metric_scale():
     assert abs(spread(tall) / spread(plain) - 2000 / height(plain)) < 0.02
 
 
+@pytest.mark.slow
 def test_heights_that_disagree_with_the_rig_are_warned_about():
     """Two people, the second 0.8 times the first's size: heights in that ratio fit one scale and
     pass in silence; a list that makes the second 0.6 times the first cannot, and says so."""
@@ -234,6 +240,7 @@ def test_heights_that_disagree_with_the_rig_are_warned_about():
     assert len(said) == 1 and "given 1.05" in said[0] and "given 1.75" in said[0], disagree.warnings
 
 
+@pytest.mark.slow
 def test_camera_spread_counts_a_joint_bias_of_the_detector(estimated):
     """A detector's error for one joint in one view is the same in every frame (a bias): the
     spreads come from a bootstrap over joints and blocks of frames
@@ -443,6 +450,7 @@ def test_bundle_adjustment_derivatives_are_the_residuals_own():
     assert np.abs(analytic - numeric).max() < 1e-5 * np.abs(numeric).max()
 
 
+@pytest.mark.slow
 def test_a_known_lens_stays_known_and_can_be_freed():
     """Views predicted with the cameras' own intrinsics (given: --fx/--intrinsics) keep them
     exactly; only where the cameras stand is estimated, and no worse than with every lens

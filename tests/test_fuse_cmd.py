@@ -90,7 +90,7 @@ def test_fuse_with_qualisys_calibration(tmp_path):
     assert rows and float(rows[0].split("│")[3]) < 10, r.stdout        # reprojection px: the right cameras
 
 
-@pytest.mark.parametrize("sync", [("--sync", "auto"), ("--offsets", "0,0")])
+@pytest.mark.parametrize("sync", [("--sync", "auto"), pytest.param(("--offsets", "0,0"), marks=pytest.mark.slow)])
 def test_gate_refuses_two_unrelated_real_recordings(tmp_path, sync):
     """OpenCV's pedestrian clip and the same camera 40 s later: other people, other motion.
     Some rig always fits; the quality gate must refuse it, in one line, writing nothing, at
@@ -233,6 +233,7 @@ def test_camera_table_fits_80_columns_with_nothing_cut(tmp_path):
     assert [cells[2].split()[0] for cells in rows] == [f"{c.offset:g}" for c in result.cameras[1:]], text
 
 
+@pytest.mark.slow
 def test_camera_table_through_a_pipe(tmp_path):
     """The CLI in a process of its own, stdout a pipe and no terminal anywhere (as in a log):
     rich's 80 columns, nothing cut, the names whole."""

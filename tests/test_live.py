@@ -105,6 +105,7 @@ def test_ctrl_c_ends_a_live_stream_with_complete_files(mjpeg, tmp_path):
     assert f"wrote {out}" in stdout.replace("\n", "")
 
 
+@pytest.mark.slow
 def test_a_second_ctrl_c_abandons_the_outputs(mjpeg, tmp_path):
     """The second Ctrl-C lands while posecam finishes (drawing the 3D view of every frame, which
     takes seconds): nothing is written, exit 130."""

@@ -27,6 +27,7 @@ from conftest import DATA, assert_same_onnx_model
 
 ort = pytest.importorskip("onnxruntime")
 build = pytest.importorskip("export.convert.build_models", reason="install the export extra")
+pytestmark = pytest.mark.slow   # npm ci and node runs: about 35 s
 
 REPO = Path(__file__).resolve().parent.parent
 RUNNER = Path(__file__).parent / "tfjs_runner"
