@@ -169,6 +169,17 @@ def _written_labels(path) -> list[str]:
     return [f"#{p['id']} z={p['root'][2] / 1000:.2f} m" for f in frames for p in f["people"]]
 
 
+def _same_labels(drawn: list[str], written: list[str]) -> bool:
+    """Each label drawn twice (outline, fill), with the written id and depth. The file holds the
+    depth to 0.1 mm, so a depth on a rounding boundary may print one centimetre apart."""
+    def parsed(labels):
+        return [(m[1], float(m[2])) for m in (re.fullmatch(r"(#\d+\??) z=(-?[\d.]+) m", t) for t in labels)]
+
+    fill, outline, file = parsed(drawn[1::2]), parsed(drawn[::2]), parsed(written)
+    return (fill == outline and len(fill) == len(file)
+            and all(a[0] == b[0] and abs(a[1] - b[1]) <= 0.0101 for a, b in zip(fill, file)))
+
+
 def test_the_depth_drawn_on_a_picture_is_the_depth_written(tmp_path, monkeypatch):
     """--viz draws each person at the metric scale the pose file is given (before: messi5's
     picture said z = 1.91 m, the pose model's size, where the file said 2187 mm)."""
@@ -176,7 +187,7 @@ def test_the_depth_drawn_on_a_picture_is_the_depth_written(tmp_path, monkeypatch
     out = tmp_path / "messi.json"
     r = run_posecam("predict", DATA / "messi5.jpg", "-o", out, "--viz", tmp_path / "messi.jpg")
     assert r.returncode == 0, r.stderr
-    assert drawn[::2] == drawn[1::2] == _written_labels(out) and len(drawn) == 2
+    assert _same_labels(drawn, _written_labels(out)) and len(drawn) == 2
 
 
 def test_the_depth_drawn_on_a_video_is_the_depth_written(tmp_path, monkeypatch):
@@ -189,7 +200,7 @@ def test_the_depth_drawn_on_a_video_is_the_depth_written(tmp_path, monkeypatch):
                     "--viz", tmp_path / "clip.mp4")
     assert r.returncode == 0, r.stderr
     written = _written_labels(out)
-    assert len(written) >= 12 and drawn[::2] == drawn[1::2] == written
+    assert len(written) >= 12 and _same_labels(drawn, written)
 
 
 def test_summary_fits_80_columns_with_nothing_cut(tmp_path, monkeypatch):
