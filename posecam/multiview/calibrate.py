@@ -48,8 +48,9 @@ MAX_ROTATION_SPREAD_DEG = 3.0
 MAX_FOCAL_SPREAD_PCT = 15.0
 OUTLIER_FACTOR = 3.0            # a person's stretch this many times the median residual: outlier
 # views of one scene move alike: the joint speeds of the people two views share correlate by
-# 0.46-0.80 on Pose2Sim's takes; unrelated real clips (OpenCV's vtest.avi against itself 40 s
-# later, or against a Pose2Sim view) by 0.17-0.30: walkers' speeds are periodic and alike
+# 0.37-0.83 on Pose2Sim's takes (each pair of cameras, at the offsets found); unrelated walkers
+# can too (OpenCV's vtest.avi against itself 40 s later: 0.61 at the best of a wide search,
+# refused by the bootstrap instead): below this the views are not fused, one scene or not
 MIN_SAME_MOTION = 0.38
 # the reported spreads: a bootstrap of the bundle adjustment (`bootstrap_spreads`), this many
 # replicates, each weighing every joint and every block of BOOT_BLOCK frames by a multinomial
@@ -247,8 +248,9 @@ def cameras_from_people(take: Take, association: Association, sync: SyncResult, 
         if not unrelated:
             return est
         corr, v = min(unrelated)
-        line = (f"camera {take.names[v]} dropped: its people do not move as the reference's do (motion "
-                f"correlation {np.nan_to_num(corr):.2f}): not the same scene, or not the same time?")
+        line = (f"camera {take.names[v]} dropped: its people's motion agrees poorly with the reference's "
+                f"(correlation {np.nan_to_num(corr):.2f}): another scene or time, or a view that sees them "
+                "too differently")
         kept = [u for u in est.views if u != v]
         if len(kept) < 2:
             raise FusionError(line.replace(" dropped:", " cannot be fused:"))
