@@ -378,6 +378,7 @@ class Truth:
 # ---- the code under test, run in a worker process (this checkout's posecam or --before's) ------
 
 CONFIGS = {
+    "no calibration, offsets 0": {"offsets": "zero"},
     "no calibration, lab offsets": {"offsets": "truth"},
     "no calibration, lab offsets, refined in the bundle adjustment": {"offsets": "truth", "refine": True},
     "no calibration, --sync auto (offsets refined in the bundle adjustment)": {"sync": True},
@@ -419,6 +420,8 @@ def worker(take: str, cache: Path, offsets: list[float], out: Path) -> None:
             kw["sync"] = True
         if cfg.get("offsets") == "truth":
             kw["offsets"] = list(offsets)
+        elif cfg.get("offsets") == "zero":
+            kw["offsets"] = [0.0] * len(offsets)
         t0 = time.perf_counter()
         try:
             res = fuse_recordings(recs, FuseOptions(**kw))

@@ -31,6 +31,10 @@ class Person:
     height_sd: float = float("nan")         # m: its standard uncertainty
     depth_sd: float = float("nan")          # mm: standard uncertainty of the root's depth (z)
     doubts: tuple[str, ...] = ()            # why the pose may not be this person's (posecam.analysis.doubts); () sound
+    # the keypoints as observed, before smoothing over time (posecam.analysis.filters): what fusion
+    # estimates the cameras, the offsets and the fused pose from; None: keypoints_2d / _3d are those
+    observed_2d: np.ndarray | None = None   # (J, 2) pixels
+    observed_3d: np.ndarray | None = None   # (J, 3) mm
     skeleton: Skeleton = field(default=H36M, repr=False, compare=False)
     # the pose model's output of this person lifted through another lens (the estimator's lifter;
     # the metric stage's people's lens): (J, 3) mm; None for poses that were not predicted here
@@ -40,9 +44,15 @@ class Person:
         if np.ndim(self.confidence) != 1:
             raise ValueError(f"Person.confidence: expected shape (J,), got {np.shape(self.confidence)}")
         j = len(self.confidence)
-        for name, want in (("bbox", (4,)), ("keypoints_2d", (j, 2)), ("keypoints_3d", (j, 3))):
-            if np.shape(getattr(self, name)) != want:
+        for name, want in (("bbox", (4,)), ("keypoints_2d", (j, 2)), ("keypoints_3d", (j, 3)),
+                           ("observed_2d", (j, 2)), ("observed_3d", (j, 3))):
+            if getattr(self, name) is not None and np.shape(getattr(self, name)) != want:
                 raise ValueError(f"Person.{name}: expected shape {want}, got {np.shape(getattr(self, name))}")
+
+    def observed(self) -> tuple[np.ndarray, np.ndarray]:
+        """(J, 2) pixels and (J, 3) mm as observed, before any smoothing."""
+        return (self.keypoints_2d if self.observed_2d is None else self.observed_2d,
+                self.keypoints_3d if self.observed_3d is None else self.observed_3d)
 
     @property
     def root(self) -> np.ndarray:

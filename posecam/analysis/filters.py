@@ -142,7 +142,8 @@ def smooth_array(x: np.ndarray, fps: float, options: SmoothOptions) -> np.ndarra
 
 
 def smooth_recording(rec: Recording, options: SmoothOptions | None = None) -> Recording:
-    """A copy of `rec` whose people's 2D and 3D keypoints are smoothed along each track id.
+    """A copy of `rec` whose people's 2D and 3D keypoints are smoothed along each track id, each
+    person keeping the keypoints as observed (`Person.observed`).
 
     A still image (one frame) comes back unchanged; a recording without a frame rate is taken
     at `DEFAULT_FPS`."""
@@ -162,7 +163,10 @@ def smooth_recording(rec: Recording, options: SmoothOptions | None = None) -> Re
                 track[i] = getattr(frames[i].people[k], attr)
             smoothed[attr] = smooth_array(track, fps, options)
         for i, k in where:
-            frames[i].people[k] = dataclasses.replace(frames[i].people[k], **{a: t[i] for a, t in smoothed.items()})
+            person = frames[i].people[k]
+            uv, xyz = person.observed()          # what was observed stays, for the estimators that need it
+            frames[i].people[k] = dataclasses.replace(person, observed_2d=uv, observed_3d=xyz,
+                                                      **{a: t[i] for a, t in smoothed.items()})
     return dataclasses.replace(rec, frames=frames)
 
 

@@ -3,12 +3,14 @@
 JSON: {"posecam", "model", "joints", "root_joint", "inputs": [{"source", "width", "height", "frame",
 "intrinsics": {"fx", "fy", "cx", "cy", "source"}, "fps", "frames": [{"index", "time",
 "people": [{"id", "score", "bbox", "keypoints_2d", "keypoints_3d", "confidence", "root"[, "height",
-"height_source", "height_estimated", "height_sd", "depth_sd"][, "doubts"]}], "dropped": [{"stage", "score",
+"height_source", "height_estimated", "height_sd", "depth_sd"][, "doubts"][, "observed_2d", "observed_3d"]}], "dropped": [{"stage", "score",
 "bbox"}]}][, "floor": {"normal", "distance", "spread", "contacts", "tracks"}]}]}. The height fields (m; depth_sd in mm) are there when the
 person's metric scale was fixed (posecam.scale.metric); "floor" when a ground plane was fitted (camera
 frame, mm). "doubts" lists, for a person whose pose may not be theirs, the checks it failed
 (posecam.analysis.doubts: "off_body", "root_jump", "bones"); absent for a sound pose. Files without them
-(older posecam) read as before.
+(older posecam) read as before. "observed_2d" and "observed_3d" are a smoothed person's keypoints
+as observed, before smoothing: what `posecam fuse` estimates the cameras, offsets and fused poses
+from, so that fusing the file is fusing the videos.
 CSV: one row per joint, header exactly CSV_HEADER (height and depth_sd empty where unknown;
 doubts the person's doubts joined by ";", empty for a sound pose).
 With angles (`posecam predict --angles`, posecam.analysis.angles) each person also holds "angles": {name:
@@ -79,6 +81,8 @@ def person_to_dict(p: Person) -> dict:
                    depth_sd=_number(p.depth_sd, 1))
     if p.doubts:
         out["doubts"] = list(p.doubts)
+    if p.observed_2d is not None:         # smoothed: the keypoints as observed, which fuse estimates from
+        out.update(observed_2d=_round(p.observed_2d, 2), observed_3d=_round(p.observed_3d, 1))
     return out
 
 
@@ -343,7 +347,18 @@ def _read_person(p: object, check: Field, shape: dict) -> Person:
         _angles(p.get("angles"), check),
         **_person_metric(p, check),
         doubts=_doubts(p.get("doubts", []), check),
+        **_observed(p, check, joints),
     )
+
+
+def _observed(p: dict, check: Field, joints: int) -> dict:
+    """A smoothed person's keypoints as observed (absent in older files and unsmoothed ones)."""
+    if p.get("observed_2d") is None:
+        return {}
+    return {"observed_2d": check.numbers(p["observed_2d"], "observed_2d", ((joints, 2),), -MAX_PIXEL, MAX_PIXEL,
+                                         nulls=True),
+            "observed_3d": check.numbers(p.get("observed_3d"), "observed_3d", ((joints, 3),), -MAX_MM, MAX_MM,
+                                         nulls=True)}
 
 
 def _doubts(values: object, check: Field) -> tuple[str, ...]:

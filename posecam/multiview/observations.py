@@ -221,8 +221,10 @@ def assumed_cameras(names: list[str], recordings: list[Recording]) -> list[Camer
 
 
 def tracks_of(rec: Recording, view: int, min_frames: int = MIN_TRACK_FRAMES) -> list[ViewTrack]:
-    """Every person id of `rec` seen in at least `min_frames` frames, longest first; a pose with
-    doubts (posecam.analysis.doubts) counts as unseen."""
+    """Every person id of `rec` seen in at least `min_frames` frames, longest first, as observed
+    (`Person.observed`: a smoothed recording's keypoints before smoothing, which the estimators
+    downstream need, not the smoothed ones that are shown); a pose with doubts
+    (posecam.analysis.doubts) counts as unseen."""
     n, j = len(rec.frames), len(rec.joints)
     ids: dict[int, list[int]] = {}
     for i, f in enumerate(rec.frames):
@@ -237,7 +239,7 @@ def tracks_of(rec: Recording, view: int, min_frames: int = MIN_TRACK_FRAMES) -> 
         conf, score = np.zeros((n, j)), np.zeros(n)
         for i in frames:
             p = next(q for q in rec.frames[i].people if q.id == pid and not q.doubts)
-            uv[i], xyz[i], conf[i], score[i] = p.keypoints_2d, p.keypoints_3d, p.confidence, p.score
+            (uv[i], xyz[i]), conf[i], score[i] = p.observed(), p.confidence, p.score
         tracks.append(ViewTrack(view, (pid,), uv, xyz, conf, score))
     return sorted(tracks, key=lambda t: -int(t.seen.sum()))
 
