@@ -31,6 +31,7 @@ class Person:
     height_sd: float = float("nan")         # m: its standard uncertainty
     depth_sd: float = float("nan")          # mm: standard uncertainty of the root's depth (z)
     doubts: tuple[str, ...] = ()            # why the pose may not be this person's (posecam.analysis.doubts); () sound
+    views: int = 0                          # fused: the cameras in this pose (1: one camera's, not fused); 0: unknown
     skeleton: Skeleton = field(default=H36M, repr=False, compare=False)
     # the pose model's output of this person lifted through another lens (the estimator's lifter;
     # the metric stage's people's lens): (J, 3) mm; None for poses that were not predicted here

@@ -3,12 +3,13 @@
 JSON: {"posecam", "model", "joints", "root_joint", "inputs": [{"source", "width", "height", "frame",
 "intrinsics": {"fx", "fy", "cx", "cy", "source"}, "fps", "frames": [{"index", "time",
 "people": [{"id", "score", "bbox", "keypoints_2d", "keypoints_3d", "confidence", "root"[, "height",
-"height_source", "height_estimated", "height_sd", "depth_sd"][, "doubts"]}], "dropped": [{"stage", "score",
+"height_source", "height_estimated", "height_sd", "depth_sd"][, "doubts"][, "views"]}], "dropped": [{"stage", "score",
 "bbox"}]}][, "floor": {"normal", "distance", "spread", "contacts", "tracks"}]}]}. The height fields (m; depth_sd in mm) are there when the
 person's metric scale was fixed (posecam.scale.metric); "floor" when a ground plane was fitted (camera
 frame, mm). "doubts" lists, for a person whose pose may not be theirs, the checks it failed
-(posecam.analysis.doubts: "off_body", "root_jump", "bones"); absent for a sound pose. Files without them
-(older posecam) read as before.
+(posecam.analysis.doubts: "off_body", "root_jump", "bones"); absent for a sound pose. "views" (fused
+poses) is how many cameras were fused into the person in that frame: 1 is one camera's pose placed through
+the rig, not fused. Files without them (older posecam) read as before.
 CSV: one row per joint, header exactly CSV_HEADER (height and depth_sd empty where unknown;
 doubts the person's doubts joined by ";", empty for a sound pose).
 With angles (`posecam predict --angles`, posecam.analysis.angles) each person also holds "angles": {name:
@@ -37,7 +38,8 @@ from posecam.geometry.floor import Floor
 from posecam.errors import InputError
 from posecam.io.atomic import atomic_path
 from posecam.io.jsonstream import JsonStream
-from posecam.io.validate import MAX_FPS, MAX_INDEX, MAX_JOINTS, MAX_MM, MAX_PEOPLE, MAX_PIXEL, MAX_SECONDS, Field
+from posecam.io.validate import (MAX_FPS, MAX_INDEX, MAX_JOINTS, MAX_MM, MAX_PEOPLE, MAX_PIXEL, MAX_SECONDS, MAX_VIEWS,
+                                 Field)
 from posecam.io.media import check_input
 from posecam.results import Dropped, Frame, Person, Recording
 from posecam.skeleton import skeleton_of
@@ -79,6 +81,8 @@ def person_to_dict(p: Person) -> dict:
                    depth_sd=_number(p.depth_sd, 1))
     if p.doubts:
         out["doubts"] = list(p.doubts)
+    if p.views:
+        out["views"] = int(p.views)
     return out
 
 
@@ -343,6 +347,7 @@ def _read_person(p: object, check: Field, shape: dict) -> Person:
         _angles(p.get("angles"), check),
         **_person_metric(p, check),
         doubts=_doubts(p.get("doubts", []), check),
+        views=check.number(p.get("views", 0), "views", 0, MAX_VIEWS, whole=True),
     )
 
 
