@@ -110,3 +110,21 @@ def test_reported_error_matches_a_projection_on_a_noisy_rig():
         rep = next(c for c in result.cameras if c.name == cam.name)
         assert np.isclose(rep.reprojection_px, px, rtol=1e-6) and rep.joints_used == k, (cam.name, rep, px, k)
         assert 0.5 < px < 10, px                    # 3 px of noise, triangulated: a few px
+
+
+def test_a_pose_file_with_a_bad_views_count_is_refused_naming_it(tmp_path):
+    import pytest
+
+    from posecam.errors import InputError
+
+    _, _, recs = _take()
+    path = tmp_path / "front.json"
+    write_poses(path, [recs[0]])
+    doc = json.loads(path.read_text())
+    assert "views" not in doc["inputs"][0]["frames"][0]["people"][0]      # a monocular pose: not written
+    assert read_poses(path)[0].frames[0].people[0].views == 0
+    for bad in (-1, 1.5, "2", True):
+        doc["inputs"][0]["frames"][0]["people"][0]["views"] = bad
+        path.write_text(json.dumps(doc))
+        with pytest.raises(InputError, match=r"people\[0\]: views: must be a whole number"):
+            read_poses(path)
