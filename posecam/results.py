@@ -31,6 +31,7 @@ class Person:
     height_sd: float = float("nan")         # m: its standard uncertainty
     depth_sd: float = float("nan")          # mm: standard uncertainty of the root's depth (z)
     doubts: tuple[str, ...] = ()            # why the pose may not be this person's (posecam.analysis.doubts); () sound
+    views: int = 0                          # fused: the cameras in this pose (1: one camera's, not fused); 0: unknown
     # the keypoints as observed, before smoothing over time (posecam.analysis.filters): what fusion
     # estimates the cameras, the offsets and the fused pose from; None: keypoints_2d / _3d are those
     observed_2d: np.ndarray | None = None   # (J, 2) pixels

@@ -59,3 +59,40 @@ def test_two_cameras_without_their_lenses_are_refused_with_what_would_help(views
                                           r"held\), more cameras, a longer take") as err:
         fuse_recordings([views[0], views[3]])
     assert "\n" not in str(err.value)
+
+
+def test_the_bystander_cam01_alone_sees_is_one_view_and_out_of_its_error(views):
+    """Through the lab calibration, the bystander at cam01's left edge is cam01's pose alone:
+    written with views 1, and out of cam01's reprojection error, which is the man's (he
+    reprojects into cam01 at about 16 px; with the bystander the median was 0.2 px). The figure
+    is checked against cv2.projectPoints of the man's fused joints into cam01's keypoints."""
+    import cv2
+    import numpy as np
+
+    from posecam.io.calibration import read_calibration
+    from posecam.multiview.fuse import FuseOptions
+
+    result = fuse_recordings(views, FuseOptions(calibration=read_calibration(TAKE / "Calib.qca.txt"),
+                                                offsets=[0, -1, 4, 0]))
+    counts: dict[int, list[int]] = {}
+    for f in result.recording.frames:
+        for p in f.people:
+            counts.setdefault(p.id, []).append(p.views)
+    assert len(counts) == 2, counts
+    man, bystander = sorted(counts, key=lambda pid: -np.median(counts[pid]))
+    assert set(counts[bystander]) == {1} and min(counts[man]) >= 3, counts
+    cam = result.rig.cameras[0]
+    rvec = cv2.Rodrigues(cam.rotation)[0]
+    errors = []
+    for i, f in enumerate(result.recording.frames):
+        for p in f.people:
+            if p.id != man:
+                continue
+            uv = cv2.projectPoints(np.ascontiguousarray(p.keypoints_3d, float), rvec, cam.translation.astype(float),
+                                   cam.intrinsics.matrix, cam.distortion.astype(float))[0].reshape(-1, 2)
+            near = min(views[0].frames[i].people, key=lambda q: np.median(np.linalg.norm(q.keypoints_2d - uv, axis=1)))
+            ok = near.confidence >= 0.5
+            errors.append(np.linalg.norm(near.keypoints_2d - uv, axis=1)[ok])
+    plain = float(np.median(np.concatenate(errors)))
+    reported = result.cameras[0].reprojection_px
+    assert plain > 5 and plain / 1.3 < reported < plain * 1.3, (reported, plain)

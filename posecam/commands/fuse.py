@@ -34,11 +34,16 @@ def _offset(rep, confidence: bool = True) -> str:
     return f"{rep.offset:g}{spread}" + (f" ({rep.offset_confidence:.2f})" if confidence else "")
 
 
+def _px(value: float) -> str:
+    """A reprojection error in px, "-" where the camera sees no joint another camera sees."""
+    return f"{value:.1f}" if math.isfinite(value) else "-"
+
+
 def camera_comments(result: FusionResult) -> dict[str, str]:
     """One line per camera for the TOML: its offset and, when estimated, its spreads."""
     out = {}
     for rep in result.cameras:
-        line = f"offset {_offset(rep)} frames; reprojection {rep.reprojection_px:.1f} px"
+        line = f"offset {_offset(rep)} frames; reprojection {_px(rep.reprojection_px)} px"
         if rep.spread is not None:
             rot, focal, pos = _spread(rep)
             focal = "held (given)" if rep.intrinsics_fixed else f"{focal} %"
@@ -68,7 +73,7 @@ def print_report(result: FusionResult, console, verbose: bool = False) -> None:
                     *(("±rot\ndeg", "±focal\n%", "±pos\nmm") if estimated else ())))
     for rep in result.cameras:
         fx, fy = rep.intrinsics[:2]
-        table.add_row(shown(rep.name), _offset(rep, confidence=False), f"{rep.reprojection_px:.1f}",
+        table.add_row(shown(rep.name), _offset(rep, confidence=False), _px(rep.reprojection_px),
                       f"{fx:.0f}" if abs(fx - fy) < 0.5 else f"{fx:.0f}/{fy:.0f}", *(_spread(rep) if estimated else ()))
     console.print(table)
     if verbose:
@@ -81,10 +86,11 @@ def print_report(result: FusionResult, console, verbose: bool = False) -> None:
         console.print(details)
     console.print(f"metric scale: {result.scale_source}")
     console.print("offset: frames against the first view, ± one standard deviation where --sync auto found it; "
-                  "reproj.: median reprojection error of the fused joints; focal: fx (fx/fy where they differ)"
+                  "reproj.: median reprojection error of the joints two cameras or more see (-: none); focal: fx "
+                  "(fx/fy where they differ)"
                   + ("; ±rot, ±focal, ±pos: one standard deviation of each estimated camera's rotation, focal "
                      "length and position (at the rig's scale)" if estimated else "")
-                  + ("; offset conf.: --sync auto's confidence, 0 to 1; joints used: joint observations fused; L/R "
+                  + ("; offset conf.: --sync auto's confidence, 0 to 1; joints used: joint observations in it; L/R "
                      "swaps: frames with left and right swapped back" if verbose else
                      "; --verbose: each camera's joints used, left/right swaps, principal point and centre"),
                   style="dim")

@@ -3,14 +3,16 @@
 JSON: {"posecam", "model", "joints", "root_joint", "inputs": [{"source", "width", "height", "frame",
 "intrinsics": {"fx", "fy", "cx", "cy", "source"}, "fps", "frames": [{"index", "time",
 "people": [{"id", "score", "bbox", "keypoints_2d", "keypoints_3d", "confidence", "root"[, "height",
-"height_source", "height_estimated", "height_sd", "depth_sd"][, "doubts"][, "observed_2d", "observed_3d"]}], "dropped": [{"stage", "score",
+"height_source", "height_estimated", "height_sd", "depth_sd"][, "doubts"][, "views"][, "observed_2d", "observed_3d"]}], "dropped": [{"stage", "score",
 "bbox"}]}][, "floor": {"normal", "distance", "spread", "contacts", "tracks"}]}]}. The height fields (m; depth_sd in mm) are there when the
 person's metric scale was fixed (posecam.scale.metric); "floor" when a ground plane was fitted (camera
 frame, mm). "doubts" lists, for a person whose pose may not be theirs, the checks it failed
-(posecam.analysis.doubts: "off_body", "root_jump", "bones"); absent for a sound pose. Files without them
-(older posecam) read as before. "observed_2d" and "observed_3d" are a smoothed person's keypoints
-as observed, before smoothing: what `posecam fuse` estimates the cameras, offsets and fused poses
-from, so that fusing the file is fusing the videos.
+(posecam.analysis.doubts: "off_body", "root_jump", "bones"); absent for a sound pose. "views" (fused
+poses) is how many cameras were fused into the person in that frame: 1 is one camera's pose placed through
+the rig, not fused. Files without them (older posecam) read as before.
+"observed_2d" and "observed_3d" are a smoothed person's keypoints as observed, before smoothing:
+what `posecam fuse` estimates the cameras, offsets and fused poses from, so that fusing the file
+is fusing the videos.
 CSV: one row per joint, header exactly CSV_HEADER (height and depth_sd empty where unknown;
 doubts the person's doubts joined by ";", empty for a sound pose).
 With angles (`posecam predict --angles`, posecam.analysis.angles) each person also holds "angles": {name:
@@ -39,7 +41,8 @@ from posecam.geometry.floor import Floor
 from posecam.errors import InputError
 from posecam.io.atomic import atomic_path
 from posecam.io.jsonstream import JsonStream
-from posecam.io.validate import MAX_FPS, MAX_INDEX, MAX_JOINTS, MAX_MM, MAX_PEOPLE, MAX_PIXEL, MAX_SECONDS, Field
+from posecam.io.validate import (MAX_FPS, MAX_INDEX, MAX_JOINTS, MAX_MM, MAX_PEOPLE, MAX_PIXEL, MAX_SECONDS, MAX_VIEWS,
+                                 Field)
 from posecam.io.media import check_input
 from posecam.results import Dropped, Frame, Person, Recording
 from posecam.skeleton import skeleton_of
@@ -81,6 +84,8 @@ def person_to_dict(p: Person) -> dict:
                    depth_sd=_number(p.depth_sd, 1))
     if p.doubts:
         out["doubts"] = list(p.doubts)
+    if p.views:
+        out["views"] = int(p.views)
     if p.observed_2d is not None:         # smoothed: the keypoints as observed, which fuse estimates from
         out.update(observed_2d=_round(p.observed_2d, 2), observed_3d=_round(p.observed_3d, 1))
     return out
@@ -347,6 +352,7 @@ def _read_person(p: object, check: Field, shape: dict) -> Person:
         _angles(p.get("angles"), check),
         **_person_metric(p, check),
         doubts=_doubts(p.get("doubts", []), check),
+        views=check.number(p.get("views", 0), "views", 0, MAX_VIEWS, whole=True),
         **_observed(p, check, joints),
     )
 

@@ -27,6 +27,7 @@ MAX_FPS = 10000.0
 MAX_SECONDS = 1e7             # a frame's time (115 days)
 MAX_PEOPLE = 1000             # people in one frame of a pose file
 MAX_JOINTS = 1000
+MAX_VIEWS = 1000              # cameras fused into one person
 MAX_TEXT = 4096               # characters of a name, a source, a model name
 ROTATION_TOLERANCE = 1e-3     # |R^T R - I| and |det R - 1| of a rotation matrix
 MAX_FILE_BYTES = 16 << 20     # a calibration or intrinsics file is small; larger ones are not read

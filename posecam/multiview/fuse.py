@@ -215,7 +215,8 @@ def _to_recording(fused: list[FusedPerson], rig: Rig, ref_index: int, ref: Recor
             pts = person.points[i]
             uv = cam.project(pts)
             box = np.concatenate([np.nanmin(uv, axis=0), np.nanmax(uv, axis=0)])
-            frames[i].people.append(Person(pid, float(person.score[i]), box, uv, pts, person.conf[i], skeleton=skeleton))
+            frames[i].people.append(Person(pid, float(person.score[i]), box, uv, pts, person.conf[i], skeleton=skeleton,
+                                           views=int(person.views[i])))
         pid += 1
     return Recording("fused", ref.width, ref.height, cam.intrinsics, ref.joints, frames, ref.model, ref.fps,
                      rig.frame_of_reference)

@@ -28,10 +28,18 @@ class FusedPerson:
     conf: np.ndarray            # (F, J)
     score: np.ndarray           # (F,)
     used: np.ndarray            # (V, F) views fused in each frame
+    # (F, J) views fused in each frame that see the joint (confidence >= min_conf); None: not counted
+    joint_views: np.ndarray | None = None
 
     @property
     def frames(self) -> np.ndarray:
         return np.nonzero(self.used.any(axis=0))[0]
+
+    @property
+    def views(self) -> np.ndarray:
+        """(F,) how many views were fused in each frame (0: the person is not in it; 1: one
+        camera's pose, placed through the rig, not fused)."""
+        return self.used.sum(axis=0)
 
 
 def camera_space(rig: Rig, assumed: list[Intrinsics], obs: Observations, anchor: np.ndarray | None = None,
@@ -106,4 +114,4 @@ def fuse_person(rig: Rig, assumed: list[Intrinsics], obs: Observations, method: 
     n_used = used.sum(axis=0)
     score = np.where(n_used > 0, (obs.score * used).sum(axis=0) / np.maximum(n_used, 1), 0.0)
     fused[~used.any(axis=0)] = np.nan
-    return FusedPerson(fused, out_conf, score, used)
+    return FusedPerson(fused, out_conf, score, used, (used[..., None] & (obs.conf >= min_conf)).sum(axis=0))

@@ -1,6 +1,7 @@
 """What fusion says about each camera: offset, its confidence and spread, reprojection error,
-joints used, intrinsics (and whether they were held: given), left/right swaps undone, and, for an estimated camera, the spread of
-its rotation, focal length and position (posecam.multiview.bundle.CameraSpread)."""
+joints used (both of the joints two cameras or more see: `shared_joints`), intrinsics (and
+whether they were held: given), left/right swaps undone, and, for an estimated camera, the
+spread of its rotation, focal length and position (posecam.multiview.bundle.CameraSpread)."""
 
 from __future__ import annotations
 
@@ -18,8 +19,8 @@ from posecam.multiview.observations import Observations
 class CameraReport:
     name: str
     offset: float
-    reprojection_px: float                 # median, fused joints projected into this view
-    joints_used: int                       # joint observations fused, confidence >= min_conf
+    reprojection_px: float                 # median, fused joints seen by >= 2 views projected into this view
+    joints_used: int                       # its joint observations in those joints, confidence >= min_conf
     intrinsics: tuple[float, float, float, float]
     swaps_fixed: int = 0                   # frames whose left and right labels were exchanged back
     offset_confidence: float = 1.0         # of --sync auto, 0..1 (posecam.multiview.sync); 1: given or reference
@@ -46,16 +47,32 @@ def _finite(x: float, digits: int) -> float | None:
     return round(float(x), digits) if np.isfinite(x) else None
 
 
+MIN_VIEWS = 2       # views that must see a fused joint for it to enter a camera's figures
+
+
+def shared_joints(f: FusedPerson) -> np.ndarray:
+    """(F, J) the joints of a fused person that two views or more saw: in views fused in the
+    frame (FusedPerson.used), with confidence >= min_conf (FusedPerson.joint_views). A person
+    (or a joint) one camera alone sees is that camera's pose placed through the rig: it
+    reprojects onto its own keypoints (0 px, whatever the rig) and tells nothing of the camera,
+    so it stays out of the reprojection error and the joints used."""
+    views = f.joint_views if f.joint_views is not None else np.broadcast_to(f.views[:, None], f.conf.shape)
+    return (views >= MIN_VIEWS) & np.isfinite(f.points).all(axis=-1)
+
+
 def camera_reports(rig: Rig, offsets: list[float], confidence: list[float], offset_spread: list[float],
                    swaps: np.ndarray, people: list[Observations], fused: list[FusedPerson], min_conf: float,
                    spreads: list[CameraSpread] | None = None, fixed: list[bool] | None = None) -> list[CameraReport]:
     """One report per camera of `rig`; offsets, their confidence and spread, swaps, the
-    cameras' spreads and whether their intrinsics were held (V,) in the same order."""
+    cameras' spreads and whether their intrinsics were held (V,) in the same order. A camera's
+    reprojection error is the median over its observations (confidence >= min_conf, in frames
+    where its view was fused) of the joints `shared_joints` keeps; NaN where it has none."""
     reports = []
+    shared = [shared_joints(f) for f in fused]
     for v, cam in enumerate(rig.cameras):
         errors, used = [], 0
-        for obs, f in zip(people, fused):
-            ok = f.used[v][:, None] & (obs.conf[v] >= min_conf) & np.isfinite(f.points).all(axis=-1)
+        for obs, f, keep in zip(people, fused, shared):
+            ok = f.used[v][:, None] & (obs.conf[v] >= min_conf) & keep
             if ok.any():
                 errors.append(np.linalg.norm(cam.project(f.points[ok]) - obs.uv[v][ok], axis=-1))
                 used += int(ok.sum())
