@@ -252,6 +252,41 @@ def test_angles_stay_continuous_on_a_real_arm_raised_out_to_the_side():
     assert (share > np.sqrt(1 - FORESHORTENED ** 2)).all() and np.isnan(flexion).all()
 
 
+@pytest.mark.parametrize("excerpt, side", [("two_people_fused_lab_80-99.json", "l"), ("balance_cam01_40-79.json", "r")])
+def test_no_angle_jumps_where_an_arm_out_to_the_side_meets_the_flexion_wrap(excerpt, side):
+    """Two real excerpts (tests/data/SOURCE.md): the two-person take fused through the lab
+    calibration (frames 80-99: l_shoulder_flexion within 2 degrees of its wrap with the old
+    quarter-length rule, which another run of the same fuse crossed, a 353.8 degree jump at
+    frame 97) and cam01 of the single take alone (frames 40-79: r_shoulder_flexion went 268.7 ->
+    -83.8 at frame 69). An arm out to the side at the shoulder's height, just behind the
+    frontal plane, points horizontally backwards from the trunk in the sagittal view, where
+    Sports2D's flexion wraps (worked out here from the joints). No angle now moves over 30
+    degrees from one frame (1/60 s) to the next, and ISB's elevation follows the arm in every
+    frame."""
+    take = json.loads((DATA / excerpt).read_text())
+    joints = tuple(take["joints"])
+    xyz = np.array([f["keypoints_3d"] for f in take["frames"]], float)
+    names = angle_names(joints)
+    got = angles_of(xyz, joints, take["frame"])
+    steps = np.abs(np.diff(got, axis=0))
+    assert np.nanmax(steps) < 30, {n: float(np.nanmax(steps[:, i])) for i, n in enumerate(names) if np.nanmax(steps[:, i]) >= 30}
+    assert np.isfinite(got[:, names.index(f"{side}_shoulder_elevation")]).all()
+    # the arm's direction from the trunk in the sagittal plane, where a quarter of its length shows
+    up = np.array([0.0, 0.0, 1.0]) if take["frame"] == "world" else np.array([0.0, -1.0, 0.0])
+    at = {j: xyz[:, joints.index(j)] for j in ("pelvis", "thorax", "r_hip", "l_hip", f"{side}_shoulder", f"{side}_elbow")}
+    lateral = at["l_hip"] - at["r_hip"]
+    lateral -= np.outer(lateral @ up, up)
+    forward = np.cross(lateral, up)
+
+    def phi(v):
+        return np.degrees(np.arctan2(v @ up, np.sum(v * forward, 1) / np.linalg.norm(forward, axis=1)))
+
+    arm = at[f"{side}_shoulder"] - at[f"{side}_elbow"]
+    old = (phi(arm) - phi(at["thorax"] - at["pelvis"]) + 180) % 360 - 180
+    shows = np.hypot(arm @ up, np.sum(arm * forward, 1) / np.linalg.norm(forward, axis=1)) / np.linalg.norm(arm, axis=1)
+    assert (np.abs(old + 90)[shows >= 0.25] < 3).any()
+
+
 def test_a_given_vertical_undoes_a_tilted_camera():
     """The hand-posed skeleton seen by a camera pitched 25 degrees down: with the frame's own
     vertical the segment angles carry the pitch; with the true vertical given, none do."""
