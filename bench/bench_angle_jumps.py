@@ -112,8 +112,8 @@ def report(results: dict[str, dict]) -> None:
                 cells.append(f"{jumps[name][col]:6.1f} {name[:20]:20s}")
         print(f"{key:42s}" + " | ".join(cells))
     print("\nper angle: the largest over every input (all / sound)")
-    names = sorted({n for r in results.values() for k in keys for n in r[k]},
-                   key=lambda n: list(results[labels[-1]][keys[0]]).index(n) if n in results[labels[-1]][keys[0]] else -1)
+    names = list(results[labels[-1]][keys[0]])                  # this checkout's order, then any others
+    names += [n for n in results[labels[0]][keys[0]] if n not in names]
     print(f"{'angle':24s}" + "".join(f"{label[:18]:>22s}" for label in labels))
     for n in names:
         cells = []
