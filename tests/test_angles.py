@@ -4,18 +4,19 @@ Pose2Sim's common.py, written out again below) on a real clip's side and front v
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 
-from posecam.analysis.angles import angle_names, angles_of
+from posecam.analysis.angles import FORESHORTENED, angle_names, angles_of
 from posecam.io.poses import CSV_HEADER
 from posecam.viz.draw import RIGHT
 from posecam.viz.plot import COLUMN_W
 from posecam.skeleton import BLAZEPOSE_LANDMARKS, H36M_JOINTS
 
-from conftest import DATA, run_posecam
+from conftest import DATA, EXAMPLES, run_posecam
 
 
 def _dir(deg: float) -> np.ndarray:
@@ -24,15 +25,20 @@ def _dir(deg: float) -> np.ndarray:
 
 
 # The pose, set by hand in the body's own axes: (forward, up) in the sagittal plane plus a
-# lateral offset (+ the person's left). Every angle below is one of the numbers used to build it.
+# lateral offset (+ the person's left). Every angle below is one of the numbers used to build it;
+# NaN: the right arm, raised forward, is 70 degrees out of the frontal plane (no abduction).
 EXPECTED = {
     "r_ankle_dorsiflexion": 10.0, "l_ankle_dorsiflexion": -20.0,
     "r_knee_flexion": 30.0, "l_knee_flexion": 60.0,
     "r_hip_flexion": 45.0, "l_hip_flexion": -10.0,
-    "r_shoulder_flexion": 90.0, "l_shoulder_flexion": -30.0,
+    "r_shoulder_flexion": 90.0, "l_shoulder_flexion": -10.0,
     "r_elbow_flexion": 90.0, "l_elbow_flexion": 0.0,
-    "r_hip_abduction": 0.0, "l_hip_abduction": 0.0, "r_shoulder_abduction": 0.0, "l_shoulder_abduction": 30.0,
+    "r_hip_abduction": 0.0, "l_hip_abduction": 0.0, "r_shoulder_abduction": np.nan, "l_shoulder_abduction": 30.0,
     "trunk_sagittal": 70.0, "trunk_frontal": 90.0, "pelvis_frontal": 5.0, "shoulders_frontal": 0.0,
+    # ISB's, where the pose makes them round: the right arm and thigh in the sagittal plane at 90
+    # and 45 degrees from the trunk's axis, the left thigh 10 degrees behind it (no plane)
+    "r_shoulder_elevation": 90.0, "r_shoulder_plane": 90.0, "r_hip_elevation": 45.0, "l_hip_elevation": 10.0,
+    "l_hip_plane": np.nan,
 }
 
 
@@ -55,7 +61,7 @@ def _body_points() -> dict[str, np.ndarray]:
         heel = pts[f"{s}_ankle"] + at(60 * _dir(shank))
         foot_back = ankle - 90 + shank                           # direction heel - toe
         pts[f"{s}_heel"], pts[f"{s}_foot_index"] = heel, heel - at(180 * _dir(foot_back))
-    for s, flex, side in (("r", 90, -1), ("l", -30, 1)):
+    for s, flex in (("r", 90), ("l", -10)):
         arm_up = trunk + flex                                    # direction shoulder - elbow
         pts[f"{s}_elbow"] = pts[f"{s}_shoulder"] - at(300 * _dir(arm_up))
     # the left arm also out to the side: a lateral part leaves its sagittal direction as it is,
@@ -96,16 +102,19 @@ def test_angles_of_a_skeleton_posed_by_hand(joints, yaw):
     names = angle_names(joints)
     values = dict(zip(names, angles_of(_skeleton(joints, yaw), joints)))
     assert ("r_ankle_dorsiflexion" in names) == (joints == BLAZEPOSE_LANDMARKS)   # no feet in the 17 joints
-    for name in names:
-        assert values[name] == pytest.approx(EXPECTED[name], abs=1e-6), name
+    for name in set(EXPECTED) & set(names):
+        assert values[name] == pytest.approx(EXPECTED[name], abs=1e-6, nan_ok=True), name
 
 
 def test_angles_follow_arms_raised_overhead_and_beyond():
     """Synthetic motion: the right arm raised forward from hanging to overhead and on behind the
     head (0 to 230 degrees), the left one out to the side (0 to 200): each angle is the number
     the pose was built with, with no wrap (the old range, +-180, turned 190 into -170); the
-    flexion of the arm seen end-on in the sagittal view (within 14.5 degrees of the
-    mediolateral axis: a quarter of its length shows) is NaN, its abduction is not."""
+    flexion of the arm more than 45 degrees out of the sagittal plane is NaN, its abduction is
+    not. ISB's elevation follows both arms all the way (up to 180 overhead, then back down as
+    the arm goes past it); the plane is 90 (forward) or 0 (to the side) until the arm passes
+    overhead, then the opposite direction (-90 behind, 180 across), NaN within 20 degrees of the
+    trunk's axis."""
     trunk = EXPECTED["trunk_sagittal"]
     raise_r, raise_l = np.linspace(0.0, 230.0, 47), np.linspace(0.0, 200.0, 47)
     poses = []
@@ -120,38 +129,163 @@ def test_angles_follow_arms_raised_overhead_and_beyond():
     got = dict(zip(angle_names(H36M_JOINTS), angles_of(np.array(poses), H36M_JOINTS).T))
     np.testing.assert_allclose(got["r_shoulder_flexion"], raise_r, atol=1e-6)
     np.testing.assert_allclose(got["l_shoulder_abduction"], raise_l, atol=1e-6)
-    end_on = np.abs(np.cos(np.radians(raise_l))) < 0.25                 # the arm's vertical share
-    assert end_on.sum() >= 3 and (np.isnan(got["l_shoulder_flexion"]) == end_on).all()
-    # hanging: along the forward-leaning trunk (20 degrees); past the end-on pose: up, over the head
-    lifted = got["l_shoulder_flexion"][raise_l > 105]
-    np.testing.assert_allclose(got["l_shoulder_flexion"][raise_l < 75], 90 - trunk, atol=1e-6)
+    out_of_plane = np.abs(np.cos(np.radians(raise_l))) < FORESHORTENED     # the arm's vertical share
+    assert out_of_plane.sum() >= 10 and (np.isnan(got["l_shoulder_flexion"]) == out_of_plane).all()
+    # hanging: along the forward-leaning trunk (20 degrees); past the side pose: up, over the head
+    lifted = got["l_shoulder_flexion"][raise_l > 135]
+    np.testing.assert_allclose(got["l_shoulder_flexion"][raise_l < 45], 90 - trunk, atol=1e-6)
     np.testing.assert_allclose(lifted, 270 - trunk, atol=1e-6)
     for name in ("trunk_sagittal", "r_knee_flexion", "r_hip_flexion"):
         np.testing.assert_allclose(got[name], EXPECTED[name], atol=1e-6)
+    # ISB, the right arm (raised in the trunk's sagittal plane): the elevation is the angle from
+    # the trunk's downward axis, 360 - the raise past overhead; the plane forward, then behind
+    elevation = np.minimum(raise_r, 360 - raise_r)
+    np.testing.assert_allclose(got["r_shoulder_elevation"], elevation, atol=1e-6)
+    near_axis = (elevation < 20) | (elevation > 160)
+    assert near_axis.sum() >= 8 and (np.isnan(got["r_shoulder_plane"]) == near_axis).all()
+    want = np.where(raise_r < 180, 90.0, -90.0)
+    np.testing.assert_allclose(got["r_shoulder_plane"][~near_axis], want[~near_axis], atol=1e-6)
+    assert np.nanmax(np.abs(np.diff(got["l_shoulder_elevation"]))) < 6   # 4.3 degrees a step, the left arm too
 
 
-def test_angles_stay_continuous_on_a_real_arm_raised_above_the_shoulder():
+def _upright(arms: dict[str, tuple[float, float, float]], thighs: dict[str, tuple[float, float, float]],
+             lean: float = 0.0) -> dict[str, np.ndarray]:
+    """Named points (forward, up, left) in mm: hips 200 mm apart, the trunk 500 mm long leaning
+    `lean` degrees forward, shoulders 300 mm apart; each side's humerus (shoulder -> elbow) and
+    thigh (hip -> knee) along the given (forward, up, left) directions."""
+    pts = {"r_hip": np.array([0.0, 0.0, -100.0]), "l_hip": np.array([0.0, 0.0, 100.0])}
+    neck = np.array([500 * np.sin(np.radians(lean)), 500 * np.cos(np.radians(lean)), 0.0])
+    pts.update(neck=neck, r_shoulder=neck + [0, 0, -150], l_shoulder=neck + [0, 0, 150])
+    for s in ("r", "l"):
+        arm, thigh = np.array(arms[s]) / np.linalg.norm(arms[s]), np.array(thighs[s]) / np.linalg.norm(thighs[s])
+        pts[f"{s}_elbow"] = pts[f"{s}_shoulder"] + 300 * arm
+        pts[f"{s}_wrist"] = pts[f"{s}_elbow"] + [0, -250, 0]
+        pts[f"{s}_knee"] = pts[f"{s}_hip"] + 450 * thigh
+        pts[f"{s}_ankle"] = pts[f"{s}_knee"] + [0, -400, 0]
+        pts[f"{s}_heel"] = pts[f"{s}_ankle"] + [-50, -60, 0]
+        pts[f"{s}_foot_index"] = pts[f"{s}_heel"] + [200, 0, 0]
+    return pts
+
+
+C30, S30 = np.cos(np.radians(30)), np.sin(np.radians(30))
+D = np.sin(np.radians(60)) * np.cos(np.radians(45))     # 60 from down, half forward and half out
+# (right arm, left arm, right thigh, left thigh) as (forward, up, left) directions; then each
+# one's (elevation, plane) worked out by hand: elevation from straight down, plane from the
+# side's outward axis (right: -left) towards forward
+ISB_POSES = {
+    "arms forward, thighs down": (((1, 0, 0), (1, 0, 0), (0, -1, 0), (0, -1, 0)),
+                                  ((90, 90), (90, 90), (0, None), (0, None))),
+    "arms out to the sides, sitting": (((0, 0, -1), (0, 0, 1), (1, 0, 0), (1, 0, 0)),
+                                       ((90, 0), (90, 0), (90, 90), (90, 90))),
+    "arms overhead and down, thighs out 30": (((0, 1, 0), (0, -1, 0), (0, -C30, -S30), (0, -C30, S30)),
+                                              ((180, None), (0, None), (30, 0), (30, 0))),
+    "right arm back, left across the chest": (((-1, 0, 0), (0, 0, -1), (-S30, -C30, 0), (S30, -C30, 0)),
+                                              ((90, -90), (90, 180), (30, -90), (30, 90))),
+    "arms half raised in the diagonal": (((D, -0.5, -D), (D, -0.5, D), (0, -1, 0), (0, -1, 0)),
+                                         ((60, 45), (60, 45), (0, None), (0, None))),
+}
+
+
+@pytest.mark.parametrize("pose", ISB_POSES)
+@pytest.mark.parametrize("yaw", [0.0, 120.0])
+def test_isb_elevation_and_plane_on_poses_worked_by_hand(pose, yaw):
+    (r_arm, l_arm, r_thigh, l_thigh), want = ISB_POSES[pose]
+    pts = _upright({"r": r_arm, "l": l_arm}, {"r": r_thigh, "l": l_thigh})
+    for joints in (H36M_JOINTS, BLAZEPOSE_LANDMARKS):
+        got = dict(zip(angle_names(joints), angles_of(_skeleton(joints, yaw, pts), joints)))
+        for name, (elevation, plane) in zip(("r_shoulder", "l_shoulder", "r_hip", "l_hip"), want):
+            assert got[f"{name}_elevation"] == pytest.approx(elevation, abs=1e-6), name
+            assert got[f"{name}_plane"] == pytest.approx(np.nan if plane is None else plane, abs=1e-6, nan_ok=True), name
+
+
+def test_isb_angles_are_measured_from_the_trunk():
+    """The trunk leaning 30 degrees forward, the arms and thighs plumb: relative to the trunk they
+    are raised 30 degrees forward (plane 90), as Sports2D's flexion says."""
+    pts = _upright({"r": (0, -1, 0), "l": (0, -1, 0)}, {"r": (0, -1, 0), "l": (0, -1, 0)}, lean=30.0)
+    got = dict(zip(angle_names(H36M_JOINTS), angles_of(_skeleton(H36M_JOINTS, 0.0, pts), H36M_JOINTS)))
+    for s in ("r", "l"):
+        assert got[f"{s}_shoulder_elevation"] == pytest.approx(30.0) and got[f"{s}_shoulder_plane"] == pytest.approx(90.0)
+        assert got[f"{s}_hip_elevation"] == pytest.approx(30.0) and got[f"{s}_hip_plane"] == pytest.approx(90.0)
+        assert got[f"{s}_shoulder_flexion"] == pytest.approx(30.0) and got[f"{s}_hip_flexion"] == pytest.approx(30.0)
+
+
+def test_narrow_hips_or_shoulders_leave_the_body_frame_angles_empty():
+    """A lifter's pose seen edge-on, its hips squashed to 40 mm (under a fifth of the 500 mm
+    trunk) and then its shoulders: every angle in the body's planes is NaN, the hinges are not."""
+    pts = _upright({"r": (1, 0, 0), "l": (0, 0, 1)}, {"r": (1, 0, 0), "l": (0, -1, 0)})
+    names = angle_names(H36M_JOINTS)
+    pts["r_hip"], pts["l_hip"] = pts["r_hip"] * 0.2, pts["l_hip"] * 0.2
+    got = dict(zip(names, angles_of(_skeleton(H36M_JOINTS, 0.0, pts), H36M_JOINTS)))
+    hinges = {"r_knee_flexion", "l_knee_flexion", "r_elbow_flexion", "l_elbow_flexion"}
+    assert all(np.isfinite(got[n]) for n in hinges) and got["r_shoulder_elevation"] == pytest.approx(90.0)
+    assert np.isnan([got[n] for n in names if "elevation" not in n and n not in hinges | {"r_shoulder_plane",
+                                                                                        "l_shoulder_plane"}]).all()
+    assert got["r_shoulder_plane"] == pytest.approx(90.0)      # the thorax's axes come from the shoulders
+    pts["r_shoulder"][2], pts["l_shoulder"][2] = -40.0, 40.0
+    got = dict(zip(names, angles_of(_skeleton(H36M_JOINTS, 0.0, pts), H36M_JOINTS)))
+    assert np.isnan([got["r_shoulder_plane"], got["l_shoulder_plane"], got["shoulders_frontal"]]).all()
+
+
+def test_angles_stay_continuous_on_a_real_arm_raised_out_to_the_side():
     """Person 1 of Pose2Sim's two-person take fused through the lab calibration (a committed
-    excerpt, tests/data/SOURCE.md): the right arm goes out to the side until the elbow is above
-    the shoulder and comes down. Its sagittal direction passes overhead (over 180 degrees,
-    where the old range wrapped to -180) and, seen end-on, has no flexion; every angle that is
-    defined moves less than 25 degrees from one frame (1/60 s) to the next."""
+    excerpt, tests/data/SOURCE.md): the right arm goes out to the side until the elbow is near
+    the shoulder's height and comes down. It is more than 45 degrees out of the sagittal plane
+    all along: no flexion (the old quarter-length rule gave one, over 200 degrees, seen from the
+    side); ISB's elevation follows it in every frame and its plane is abduction (near 0)
+    wherever the thorax's axes are known; every angle that is defined moves less than 25
+    degrees from one frame (1/60 s) to the next."""
     take = json.loads((DATA / "two_people_fused_arm_raised.json").read_text())
     joints = tuple(take["joints"])
     xyz = np.array([f["keypoints_3d"] for f in take["frames"]], float)
     names = angle_names(joints)
     got = angles_of(xyz, joints, take["frame"])
-    flexion, abduction = got[:, names.index("r_shoulder_flexion")], got[:, names.index("r_shoulder_abduction")]
-    assert np.nanmax(flexion) > 200 and np.isnan(flexion).sum() >= 10          # overhead, and seen end-on
-    assert np.isfinite(abduction).all() and abduction.max() > 70
+    flexion, elevation = got[:, names.index("r_shoulder_flexion")], got[:, names.index("r_shoulder_elevation")]
+    plane = got[:, names.index("r_shoulder_plane")]
+    assert np.isfinite(elevation).all() and elevation.max() > 75 and elevation.min() < 50
+    assert np.isfinite(plane).sum() >= 30 and np.nanmax(np.abs(plane)) < 30
     steps = np.abs(np.diff(got, axis=0))
     assert np.nanmax(steps) < 25, {n: float(np.nanmax(steps[:, i])) for i, n in enumerate(names)}
-    # the end-on frames are where the arm is within 14.5 degrees of the body's mediolateral axis
+    # no flexion: the arm is within 45 degrees of the body's mediolateral axis
     arm = xyz[:, joints.index("r_shoulder")] - xyz[:, joints.index("r_elbow")]
     across = xyz[:, joints.index("l_hip")] - xyz[:, joints.index("r_hip")]
     across[:, 2] = 0                                                        # horizontal (a Z-up world)
     share = np.abs(np.sum(arm * across, 1)) / np.linalg.norm(arm, axis=1) / np.linalg.norm(across, axis=1)
-    np.testing.assert_array_equal(np.isnan(flexion), share > np.sqrt(1 - 0.25 ** 2))
+    assert (share > np.sqrt(1 - FORESHORTENED ** 2)).all() and np.isnan(flexion).all()
+
+
+@pytest.mark.parametrize("excerpt, side", [("two_people_fused_lab_80-99.json", "l"), ("balance_cam01_40-79.json", "r")])
+def test_no_angle_jumps_where_an_arm_out_to_the_side_meets_the_flexion_wrap(excerpt, side):
+    """Two real excerpts (tests/data/SOURCE.md): the two-person take fused through the lab
+    calibration (frames 80-99: l_shoulder_flexion within 2 degrees of its wrap with the old
+    quarter-length rule, which another run of the same fuse crossed, a 353.8 degree jump at
+    frame 97) and cam01 of the single take alone (frames 40-79: r_shoulder_flexion went 268.7 ->
+    -83.8 at frame 69). An arm out to the side at the shoulder's height, just behind the
+    frontal plane, points horizontally backwards from the trunk in the sagittal view, where
+    Sports2D's flexion wraps (worked out here from the joints). No angle now moves over 30
+    degrees from one frame (1/60 s) to the next, and ISB's elevation follows the arm in every
+    frame."""
+    take = json.loads((DATA / excerpt).read_text())
+    joints = tuple(take["joints"])
+    xyz = np.array([f["keypoints_3d"] for f in take["frames"]], float)
+    names = angle_names(joints)
+    got = angles_of(xyz, joints, take["frame"])
+    steps = np.abs(np.diff(got, axis=0))
+    assert np.nanmax(steps) < 30, {n: float(np.nanmax(steps[:, i])) for i, n in enumerate(names) if np.nanmax(steps[:, i]) >= 30}
+    assert np.isfinite(got[:, names.index(f"{side}_shoulder_elevation")]).all()
+    # the arm's direction from the trunk in the sagittal plane, where a quarter of its length shows
+    up = np.array([0.0, 0.0, 1.0]) if take["frame"] == "world" else np.array([0.0, -1.0, 0.0])
+    at = {j: xyz[:, joints.index(j)] for j in ("pelvis", "thorax", "r_hip", "l_hip", f"{side}_shoulder", f"{side}_elbow")}
+    lateral = at["l_hip"] - at["r_hip"]
+    lateral -= np.outer(lateral @ up, up)
+    forward = np.cross(lateral, up)
+
+    def phi(v):
+        return np.degrees(np.arctan2(v @ up, np.sum(v * forward, 1) / np.linalg.norm(forward, axis=1)))
+
+    arm = at[f"{side}_shoulder"] - at[f"{side}_elbow"]
+    old = (phi(arm) - phi(at["thorax"] - at["pelvis"]) + 180) % 360 - 180
+    shows = np.hypot(arm @ up, np.sum(arm * forward, 1) / np.linalg.norm(forward, axis=1)) / np.linalg.norm(arm, axis=1)
+    assert (np.abs(old + 90)[shows >= 0.25] < 3).any()
 
 
 def test_a_given_vertical_undoes_a_tilted_camera():
@@ -165,8 +299,11 @@ def test_a_given_vertical_undoes_a_tilted_camera():
     true_up = turn @ np.array([0.0, -1.0, 0.0])          # the world's up, in the tilted camera's axes
     given = dict(zip(names, angles_of(cam, H36M_JOINTS, up=true_up)))
     assert abs(level["trunk_sagittal"] - EXPECTED["trunk_sagittal"]) > 5
-    for name in names:
-        assert given[name] == pytest.approx(EXPECTED[name], abs=1e-6), name
+    for name in set(EXPECTED) & set(names):
+        assert given[name] == pytest.approx(EXPECTED[name], abs=1e-6, nan_ok=True), name
+    for name in names:      # ISB's angles are in the trunk's own frame: the vertical plays no part
+        if name.endswith(("_elevation", "_plane")):
+            assert level[name] == pytest.approx(given[name], abs=1e-6, nan_ok=True), name
 
 
 def test_world_frame_is_z_up_and_missing_joints_give_nan():
@@ -278,11 +415,11 @@ def test_angles_match_sports2d_on_a_real_clip(balance_33):
         keys = SPORTS2D[theirs][0]
         expected = sports2d_fixed_angle([view[k] for k in keys], theirs)
         diff = (ours[name] - expected + 180) % 360 - 180
-        # NaN exactly where a segment of the angle shows under a quarter of its length in the view
+        # NaN exactly where a segment of the angle shows under 1/sqrt(2) of its length in the view
         shown = np.min([np.linalg.norm(view[a] - view[b], axis=1) / np.linalg.norm(named[a] - named[b], axis=1)
                         for a, b in zip(keys[::2], keys[1::2])], axis=0)
         defined = np.isfinite(ours[name])
-        assert (defined == (shown >= 0.25)).all() or np.abs(shown[defined != (shown >= 0.25)] - 0.25).max() < 1e-3, name
+        assert (defined == (shown >= FORESHORTENED)).all() or np.abs(shown[defined != (shown >= FORESHORTENED)] - FORESHORTENED).max() < 1e-3, (name, shown[defined != (shown >= FORESHORTENED)])
         assert np.abs(diff[defined]).max() < 0.11, (name, np.abs(diff[defined]).max())   # the file's 0.1 degree rounding
     # hinges: Sports2D's knee and elbow on the side view equal ours where the limb moves in that
     # plane; in 3D (Pose2Sim's points_to_angles on 3D points) they are the same everywhere
@@ -306,7 +443,8 @@ def test_predict_csv_angles_and_plot_pages(balance_33, tmp_path):
     assert header[:n] == list(CSV_HEADER) and tuple(header[n:]) == angle_names(BLAZEPOSE_LANDMARKS)
     first = next(p for p in balance_33["inputs"][0]["frames"][0]["people"] if p["id"] == 0)
     row = next(r.split(",") for r in lines[1:] if r.split(",")[1:4] == ["0", "0", "nose"])
-    assert [float(v) for v in row[n:]] == pytest.approx([first["angles"][a] for a in header[n:]], abs=0.051)
+    assert [float(v or "nan") for v in row[n:]] == pytest.approx(   # an empty cell: null in the JSON
+        [np.nan if first["angles"][a] is None else first["angles"][a] for a in header[n:]], abs=0.051, nan_ok=True)
     text = page.read_text()
     assert text.startswith("<!DOCTYPE html>") and "<polyline" in text and "person #0" in text and "http" not in text.replace("http://www.w3.org/2000/svg", "")
     run = run_posecam("predict", DATA / "balance_cam01_30f.mp4", "--plot", png, "--max-people", "1")   # 17 joints: no ankle panel
@@ -407,3 +545,56 @@ def test_plot_labels_overlap_neither_each_other_nor_the_curves():
     for x0, y0, x1, y1 in boxes:
         inside = (curves[:, 0] >= x0) & (curves[:, 0] <= x1) & (curves[:, 1] >= y0 - 2) & (curves[:, 1] <= y1 + 2)
         assert not inside.any(), (x0, y0, x1, y1)
+
+
+DEMO = EXAMPLES / "demo"
+
+
+def _largest_steps(doc: dict) -> dict[str, float]:
+    """{input/person/angle: its largest step between consecutive frames} of a pose file's angles
+    (nulls ignored)."""
+    out = {}
+    for inp in doc["inputs"]:
+        tracks: dict[int, list] = {}
+        for f in inp["frames"]:
+            for p in f["people"]:
+                tracks.setdefault(p["id"], []).append((f["index"], p["angles"]))
+        for pid, rows in tracks.items():
+            names = list(rows[0][1])
+            values = np.array([[np.nan if a[n] is None else a[n] for n in names] for _, a in rows], float)
+            steps = np.abs(np.diff(values, axis=0))[np.diff([i for i, _ in rows]) == 1]
+            for k, n in enumerate(names):
+                out[f"{Path(inp.get('source') or 'fused').stem}/#{pid}/{n}"] = float(np.nanmax(steps[:, k], initial=0))
+    return out
+
+
+@pytest.mark.demo
+def test_two_people_fused_through_the_lab_calibration_have_no_angle_jumps(tmp_path):
+    """The two-person take fused through the lab calibration with --angles (main's
+    l_shoulder_flexion of person 1 jumped 353.8 degrees at frame 97 in one run, and sat within
+    2 degrees of that wrap in another): no angle moves 30 degrees from one frame to the next."""
+    if not DEMO.is_dir():
+        pytest.skip("run python examples/fetch_demo.py first")
+    views, fused = tmp_path / "multi.json", tmp_path / "fused.json"
+    run = run_posecam("predict", *sorted((DEMO / "multi").glob("cam0*.mp4")), "-o", views)
+    assert run.returncode == 0, run.stderr
+    run = run_posecam("fuse", views, "--calibration", DEMO / "multi" / "Calib.qca.txt", "--offsets", "0,-1,4,0",
+                      "--angles", "-o", fused)
+    assert run.returncode == 0, run.stderr
+    doc = json.loads(fused.read_text())
+    assert len(doc["inputs"][0]["frames"]) >= 98
+    steps = _largest_steps(doc)
+    assert max(steps.values()) < 30, {k: v for k, v in steps.items() if v >= 30}
+
+
+@pytest.mark.demo
+def test_one_camera_of_the_single_take_has_no_angle_jumps(tmp_path):
+    """`predict cam01.mp4 --angles` (main drew r_shoulder_flexion 270 -> -80 with --plot): no angle
+    of either person moves 30 degrees from one frame to the next."""
+    if not DEMO.is_dir():
+        pytest.skip("run python examples/fetch_demo.py first")
+    out = tmp_path / "cam01.json"
+    run = run_posecam("predict", DEMO / "single" / "cam01.mp4", "--angles", "-o", out, "--plot", tmp_path / "cam01.png")
+    assert run.returncode == 0, run.stderr
+    steps = _largest_steps(json.loads(out.read_text()))
+    assert steps and max(steps.values()) < 30, {k: v for k, v in steps.items() if v >= 30}

@@ -1,4 +1,4 @@
-"""Joint and segment angles (degrees) from 3D joints, with Sports2D's conventions.
+"""Joint and segment angles (degrees) from 3D joints, with Sports2D's and ISB's conventions.
 
     from posecam.analysis.angles import angles_of, angle_names
     names = angle_names(rec.joints)                    # the angles this skeleton has
@@ -50,13 +50,38 @@ extension or adduction; an arm raised overhead reads 180 and on past it); the tr
 angles too (upright 90, the wrap upside down); ankle dorsiflexion in (-180, 180]; the pelvis and
 shoulders lines in (-90, 90]; knee and elbow flexion in [0, 180].
 
-A planar angle is only defined for a segment that shows in its view: a limb pointing along the
-view's normal (an arm raised out to the side, seen by the sagittal view; an arm reaching forward,
-by the frontal one) is a dot there, and its direction turns half a turn when it passes through
-(a 20 mm joint error on a 300 mm arm moves it 15 degrees at a quarter of its length). So an
-angle whose segment shows less than `FORESHORTENED` of its length in its view is NaN (the
-curve breaks: the other view's angle tells where the limb is), as is an angle of a missing
-joint.
+A planar angle is only defined for a segment that lies nearer its view's plane than the plane's
+normal (within 45 degrees of it: it shows at least `FORESHORTENED` = 1/sqrt(2) of its length
+there). Further out (an arm raised out to the side, seen by the sagittal view; an arm reaching
+forward, by the frontal one) the view sees mostly the segment's other motion, its direction
+there turns fast with little motion (half a turn as it passes end-on) and crosses the wrap
+with a real pose (an arm at shoulder height just behind the frontal plane points horizontally
+backwards in the sagittal view): the angle is NaN, the curve breaks, and the other view's angle
+or the ISB angles below tell where the limb is. So is every angle measured in the body's
+planes when the hips (for the body's axes) or the shoulders (for their line and the thorax) are
+less than `NARROW` of the trunk's length apart: a lifter's pose seen edge-on can squash them to
+a few mm, and such a line's direction is its joints' error. A missing joint gives NaN too.
+
+ISB's angles (Wu et al. 2005, J Biomech 38:981; OpenSim's upper-extremity models' `elv_angle`
+and `shoulder_elv`) describe a limb in the trunk's own frame, which stays continuous where the
+planar angles break: the trunk's axis `T` (mid hip -> neck), the thorax's lateral axis (right ->
+left shoulder, made perpendicular to `T`) for the shoulder, the pelvis's (the hips' line, made
+perpendicular to `T`) for the hip, and forward their cross product, as above.
+
+| name                    | value                                                                   |
+|-------------------------|-------------------------------------------------------------------------|
+| {r,l}_shoulder_elevation| angle(shoulder -> elbow, -T) in [0, 180]: 0 arm hanging along the trunk, 90 horizontal (to the trunk), 180 overhead |
+| {r,l}_shoulder_plane    | the plane of elevation: the humerus's azimuth about T from the side's outward axis towards forward, in (-135, 225]: 0 abduction in the frontal plane, 90 forward flexion, < 0 behind the frontal plane |
+| {r,l}_hip_elevation     | likewise for hip -> knee                                                |
+| {r,l}_hip_plane         | likewise for the thigh (a flexed hip 90, abducted 0)                    |
+
+The elevation is defined everywhere; the plane only where the limb is at least `POLE` (20
+degrees) from the trunk's axis (20 mm of joint error on a 300 mm humerus at 20 degrees turns it
+11 degrees): NaN nearer it, at either end. It wraps at -135, the limb pointing backwards
+across the back, where a shoulder or hip hardly takes it away from the trunk's axis (an arm
+out to the side and just behind the frontal plane, which the Sports2D flexion wraps at, reads
+about -10 here). ISB's third rotation, the humerus's axial rotation, needs the forearm's
+direction and a bent elbow; it is not given.
 """
 
 from __future__ import annotations
@@ -70,10 +95,14 @@ from posecam.skeleton import SIDES, SKELETONS
 # where each role sits in the two skeletons: one joint, or the mean of several (posecam.skeleton)
 _ROLES = {name: dict(skeleton.roles) for name, skeleton in SKELETONS.items()}
 _JOINT_ANGLES = ("ankle_dorsiflexion", "knee_flexion", "hip_flexion", "shoulder_flexion", "elbow_flexion",
-                 "hip_abduction", "shoulder_abduction")
+                 "hip_abduction", "shoulder_abduction", "shoulder_elevation", "shoulder_plane", "hip_elevation",
+                 "hip_plane")
 _SEGMENT_ANGLES = ("trunk_sagittal", "trunk_frontal", "pelvis_frontal", "shoulders_frontal")
-FORESHORTENED = 0.25   # a segment shorter than this share of its length in its view has no planar angle
-_CENTRE = {"ankle_dorsiflexion": 0.0, "pelvis_frontal": 0.0, "shoulders_frontal": 0.0}   # else 90: see the doc
+FORESHORTENED = 0.5 ** 0.5   # a segment shorter than this share of its length in its view has no planar angle
+NARROW = 0.2     # hips or shoulders nearer than this share of the trunk's length: no body axes, no line
+POLE = 20.0      # degrees: a limb nearer the trunk's axis has no plane of elevation
+_CENTRE = {"ankle_dorsiflexion": 0.0, "pelvis_frontal": 0.0, "shoulders_frontal": 0.0,
+           "shoulder_plane": 45.0, "hip_plane": 45.0}   # else 90: see the doc
 
 
 def _roles(joints: tuple[str, ...]) -> dict[str, tuple[int, ...]]:
@@ -96,18 +125,43 @@ def _wrap(deg: np.ndarray, centre: float = 0.0, half_turn: float = 180.0) -> np.
     return centre + half_turn - np.mod(centre + half_turn - deg, 2 * half_turn)
 
 
-def _direction(v: np.ndarray, horizontal: np.ndarray, up: np.ndarray) -> np.ndarray:
+def _direction(v: np.ndarray, horizontal: np.ndarray, up: np.ndarray, least: float = FORESHORTENED) -> np.ndarray:
     """phi(v): the angle of (..., 3) `v` anticlockwise from `horizontal` in the view (horizontal, up);
-    NaN where `v` shows less than FORESHORTENED of its length in that view."""
+    NaN where `v` shows less than `least` of its length in that view."""
     x, y = np.sum(v * horizontal, -1), np.sum(v * up, -1)
-    shown = np.hypot(x, y) >= FORESHORTENED * np.linalg.norm(v, axis=-1)
+    shown = np.hypot(x, y) >= least * np.linalg.norm(v, axis=-1)
     return np.where(shown, np.degrees(np.arctan2(y, x)), np.nan)
+
+
+def _between(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The angle in [0, 180] between (..., 3) `u` and `v`."""
+    return np.degrees(np.arctan2(np.linalg.norm(np.cross(u, v), axis=-1), np.sum(u * v, -1)))
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def _wide(line: np.ndarray, trunk: np.ndarray) -> np.ndarray:
+    """`line` (hips' or shoulders', (..., 3)), NaN where it is under NARROW of the trunk's length."""
+    short = np.linalg.norm(line, axis=-1) < NARROW * np.linalg.norm(trunk, axis=-1)
+    return np.where(short[..., None], np.nan, line)
+
+
+def _elevation_and_plane(limb: np.ndarray, axis: np.ndarray, lateral: np.ndarray,
+                         outward: float) -> tuple[np.ndarray, np.ndarray]:
+    """ISB's elevation and plane of elevation of `limb` (proximal -> distal joint) in the trunk
+    frame of unit `axis` (up the trunk) and `lateral` (unit, right -> left, perpendicular to
+    `axis`); `outward` -1 for the right side, +1 for the left."""
+    forward = np.cross(lateral, axis)
+    plane = _direction(limb, outward * lateral, forward, least=np.sin(np.radians(POLE)))
+    return _between(limb, -axis), plane
 
 
 def _flexion_3d(a: np.ndarray, joint: np.ndarray, b: np.ndarray) -> np.ndarray:
     """180 - the angle at `joint` between its segments to `a` and to `b` (0 when straight)."""
     u, v = a - joint, b - joint
-    return 180.0 - np.degrees(np.arctan2(np.linalg.norm(np.cross(u, v), axis=-1), np.sum(u * v, -1)))
+    return 180.0 - _between(u, v)
 
 
 def angles_of(xyz: np.ndarray, joints: tuple[str, ...], frame_of_reference: str = "camera",
@@ -122,10 +176,14 @@ def angles_of(xyz: np.ndarray, joints: tuple[str, ...], frame_of_reference: str 
     at = {role: p[..., list(idx), :].mean(axis=-2) for role, idx in roles.items()}
     up = np.array([0.0, 1.0, 0.0]) if up is None else to_y_up(np.asarray(up, float), frame_of_reference)
     up = up / np.linalg.norm(up)
-    lateral = at["l_hip"] - at["r_hip"]
-    lateral = lateral - np.sum(lateral * up, -1, keepdims=True) * up   # horizontal mediolateral axis M
-    lateral = lateral / np.linalg.norm(lateral, axis=-1, keepdims=True)
+    trunk_line = at["neck"] - at["mid_hip"]
+    hips = _wide(at["l_hip"] - at["r_hip"], trunk_line)
+    shoulders = _wide(at["l_shoulder"] - at["r_shoulder"], trunk_line)
+    lateral = _unit(hips - np.sum(hips * up, -1, keepdims=True) * up)   # horizontal mediolateral axis M
     forward = np.cross(lateral, up)                                  # F = M x U
+    axis = _unit(trunk_line)                                         # ISB's trunk frame: T, its laterals
+    thorax = _unit(shoulders - np.sum(shoulders * axis, -1, keepdims=True) * axis)
+    pelvis = _unit(hips - np.sum(hips * axis, -1, keepdims=True) * axis)
 
     def sagittal(v):
         return _direction(v, forward, up)
@@ -133,8 +191,8 @@ def angles_of(xyz: np.ndarray, joints: tuple[str, ...], frame_of_reference: str 
     def frontal(v):
         return _direction(v, lateral, up)
 
-    trunk = sagittal(at["neck"] - at["mid_hip"])
-    trunk_frontal = frontal(at["neck"] - at["mid_hip"])
+    trunk = sagittal(trunk_line)
+    trunk_frontal = frontal(trunk_line)
     out = {}
     for s in SIDES:
         j = {name: at[f"{s}_{name}"] for name in ("hip", "knee", "ankle", "shoulder", "elbow", "wrist")}
@@ -148,10 +206,14 @@ def angles_of(xyz: np.ndarray, joints: tuple[str, ...], frame_of_reference: str 
         outward = -1.0 if s == "r" else 1.0          # the right side mirrored, as Sports2D's front view
         out[f"{s}_hip_abduction"] = outward * (frontal(j["hip"] - j["knee"]) - trunk_frontal)
         out[f"{s}_shoulder_abduction"] = outward * (frontal(j["shoulder"] - j["elbow"]) - trunk_frontal)
+        out[f"{s}_shoulder_elevation"], out[f"{s}_shoulder_plane"] = _elevation_and_plane(
+            j["elbow"] - j["shoulder"], axis, thorax, outward)
+        out[f"{s}_hip_elevation"], out[f"{s}_hip_plane"] = _elevation_and_plane(
+            j["knee"] - j["hip"], axis, pelvis, outward)
     out["trunk_sagittal"] = trunk
     out["trunk_frontal"] = trunk_frontal
-    out["pelvis_frontal"] = _wrap(frontal(at["l_hip"] - at["r_hip"]), half_turn=90.0)
-    out["shoulders_frontal"] = _wrap(frontal(at["l_shoulder"] - at["r_shoulder"]), half_turn=90.0)
+    out["pelvis_frontal"] = _wrap(frontal(hips), half_turn=90.0)
+    out["shoulders_frontal"] = _wrap(frontal(shoulders), half_turn=90.0)
     return np.stack([_wrap(out[name], _centre(name)) for name in angle_names(joints)], axis=-1)
 
 

@@ -172,8 +172,8 @@ def angle_options(f: Callable) -> Callable:
     f = click.option("--plot", type=click.Path(),
                      help="FILE.png or FILE.html: each person's joint angles and root depth over time.")(f)
     return click.option("--angles", is_flag=True,
-                        help="Add each person's joint and segment angles (degrees, Sports2D's conventions, from the "
-                             "smoothed joints) to -o FILE.json or FILE.csv.")(f)
+                        help="Add each person's joint and segment angles (degrees, Sports2D's and ISB's conventions, "
+                             "from the smoothed joints) to -o FILE.json or FILE.csv.")(f)
 
 
 def check_angles(angles: bool, output: str | None, plot: str | None) -> None:

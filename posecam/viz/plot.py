@@ -39,6 +39,8 @@ PANELS = (   # title, series (angle names, or "depth"), unit
     ("elbow flexion", ("r_elbow_flexion", "l_elbow_flexion"), "deg"),
     ("hip abduction", ("r_hip_abduction", "l_hip_abduction"), "deg"),
     ("shoulder abduction", ("r_shoulder_abduction", "l_shoulder_abduction"), "deg"),
+    ("shoulder elevation, ISB", ("r_shoulder_elevation", "l_shoulder_elevation"), "deg"),
+    ("shoulder plane, ISB", ("r_shoulder_plane", "l_shoulder_plane"), "deg"),
     ("trunk and pelvis", ("trunk_sagittal", "trunk_frontal", "pelvis_frontal", "shoulders_frontal"), "deg"),
     ("root z", ("depth",), "m"),   # depth from the camera (camera frames); a fused world: its Z
 )
@@ -147,7 +149,7 @@ def layout(series: AngleSeries, title: str) -> tuple[tuple[int, int], list[tuple
                     else:
                         p = to_px(t[run], values[key][run])[0]
                         out.append(("line", (p[0] - 1, p[1], p[0] + 1, p[1]), colour, 3))
-                label = LABELS.get(key, key.replace("_dorsiflexion", "").replace("_flexion", "").replace("_abduction", ""))
+                label = LABELS.get(key, key.rsplit("_", 1)[0])          # r_knee_flexion: r_knee
                 out.append(("line", (legend_x, top + 12, legend_x + 16, top + 12), colour, 2))
                 out.append(("text", (legend_x + 20, top + 16), label, (40, 40, 40), 11))
                 legend_x += 30 + text_width(label, 11)
