@@ -244,7 +244,7 @@ def estimate_rig(assumed: list[CameraCalibration], obs: Observations,
     dist = np.where(w0 > 0, np.linalg.norm(x - target, axis=-1), np.nan)
     cameras = [CameraCalibration(c.name, c.size, c.intrinsics if c.name in opts.fixed else
                                  Intrinsics(*map(float, s.k[i]), source="consensus"),
-                                 s.rotation[i].copy(), s.translation[i].copy())
+                                 s.rotation[i].copy(), s.translation[i].copy(), c.distortion)
                for i, c in enumerate(assumed)]
     return ConsensusResult(
         rig=Rig(cameras, reference=assumed[ref].name),
