@@ -255,3 +255,57 @@ def test_camera_table_through_a_pipe(tmp_path):
     _fits(r.stdout)
     assert _first_column(r.stdout) == "".join(NAMES[:3]) + "left", r.stdout
     assert "--verbose" in " ".join(r.stdout.split())     # the legend says where the rest is
+
+
+# ---- the lens given: pose files are lifted again through it, as videos are predicted with it ----
+
+def _blazepose_inputs(tmp_path, n_frames=60, views=2):
+    """Pose files of a BlazePose model (re-liftable), made with posecam's default lens."""
+    cams = make_rig()
+    paths = []
+    for rec in monocular_views(cams, skeleton_motion(n_frames))[:views]:
+        rec.model = "blazepose-full"
+        p = tmp_path / f"{rec.source}.json"
+        write_poses(p, [rec])
+        paths.append(p)
+    return cams, paths
+
+
+def test_a_focal_length_given_is_the_fused_lens_for_pose_files(tmp_path):
+    """`fuse a.json b.json --fx 1680` holds 1680 (it estimated 1723, 1642, ... and said
+    nothing): the poses are lifted again through it, and the report says it was held."""
+    _, paths = _blazepose_inputs(tmp_path)
+    out = tmp_path / "fused.json"
+    r = run_posecam("fuse", *paths, "--fx", "1680", "--sync", "none", "-o", out)
+    assert r.returncode == 0, r.stderr
+    cameras = json.loads(out.read_text())["inputs"][0]["cameras"]
+    assert [c["intrinsics"][:2] for c in cameras] == [[1680.0, 1680.0]] * 2, cameras
+    assert all(c["intrinsics_fixed"] is True for c in cameras), cameras
+
+
+def test_relifting_through_a_lens_keeps_the_pose_and_moves_its_root():
+    from posecam.geometry.camera import Intrinsics, project
+    from posecam.views import relensed
+
+    cams = make_rig()
+    rec = monocular_views(cams[:1], skeleton_motion(5), pixel_noise=0.0, joint_noise=0.0, depth_noise=0.0,
+                          outlier_rate=0.0)[0]
+    rec.model = "blazepose-lite"
+    k = Intrinsics(1500.0, 1500.0, 960.0, 540.0, "flags")
+    again = relensed(rec, k)
+    assert again.intrinsics == k and again.intrinsics.given
+    for before, after in zip(rec.frames, again.frames):
+        a, b = before.people[0], after.people[0]
+        shape = lambda p: p.keypoints_3d - p.keypoints_3d[0]     # noqa: E731: root-relative
+        assert np.allclose(shape(a), shape(b)) and np.allclose(b.keypoints_2d, a.keypoints_2d)
+        assert np.median(np.abs(project(b.keypoints_3d, k) - b.keypoints_2d)) < 3    # placed on its pixels
+        assert abs(b.root[2] - a.root[2]) > 50                                      # the root moved
+
+
+def test_pose_files_that_cannot_be_lifted_again_are_refused_in_one_line(tmp_path):
+    cams, paths = _inputs(tmp_path, 20)          # model "synthetic": not a BlazePose metric pose
+    out = tmp_path / "fused.json"
+    r = run_posecam("fuse", *paths[:2], "--fx", "1680", "-o", out)
+    assert r.returncode == 2 and len(r.stderr.splitlines()) == 1, r.stderr
+    assert "cannot be lifted again through another lens" in r.stderr and "Traceback" not in r.stderr
+    assert not out.exists()

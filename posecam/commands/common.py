@@ -87,8 +87,8 @@ def make_estimator_options(kwargs: dict) -> EstimatorOptions:
 
 def intrinsics_options(per_camera: bool = False) -> Callable:
     """The intrinsics flags shared by `predict` and `fuse` (`per_camera`: --camera names one camera per video)."""
-    camera_help = ("Camera names inside the --intrinsics calibration, one per video in the order of the inputs "
-                   "(cam01,cam02,...); default: matched to the video names." if per_camera else
+    camera_help = ("Camera names inside the --intrinsics calibration, one per view in the order of the inputs "
+                   "(cam01,cam02,...); default: matched to the views' names." if per_camera else
                    "Camera name inside the --intrinsics calibration (needs --intrinsics).")
 
     def decorate(f: Callable) -> Callable:

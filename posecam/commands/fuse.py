@@ -153,9 +153,10 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
 
     INPUTS are 2 or more videos, image folders or `posecam predict` JSON files, one per
     static camera; with --out-dir, folders of takes, each holding its cameras' videos. The
-    model, detection and intrinsics options apply to the video and image-folder inputs,
-    predicted as `posecam predict` does (without --calibration, each camera's intrinsics come
-    from --intrinsics, the flags, or posecam's default lens).
+    model and detection options apply to the video and image-folder inputs, predicted as
+    `posecam predict` does; the intrinsics options (or --calibration's cameras) to every
+    input: the videos are predicted with them, the pose files' poses lifted again through
+    them (without, each camera's intrinsics come from its pose file, or posecam's default lens).
     """
     from rich.console import Console
 
