@@ -38,7 +38,7 @@ from posecam.errors import InputError
 from posecam.io.atomic import atomic_path
 from posecam.io.jsonstream import JsonStream
 from posecam.io.validate import MAX_FPS, MAX_INDEX, MAX_JOINTS, MAX_MM, MAX_PEOPLE, MAX_PIXEL, MAX_SECONDS, Field
-from posecam.io.media import check_input
+from posecam.io.media import check_input, exact_times
 from posecam.results import Dropped, Frame, Person, Recording
 from posecam.skeleton import skeleton_of
 
@@ -290,6 +290,9 @@ def _read_input(stream: JsonStream, check: Field, shape: dict) -> dict:
     if frame not in FRAMES_OF_REFERENCE and not frame.startswith("reference camera "):
         raise check.fail("frame", "must be camera, world or reference camera NAME", frame)
     fps = check.number(fields.get("fps"), "fps", 0, MAX_FPS, optional=True, open_lo=True)
+    # times written to 4 decimals: index / fps again where the input had a constant rate
+    for f, t in zip(frames, exact_times([f.index for f in frames], [f.time for f in frames], fps)):
+        f.time = float(t)
     return {"source": check.text(fields["source"], "source"), "width": check.side(fields["width"], "width"),
             "height": check.side(fields["height"], "height"), "intrinsics": intrinsics, "frames": frames,
             "fps": None if fps is None else float(fps), "frame_of_reference": frame,
