@@ -202,7 +202,7 @@ def test_distortion_is_read_from_every_intrinsics_source(tmp_path):
     qca = resolve_intrinsics(IntrinsicsOptions(file=str(EXAMPLES / "demo/single/Calib.qca.txt"), camera="cam01"),
                              1080, 1920)
     assert toml.distortion == pytest.approx((-0.046183, 0.139983, 0.000608, 0.00069))
-    assert qca.distortion[:4] == pytest.approx(toml.distortion) and not any(qca.distortion[4:])
+    assert qca.distortion == pytest.approx(toml.distortion)
     plain = _filestorage_yaml(tmp_path / "plain.yml", 1920, 1080, [[1400.0, 0, 960.0], [0, 1400.0, 540.0], [0, 0, 1]])
     assert resolve_intrinsics(IntrinsicsOptions(file=str(plain)), 1920, 1080).distortion == ()   # zeros: none
 
@@ -245,3 +245,21 @@ def test_predict_lifts_through_the_lens_distortion_and_writes_it(tmp_path):
         roots[k1], uvs[k1] = person.root, person.keypoints_2d
     assert np.allclose(uvs[0.0], uvs[-0.30], atol=0.02)          # the image's pixels either way
     assert np.abs(roots[0.0] - roots[-0.30]).max() > 20            # mm: the lens moves the person
+
+
+def test_values_in_messages_are_plain_numbers(tmp_path):
+    """An OpenCV YAML with fx 0 answered `got np.float64(0.0)`: numbers as the user wrote them."""
+    import numpy as np
+
+    from conftest import EXAMPLES, run_posecam
+    from posecam.geometry.camera import Intrinsics
+
+    zero = _filestorage_yaml(tmp_path / "zero.yml", 1920, 1080, [[0.0, 0, 960.0], [0, 1400.0, 540.0], [0, 0, 1]])
+    r = run_posecam("predict", EXAMPLES / "balance.jpg", "--intrinsics", zero, "-o", tmp_path / "out.json")
+    assert r.returncode == 2 and r.stderr.strip().endswith("fx: must be a number > 0 and <= 1e+06, got 0.0"), r.stderr
+    for bad, words in ((lambda: IntrinsicsOptions(fx=np.float64("nan")), "fx must be a finite number, got nan"),
+                       (lambda: Intrinsics(np.float64(0.0), 1.0, 2.0, 3.0), "got fx=0, fy=1"),
+                       (lambda: Intrinsics(np.float64("inf"), 1.0, 2.0, 3.0), "got inf, 1, 2, 3")):
+        with pytest.raises(InputError) as caught:
+            bad()
+        assert words in str(caught.value) and "np." not in str(caught.value), caught.value

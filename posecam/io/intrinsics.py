@@ -16,7 +16,7 @@ from pathlib import Path
 from posecam.geometry.camera import CameraCalibration, Intrinsics, distortion_tuple
 from posecam.errors import InputError
 from posecam.io.exif import focal_length_35mm
-from posecam.io.validate import MAX_PIXEL, Field, read_small
+from posecam.io.validate import MAX_PIXEL, Field, read_small, shown_value
 from posecam.io.media import check_input
 
 
@@ -33,9 +33,9 @@ class IntrinsicsOptions:
         for name in ("fx", "fy", "cx", "cy"):
             value = getattr(self, name)
             if value is not None and (isinstance(value, bool) or not isinstance(value, numbers.Real)):
-                raise InputError(f"{name} must be a number, got {value!r}")
+                raise InputError(f"{name} must be a number, got {shown_value(value)}")
             if value is not None and not math.isfinite(value):
-                raise InputError(f"{name} must be a finite number, got {value!r}")
+                raise InputError(f"{name} must be a finite number, got {shown_value(value)}")
         if (self.cx is None) != (self.cy is None):
             raise InputError("give the principal point whole: --cx and --cy together")
         if self.cx is not None and self.fx is None and self.fy is None:
