@@ -309,3 +309,44 @@ def test_pose_files_that_cannot_be_lifted_again_are_refused_in_one_line(tmp_path
     assert r.returncode == 2 and len(r.stderr.splitlines()) == 1, r.stderr
     assert "cannot be lifted again through another lens" in r.stderr and "Traceback" not in r.stderr
     assert not out.exists()
+
+
+# ---- numpy's own warnings never reach the user ----
+
+NUMPY_WORDING = ("slice", "RuntimeWarning", "encountered", "Degrees of freedom", "invalid value")
+
+
+def test_views_sharing_no_confident_joint_in_some_frames_fuse_without_numpy_words(tmp_path):
+    """Frames where two views' confident joints are disjoint (one sees the left side, the other
+    the right) gave `posecam: warning: All-NaN slice encountered` (the association's per-frame
+    medians)."""
+    import warnings
+
+    cams = make_rig()
+    recs = monocular_views(cams, skeleton_motion(40))
+    for i in range(0, 40, 2):
+        for p in recs[0].frames[i].people:
+            p.confidence[:8] = 0.05
+        for p in recs[1].frames[i].people:
+            p.confidence[8:] = 0.05
+    paths = []
+    for rec in recs:
+        paths.append(tmp_path / f"{rec.source}.json")
+        write_poses(paths[-1], [rec])
+    calib = tmp_path / "calib.toml"
+    write_toml(calib, cams)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)          # the code emits none, not only hides them
+        r = run_posecam("fuse", *paths, "--calibration", calib, "-o", tmp_path / "fused.json")
+    assert r.returncode == 0, r.stderr
+    assert not any(words in r.stderr for words in NUMPY_WORDING), r.stderr
+
+
+def test_the_cli_shows_posecam_warnings_and_not_numpy_runtime_warnings(capsys):
+    from posecam.cli import _show_warning
+    from posecam.errors import PosecamWarning
+
+    _show_warning(RuntimeWarning("All-NaN slice encountered"), RuntimeWarning, "x.py", 1)
+    _show_warning(RuntimeWarning("Mean of empty slice"), RuntimeWarning, "x.py", 1)
+    _show_warning(PosecamWarning("a truncated video"), PosecamWarning, "x.py", 1)
+    assert capsys.readouterr().err == "posecam: warning: a truncated video\n"
