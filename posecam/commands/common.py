@@ -242,6 +242,31 @@ def refuse_alone(option: str, needs: str, given_with: bool) -> None:
         raise InputError(f"{flag} needs {needs}")
 
 
+def typed(option: str) -> str | None:
+    """The flag of `option` as typed on the command line (--no-smooth), None where it was not."""
+    from click.core import ParameterSource
+
+    ctx = click.get_current_context()
+    if ctx.get_parameter_source(option) != ParameterSource.COMMANDLINE:
+        return None
+    param = next(p for p in ctx.command.params if p.name == option)
+    value = ctx.params.get(option)
+    return (param.secondary_opts[0] if param.secondary_opts and value is False else param.opts[0])
+
+
+def refuse_typed(options: tuple[str, ...], needs: str, given_with: bool) -> None:
+    """`refuse_alone` for several options: the first of them typed, refused without `needs`."""
+    for option in options:
+        refuse_alone(option, needs, given_with)
+
+
+def warn_alone(option: str, note: str, given_with: bool) -> None:
+    """Warn that an option typed on the command line does nothing here (`note` says why)."""
+    flag = typed(option)
+    if flag and not given_with:
+        warn(f"{flag} {note}")
+
+
 def report_console():
     """Where summaries go: stdout (no command writes poses to stdout; errors and warnings go to stderr)."""
     from rich.console import Console

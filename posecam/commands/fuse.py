@@ -12,7 +12,7 @@ import click
 from posecam.commands.common import (angle_options, check_angles, check_output, estimator_options, frame_options,
                                      frame_progress, intrinsics_options, make_estimator_options, make_frame_selection,
                                      make_intrinsics_options, many_options, progress_bar, height_option,
-                                     refuse_alone, report_written, stdout_report, shown, warn)
+                                     refuse_alone, refuse_typed, report_written, stdout_report, shown, warn)
 from posecam.errors import InputError
 
 if TYPE_CHECKING:
@@ -91,6 +91,9 @@ def print_report(result: FusionResult, console, verbose: bool = False) -> None:
 
 
 MAX_OFFSET = 1000   # frames: --max-offset and each of --offsets
+# the model and detection options: they predict the videos and image folders, not the pose files
+ESTIMATOR_FLAGS = ("device", "model", "skeleton", "detector", "max_people", "min_detection_score", "min_presence",
+                   "threads")
 
 
 def parse_offsets(text: str) -> list[float]:
@@ -199,6 +202,8 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     if many and (output or viz or viz3d or save_calibration or angles or plot):
         raise InputError("--out-dir writes one file per take; it does not go with -o, --viz, --viz3d, --save-calibration, "
                          "--angles or --plot")
+    predicted = many or any(Path(p).suffix.lower() != ".json" for p in inputs)
+    refuse_typed(ESTIMATOR_FLAGS, "a video or image-folder input (pose files were predicted already)", predicted)
     estimator, intrinsics = make_estimator_options(flags), make_intrinsics_options(flags)
     selection = make_frame_selection(flags)
     if selection and many:
@@ -222,6 +227,8 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     with progress_bar() as progress:
         recordings = load_views(list(inputs), estimator, intrinsics, calibration, rig, opts,
                                 on_frame=frame_progress(progress), frames=selection, smooth=smooth)
+    if free_intrinsics and not any(r.intrinsics is not None and r.intrinsics.given for r in recordings):
+        warn("--free-intrinsics changes nothing here: no view's lens was given, every focal length is estimated")
     with err.status("fusing") as status:
         result = fuse_recordings(recordings, opts, progress=lambda msg: status.update(msg))
     for line in result.warnings:

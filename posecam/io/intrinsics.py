@@ -40,6 +40,8 @@ class IntrinsicsOptions:
             raise InputError("give the principal point whole: --cx and --cy together")
         if self.cx is not None and self.fx is None and self.fy is None:
             raise InputError("--cx/--cy need a focal length too (--fx, and --fy if it differs)")
+        if self.file and (self.fx is not None or self.fy is not None):   # the flags would win: the file unread
+            raise InputError("give the lens once: --fx/--fy (and --cx/--cy) or --intrinsics FILE, not both")
         if self.camera is not None and not self.file:
             raise InputError(f"camera {self.camera!r} names a camera inside a calibration file: "
                              "give the file too (--intrinsics FILE)")

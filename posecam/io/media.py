@@ -503,6 +503,8 @@ def _open(path: str | os.PathLike) -> Media:
                              "their names are not numbered frames); give each photo as an input")
         w, h = image_size(files[0])
         return Media(path, "sequence", w, h, DEFAULT_FPS, len(files), files=files)
+    if path.suffix.lower() == ".json":
+        raise InputError(f"{path} is a pose file, not an image or a video: `posecam fuse` reads pose files")
     if path.suffix.lower() in IMAGE_SUFFIXES:
         image = read_image(path)
         h, w = image.shape[:2]
