@@ -352,3 +352,29 @@ def test_the_cli_shows_posecam_warnings_and_not_numpy_runtime_warnings(capsys):
     _show_warning(RuntimeWarning("Mean of empty slice"), RuntimeWarning, "x.py", 1)
     _show_warning(PosecamWarning("a truncated video"), PosecamWarning, "x.py", 1)
     assert capsys.readouterr().err == "posecam: warning: a truncated video\n"
+
+
+def test_the_lens_distortion_a_pose_file_gives_is_the_rigs(tmp_path):
+    """Views whose pose files carry their lens's distortion (predict --intrinsics cam.yml): the
+    cameras fuse estimates keep it, so their keypoints are triangulated and reprojected
+    through it (--save-calibration writes it)."""
+    import dataclasses
+    import tomllib
+
+    from posecam.geometry.camera import CameraCalibration
+
+    barrel = (-0.25, 0.08, 0.0, 0.0)
+    cams = [CameraCalibration(c.name, c.size, dataclasses.replace(c.intrinsics, distortion=barrel), c.rotation,
+                              c.translation) for c in make_rig()]
+    paths = []
+    for rec in monocular_views(cams, skeleton_motion(60), known_lens=True):
+        assert rec.intrinsics.distortion == barrel
+        paths.append(tmp_path / f"{rec.source}.json")
+        write_poses(paths[-1], [rec])
+    toml, out = tmp_path / "rig.toml", tmp_path / "fused.json"
+    r = run_posecam("fuse", *paths, "--sync", "none", "--method", "triangulate", "-o", out, "--save-calibration", toml)
+    assert r.returncode == 0, r.stderr
+    saved = [t for name, t in tomllib.loads(toml.read_text()).items() if name != "metadata"]
+    assert len(saved) == 4 and all(np.allclose(t["distortions"], barrel) for t in saved), saved
+    cameras = json.loads(out.read_text())["inputs"][0]["cameras"]
+    assert all(c["intrinsics_fixed"] and c["reprojection_px"] < 5 for c in cameras), cameras
