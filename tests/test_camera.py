@@ -127,3 +127,10 @@ def test_a_camera_and_its_intrinsics_share_one_distortion():
     assert "distortion" not in Intrinsics(*WIDE, distortion=(0, 0, 0, 0)).to_dict()   # zeros: none
     with pytest.raises(InputError, match="4 or 5 distortion coefficients"):
         Intrinsics(*WIDE, distortion=(0.1, 0, 0, 0, 0, 0.2, 0, 0))
+
+
+def test_project_through_intrinsics_is_opencvs_with_the_distortion():
+    """The doubts' off-body check projects the 3D joints through the input's lens: with the
+    distortion, as the image shows them (else a wide lens's sound poses would look off-body)."""
+    relative, truth, uv = _distorted_view()
+    assert np.allclose(project(relative + truth, Intrinsics(*WIDE, distortion=WIDE_DISTORTION)), uv, atol=1e-6)

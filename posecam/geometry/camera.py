@@ -152,11 +152,21 @@ def undistort_pixels(uv: np.ndarray, k: Intrinsics, normalised: bool = False) ->
 
 
 def project(points: np.ndarray, k: Intrinsics) -> np.ndarray:
-    """(..., 3) camera-space points -> (..., 2) pixels."""
+    """(..., 3) camera-space points -> (..., 2) pixels of the image, through k's distortion."""
     z = points[..., 2]
-    u = k.fx * points[..., 0] / z + k.cx
-    v = k.fy * points[..., 1] / z + k.cy
-    return np.stack([u, v], axis=-1)
+    x, y = distort(points[..., 0] / z, points[..., 1] / z, k.distortion)
+    return np.stack([k.fx * x + k.cx, k.fy * y + k.cy], axis=-1)
+
+
+def distort(x: np.ndarray, y: np.ndarray, distortion) -> tuple[np.ndarray, np.ndarray]:
+    """Normalised image coordinates through OpenCV's k1, k2, p1, p2[, k3] lens model."""
+    if not np.any(distortion):
+        return x, y
+    k1, k2, p1, p2, k3 = np.pad(np.asarray(distortion, dtype=float), (0, 5 - len(distortion)))
+    r2 = x * x + y * y
+    radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    return (x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x),
+            y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y)
 
 
 @dataclass
@@ -196,12 +206,7 @@ class CameraCalibration:
     def project(self, points: np.ndarray) -> np.ndarray:
         """(..., 3) world points -> (..., 2) distorted pixels."""
         p = self.to_camera(points)
-        x, y = p[..., 0] / p[..., 2], p[..., 1] / p[..., 2]
-        k1, k2, p1, p2, k3 = np.pad(self.distortion, (0, 5 - len(self.distortion)))
-        r2 = x * x + y * y
-        radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
-        xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
-        yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+        xd, yd = distort(p[..., 0] / p[..., 2], p[..., 1] / p[..., 2], self.distortion)
         k = self.intrinsics
         return np.stack([k.fx * xd + k.cx, k.fy * yd + k.cy], axis=-1)
 
