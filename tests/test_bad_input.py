@@ -90,6 +90,7 @@ def _pose_file(tmp_path, name):
     (("predict", "{a}"), "is a pose file, not an image or a video"),
     (("fuse", "{a}", "{b}", "--model", "lite"), "--model needs a video or image-folder input"),
     (("fuse", "{a}", "{b}", "--max-people", "3"), "--max-people needs a video or image-folder input"),
+    (("fuse", "{tmp}", "--out-dir", "{tmp}", "--verbose"), "--angles, --plot or --verbose (the camera table)"),
     (("export", "{a}", "-o", "{tmp}/m.onnx", "--images", "{img}"), "--images needs --verify or --quantize"),
 ])
 def test_options_that_would_do_nothing_are_refused(tmp_path, args, words):
@@ -98,7 +99,8 @@ def test_options_that_would_do_nothing_are_refused(tmp_path, args, words):
     names = {"img": DATA / "messi5.jpg", "k": k, "tmp": tmp_path, "a": _pose_file(tmp_path, "a"),
              "b": _pose_file(tmp_path, "b")}
     out = tmp_path / "out.json"
-    r = run_posecam(*(str(a).format(**names) for a in args), *(("-o", out) if args[0] != "export" else ()))
+    alone = args[0] == "export" or "--out-dir" in args        # no -o to go with
+    r = run_posecam(*(str(a).format(**names) for a in args), *(("-o", out) if not alone else ()))
     _check(r, 2, words)
     assert not out.exists()
 

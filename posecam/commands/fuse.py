@@ -199,9 +199,9 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     many = out_dir is not None or jobs > 1 or ray_address is not None
     if not many:
         check_views(list(inputs))     # before any work: one video, a folder of videos
-    if many and (output or viz or viz3d or save_calibration or angles or plot):
+    if many and (output or viz or viz3d or save_calibration or angles or plot or flags.get("verbose")):
         raise InputError("--out-dir writes one file per take; it does not go with -o, --viz, --viz3d, --save-calibration, "
-                         "--angles or --plot")
+                         "--angles, --plot or --verbose (the camera table)")
     predicted = many or any(Path(p).suffix.lower() != ".json" for p in inputs)
     refuse_typed(ESTIMATOR_FLAGS, "a video or image-folder input (pose files were predicted already)", predicted)
     estimator, intrinsics = make_estimator_options(flags), make_intrinsics_options(flags)
