@@ -80,6 +80,8 @@ def load_views(inputs: list[str], options: EstimatorOptions | None = None, intri
     # every view's lens by one policy: a video's is predicted with, a pose file's lifted again through
     # (a calibration's camera re-lifts the poses it can; the flags and --intrinsics refuse the others)
     views = [v for path in inputs for v in ([(path, None)] if path in media else [(path, r) for r in poses[path]])]
+    if rig is not None and not calibration:     # a Rig without its file: the pose files keep their poses
+        views = [(path, r) for path, r in views if r is None]
     lenses = view_intrinsics([path if r is None else r.source for path, r in views], intrinsics, calibration, rig,
                              say_match=False)     # fuse's given cameras say it, once
     ks = {path: k for (path, r), k in zip(views, lenses) if r is None}
