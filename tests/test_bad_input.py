@@ -91,6 +91,7 @@ def _pose_file(tmp_path, name):
     (("fuse", "{a}", "{b}", "--model", "lite"), "--model needs a video or image-folder input"),
     (("fuse", "{a}", "{b}", "--max-people", "3"), "--max-people needs a video or image-folder input"),
     (("fuse", "{tmp}", "--out-dir", "{tmp}", "--verbose"), "--angles, --plot or --verbose (the camera table)"),
+    (("fuse", "{a}", "{b}", "--calibration", "{k}", "--camera", "cam01"), "--calibration matches its cameras"),
     (("export", "{a}", "-o", "{tmp}/m.onnx", "--images", "{img}"), "--images needs --verify or --quantize"),
 ])
 def test_options_that_would_do_nothing_are_refused(tmp_path, args, words):

@@ -202,6 +202,9 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     if many and (output or viz or viz3d or save_calibration or angles or plot or flags.get("verbose")):
         raise InputError("--out-dir writes one file per take; it does not go with -o, --viz, --viz3d, --save-calibration, "
                          "--angles, --plot or --verbose (the camera table)")
+    if calibration and flags.get("camera"):
+        raise InputError("--camera picks cameras inside --intrinsics FILE; --calibration matches its cameras to the "
+                         "views by name (or, with as many cameras as views, in sorted order)")
     predicted = many or any(Path(p).suffix.lower() != ".json" for p in inputs)
     refuse_typed(ESTIMATOR_FLAGS, "a video or image-folder input (pose files were predicted already)", predicted)
     estimator, intrinsics = make_estimator_options(flags), make_intrinsics_options(flags)
