@@ -240,7 +240,7 @@ def test_predict_lifts_through_the_lens_distortion_and_writes_it(tmp_path):
         r = run_posecam("predict", EXAMPLES / "balance.jpg", "--intrinsics", path, "-o", out)
         assert r.returncode == 0, r.stderr
         rec = read_poses(out)[0]
-        assert rec.intrinsics.distortion == ((k1, 0.0, 0.0, 0.0, 0.0) if k1 else ())
+        assert rec.intrinsics.distortion == (pytest.approx((k1, 0.0, 0.0, 0.0, 0.0)) if k1 else ())
         person = rec.frames[0].people[0]
         roots[k1], uvs[k1] = person.root, person.keypoints_2d
     assert np.allclose(uvs[0.0], uvs[-0.30], atol=0.02)          # the image's pixels either way
