@@ -239,6 +239,7 @@ def test_predict_lifts_through_the_lens_distortion_and_writes_it(tmp_path):
         out = tmp_path / f"k{k1}.json"
         r = run_posecam("predict", EXAMPLES / "balance.jpg", "--intrinsics", path, "-o", out)
         assert r.returncode == 0, r.stderr
+        assert ("distortion -0.3 0 0 0 0" in " ".join(r.stdout.split())) == bool(k1), r.stdout   # the summary says it
         rec = read_poses(out)[0]
         assert rec.intrinsics.distortion == (pytest.approx((k1, 0.0, 0.0, 0.0, 0.0)) if k1 else ())
         person = rec.frames[0].people[0]

@@ -71,11 +71,14 @@ def print_summary(summaries: list[InputSummary], console, unreadable: int = 0) -
                   "fixed with, given (--height), floor (the ground plane's) or model (the pose model's bone lengths)",
                   style="dim")
     known = [sm.rec for sm in summaries if sm.rec.intrinsics]
-    same = len({(r.intrinsics.fx, r.intrinsics.fy, r.intrinsics.cx, r.intrinsics.cy) for r in known}) == 1
+    same = len({(r.intrinsics.fx, r.intrinsics.fy, r.intrinsics.cx, r.intrinsics.cy, r.intrinsics.distortion)
+                for r in known}) == 1
     for rec in known[:1] if same else known:   # one line, or one per input when they differ
         k = rec.intrinsics
         name = "" if same else f" of {shown(Path(rec.source).name)}"
-        console.print(f"intrinsics{name} ({shown(k.source)}): fx={k.fx:.1f} fy={k.fy:.1f} cx={k.cx:.1f} cy={k.cy:.1f}")
+        lens = f" distortion {' '.join(f'{d:g}' for d in k.distortion)}" if k.distortion else ""
+        console.print(f"intrinsics{name} ({shown(k.source)}): fx={k.fx:.1f} fy={k.fy:.1f} cx={k.cx:.1f} cy={k.cy:.1f}"
+                      + lens)
     if unreadable:
         console.print(f"left out: {unreadable} unreadable photo{'s' if unreadable > 1 else ''} (see the warnings; "
                       "--strict stops at the first)")
