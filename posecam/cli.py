@@ -22,8 +22,8 @@ from posecam._version import __version__
 from posecam.commands.export import export_command
 from posecam.commands.fuse import fuse_command
 from posecam.commands.predict import predict_command
-from posecam.errors import (WRITE_ERRNOS, OutputError, PosecamError, ReaderLeft, Terminated, last_signal, on_signal,
-                            printable)
+from posecam.errors import (WRITE_ERRNOS, OutputError, PosecamError, PosecamWarning, ReaderLeft, Terminated,
+                            last_signal, on_signal, printable)
 
 # Set when a command runs (never at import), before any module that reads them is loaded; a
 # value the user set is kept.
@@ -41,6 +41,11 @@ _NO_ARGS = getattr(click.exceptions, "NoArgsIsHelpError", ())   # click >= 8.2
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """A warning as the user's `posecam: warning:` line; numpy's RuntimeWarnings ("All-NaN slice
+    encountered", "Mean of empty slice", ...) say nothing to a user and are not shown: posecam
+    reports what it works around itself (posecam.errors.warn)."""
+    if issubclass(category, RuntimeWarning) and not issubclass(category, PosecamWarning):
+        return
     text = printable(" ".join(str(message).split()))
     print(f"posecam: warning: {text}", file=sys.stderr)
 

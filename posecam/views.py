@@ -1,9 +1,10 @@
-"""A take's views as recordings: posecam pose JSON files read as they are; videos and image
-folders predicted by one estimator (the models loaded once for every view) as `posecam predict
--o` predicts them (the same chain: metric scale, then smoothing), each with its own camera's
+"""A take's views as recordings: posecam pose JSON files read; videos and image folders
+predicted by one estimator (the models loaded once for every view) as `posecam predict -o`
+predicts them (the same chain: metric scale, then smoothing), each with its own camera's
 intrinsics: from the calibration (`--calibration`, matched to the views by
 `Rig.match_names`), from `--intrinsics` (a file, or a calibration's camera per view), from the
-flags, or posecam's default lens.
+flags, or posecam's default lens. A pose file's poses are lifted again through the lens given
+(`relensed`), as its video would have been predicted with it; without one they keep their own.
 
     recordings = load_views(["cam01.mp4", "cam02.mp4"], EstimatorOptions(detector="movenet"),
                             IntrinsicsOptions(file="Calib.toml"))   # cameras matched by name
@@ -14,26 +15,35 @@ from __future__ import annotations
 import dataclasses
 from pathlib import Path
 
+import numpy as np
+
 from posecam.errors import InputError, warn
 from posecam.estimate import EstimatorOptions, OnFrame, PoseEstimator, shared_estimator
-from posecam.geometry.camera import Rig
+from posecam.geometry.camera import Intrinsics, Rig
+from posecam.geometry.lift import solve_root_translation
 from posecam.io.calibration import read_calibration
-from posecam.io.intrinsics import IntrinsicsOptions, is_calibration
+from posecam.io.intrinsics import IntrinsicsOptions, is_calibration, resolve_intrinsics
 from posecam.io.poses import read_poses
 from posecam.io.media import DEFAULT_FPS, FrameSelection, folder_holds, open_media
 from posecam.scale.metric import MetricOptions
 from posecam.multiview.fuse import FuseOptions, check_lengths
-from posecam.results import Recording
+from posecam.results import Person, Recording
+
+# the landmark pose models' names (posecam.inference.pose_model.LandmarkPoseModel): their poses are
+# metric root-relative poses placed on their 2D keypoints, which any lens can place again
+LANDMARK_MODELS = ("blazepose-",)
 
 
 def view_intrinsics(videos: list[str], intrinsics: IntrinsicsOptions | None = None, calibration: str | None = None,
-                    rig: Rig | None = None) -> list[IntrinsicsOptions]:
+                    rig: Rig | None = None, say_match: bool = True) -> list[IntrinsicsOptions]:
     """Each video's intrinsics: its camera in `rig` (read from `calibration`); else `intrinsics`,
     whose calibration file of several cameras gives each video its own camera, named in
-    `intrinsics.camera` (one name, or one per video separated by commas) or matched by name."""
+    `intrinsics.camera` (one name, or one per view separated by commas) or matched by name.
+    `videos`: the views' paths (a video's, or the source a pose file's recording names).
+    `say_match`: warn when the rig's cameras go to the views in sorted order (fusing them says it)."""
     if rig is not None:
         names, note = rig.match_names([Path(p).stem for p in videos])
-        if note:
+        if note and say_match:
             warn(note)
         return [IntrinsicsOptions(file=calibration, camera=name) for name in names]
     opts = intrinsics or IntrinsicsOptions()
@@ -46,8 +56,8 @@ def view_intrinsics(videos: list[str], intrinsics: IntrinsicsOptions | None = No
     elif len(names) == 1:
         names = names * len(videos)
     elif len(names) != len(videos):
-        raise InputError(f"--camera names {len(names)} cameras for {len(videos)} videos: give one name, "
-                         "or one per video in the order of the inputs (cam01,cam02,...)")
+        raise InputError(f"--camera names {len(names)} cameras for {len(videos)} views: give one name, "
+                         "or one per view in the order of the inputs (cam01,cam02,...)")
     return [IntrinsicsOptions(opts.fx, opts.fy, opts.cx, opts.cy, opts.file, name)
             for name in names or [opts.camera] * len(videos)]
 
@@ -66,8 +76,20 @@ def load_views(inputs: list[str], options: EstimatorOptions | None = None, intri
     fuse (a pose file's frames are picked by their source index)."""
     videos = [p for p in inputs if Path(p).suffix.lower() != ".json"]
     media = {p: open_media(p, frames) for p in videos}
-    ks = dict(zip(videos, view_intrinsics(videos, intrinsics, calibration, rig)))
     poses = {p: [select_frames(r, frames) for r in read_poses(p)] for p in inputs if p not in media}
+    # every view's lens by one policy: a video's is predicted with, a pose file's lifted again through
+    # (a calibration's camera re-lifts the poses it can; the flags and --intrinsics refuse the others)
+    views = [v for path in inputs for v in ([(path, None)] if path in media else [(path, r) for r in poses[path]])]
+    if rig is not None and not calibration:     # a Rig without its file: the pose files keep their poses
+        views = [(path, r) for path, r in views if r is None]
+    lenses = view_intrinsics([path if r is None else r.source for path, r in views], intrinsics, calibration, rig,
+                             say_match=False)     # fuse's given cameras say it, once
+    ks = {path: k for (path, r), k in zip(views, lenses) if r is None}
+    relift = [r is not None and _gives_lens(k) and (rig is None or not unliftable(r)) for (_, r), k in zip(views, lenses)]
+    if any(relift):
+        relifted = iter([relensed(r, k, path) if again else r
+                         for (path, r), k, again in zip(views, lenses, relift) if r is not None])
+        poses = {path: [next(relifted) for _ in recs] for path, recs in poses.items()}
     names, lengths = [], []
     for path in inputs:
         counts = [len(media[path].selected)] if path in media else [len(r.frames) for r in poses[path]]
@@ -82,6 +104,57 @@ def load_views(inputs: list[str], options: EstimatorOptions | None = None, intri
     for path in inputs:
         recordings += [_predicted(estimator, path, ks[path], on_frame, frames, smooth)] if path in media else poses[path]
     return recordings
+
+
+def _gives_lens(opts: IntrinsicsOptions) -> bool:
+    """Whether these options give a lens (flags, a file, a calibration's camera)."""
+    return opts.fx is not None or opts.fy is not None or bool(opts.file)
+
+
+def relensed(rec: Recording, opts: IntrinsicsOptions | Intrinsics, path: str = "") -> Recording:
+    """A pose file's recording lifted again through the lens `opts` gives, as its video would
+    have been predicted with it: each person's metric root-relative pose kept and placed anew
+    on its 2D keypoints (posecam.geometry.lift), `intrinsics` the lens given (so fuse holds
+    it). Sound for the landmark models' poses (BlazePose: a metric pose plus 2D keypoints);
+    InputError for a root-depth model's, whose depths the lens changes in a way the file does
+    not record, and for fused poses (not one camera's)."""
+    k = opts if isinstance(opts, Intrinsics) else resolve_intrinsics(opts, rec.width, rec.height)
+    if rec.intrinsics is not None and same_lens(rec.intrinsics, k):    # the poses were solved with it
+        return dataclasses.replace(rec, intrinsics=k)
+    why = unliftable(rec)
+    if why:
+        raise InputError(f"{path or rec.source}: {why}")
+    frames = [dataclasses.replace(f, people=[_placed(p, k) for p in f.people]) for f in rec.frames]
+    return dataclasses.replace(rec, frames=frames, intrinsics=k)
+
+
+def same_lens(a: Intrinsics, b: Intrinsics) -> bool:
+    """Whether two lenses place poses alike (their sources aside)."""
+    return (np.allclose([a.fx, a.fy, a.cx, a.cy], [b.fx, b.fy, b.cx, b.cy], rtol=1e-6, atol=1e-6)
+            and len(a.distortion) == len(b.distortion) and np.allclose(a.distortion, b.distortion, atol=1e-9))
+
+
+def unliftable(rec: Recording) -> str:
+    """Why a pose file's recording cannot be lifted again through another lens ("" if it can)."""
+    if rec.frame_of_reference != "camera":
+        return (f"fused poses ({rec.frame_of_reference}) cannot be lifted through a lens: give each camera's "
+                "pose file, or leave the intrinsics options out")
+    if not rec.model.startswith(LANDMARK_MODELS):
+        return (f"poses of model {rec.model or '(unnamed)'} cannot be lifted again through another lens (only "
+                "BlazePose's metric poses can: a root-depth model's depths depend on the lens): predict the video "
+                "with the lens instead")
+    return ""
+
+
+def _placed(p: Person, k: Intrinsics) -> Person:
+    """One person's metric pose placed on its 2D keypoints through `k` (joints a file left
+    null are left out of the solve; fewer than two joints: no 3D)."""
+    ok = np.isfinite(p.keypoints_2d).all(axis=-1) & np.isfinite(p.keypoints_3d).all(axis=-1)
+    if ok.sum() < 2:
+        return dataclasses.replace(p, keypoints_3d=np.full_like(p.keypoints_3d, np.nan))
+    conf = np.nan_to_num(p.confidence[ok])
+    t = solve_root_translation(p.keypoints_3d[ok], p.keypoints_2d[ok], conf, k)
+    return dataclasses.replace(p, keypoints_3d=p.keypoints_3d + t)
 
 
 def _predicted(estimator: PoseEstimator, path: str, intrinsics: IntrinsicsOptions, on_frame: OnFrame | None,

@@ -144,7 +144,7 @@ def monocular_views(cams: list[CameraCalibration], world: np.ndarray, seed: int 
     for ci, cam in enumerate(cams):
         o = offsets[ci] if offsets else 0
         k = cam.intrinsics
-        k0 = Intrinsics(k.fx, k.fy, k.cx, k.cy, "flags") if known_lens else Intrinsics.default(*cam.size)
+        k0 = Intrinsics(k.fx, k.fy, k.cx, k.cy, "flags", k.distortion) if known_lens else Intrinsics.default(*cam.size)
         rec = Recording(cam.name, cam.size[0], cam.size[1], k0, H36M_JOINTS, model="synthetic", fps=30.0)
         for i in range(n + max(o, 0)):
             src = i - o

@@ -79,3 +79,58 @@ def test_a_pinhole_example_worked_by_hand():
 def pinhole(points: np.ndarray, fx: float, fy: float, cx: float, cy: float) -> np.ndarray:
     """(N, 3) camera-space points -> (N, 2) pixels, the pinhole model written out here."""
     return np.stack([fx * points[:, 0] / points[:, 2] + cx, fy * points[:, 1] / points[:, 2] + cy], axis=1)
+
+
+# ---- lens distortion: the lift sees the pinhole pixels the lens bent ----
+
+WIDE = (1400.0, 1400.0, 960.0, 540.0)
+WIDE_DISTORTION = (-0.30, 0.10, 0.001, -0.002, 0.0)       # a wide-angle lens's barrel
+
+
+def _distorted_view(distortion=WIDE_DISTORTION):
+    """A body-sized metric pose towards the image's edge, seen through a distorting lens:
+    its pixels by OpenCV's projectPoints, not by the code under test."""
+    import cv2
+
+    rng = np.random.default_rng(3)
+    relative = rng.normal(0, 250, size=(17, 3)) * [0.5, 1.6, 0.4]
+    truth = np.array([1100.0, 300.0, 3500.0])
+    k = Intrinsics(*WIDE)
+    uv, _ = cv2.projectPoints(relative + truth, np.zeros(3), np.zeros(3), k.matrix, np.array(distortion))
+    return relative, truth, uv.reshape(-1, 2)
+
+
+def test_the_lift_undoes_the_lens_distortion_given():
+    from posecam.geometry.lift import place_on_keypoints
+
+    relative, truth, uv = _distorted_view()
+    with_lens = place_on_keypoints(relative, uv, np.ones(17), Intrinsics(*WIDE, distortion=WIDE_DISTORTION))
+    pinhole = place_on_keypoints(relative, uv, np.ones(17), Intrinsics(*WIDE))
+    assert np.abs(with_lens - (relative + truth)).max() < 3             # mm
+    assert np.abs(pinhole - (relative + truth)).max() > 100             # the barrel shrinks the person: too far
+    z = (relative + truth)[:, 2]
+    assert np.allclose(back_project(uv, z, Intrinsics(*WIDE, distortion=WIDE_DISTORTION)), relative + truth, atol=1)
+
+
+def test_a_camera_and_its_intrinsics_share_one_distortion():
+    from posecam.geometry.camera import CameraCalibration, undistort_pixels
+
+    k = Intrinsics(*WIDE, distortion=WIDE_DISTORTION)
+    cam = CameraCalibration("c", (1920, 1080), k)                      # the lens a pose file gave
+    assert np.allclose(cam.distortion, WIDE_DISTORTION)
+    relative, truth, uv = _distorted_view()
+    assert np.allclose(cam.project(relative + truth), uv, atol=1e-6)   # posecam's model is OpenCV's
+    xy = cam.normalise(uv)
+    assert np.allclose(xy, (relative + truth)[:, :2] / (relative + truth)[:, 2:], atol=1e-7)
+    assert np.isnan(undistort_pixels(np.array([[np.nan, 1.0]]), k)).all()
+    assert k.to_dict()["distortion"] == list(WIDE_DISTORTION)
+    assert "distortion" not in Intrinsics(*WIDE, distortion=(0, 0, 0, 0)).to_dict()   # zeros: none
+    with pytest.raises(InputError, match="4 or 5 distortion coefficients"):
+        Intrinsics(*WIDE, distortion=(0.1, 0, 0, 0, 0, 0.2, 0, 0))
+
+
+def test_project_through_intrinsics_is_opencvs_with_the_distortion():
+    """The doubts' off-body check projects the 3D joints through the input's lens: with the
+    distortion, as the image shows them (else a wide lens's sound poses would look off-body)."""
+    relative, truth, uv = _distorted_view()
+    assert np.allclose(project(relative + truth, Intrinsics(*WIDE, distortion=WIDE_DISTORTION)), uv, atol=1e-6)

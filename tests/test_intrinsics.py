@@ -157,8 +157,9 @@ def test_a_landscape_file_for_a_portrait_photo_is_refused_by_the_cli(tmp_path):
                                                                      [0, 0, 1]])
     r = run_posecam("predict", EXAMPLES / "balance.jpg", "--intrinsics", portrait, "-o", out)
     assert r.returncode == 0, r.stderr
-    assert json.loads(out.read_text())["inputs"][0]["intrinsics"] == {"fx": 1400.0, "fy": 1400.0, "cx": 540.0,
-                                                                      "cy": 960.0, "source": "file:ost.yaml"}
+    written = json.loads(out.read_text())["inputs"][0]["intrinsics"]
+    assert written.pop("distortion") == pytest.approx([-0.017697, -0.00727, 0.005751, -0.000139, 0.0])
+    assert written == {"fx": 1400.0, "fy": 1400.0, "cx": 540.0, "cy": 960.0, "source": "file:ost.yaml"}
 
 
 @pytest.mark.parametrize("edit, words", [
@@ -171,3 +172,95 @@ def test_a_broken_camera_info_is_refused_in_one_line(tmp_path, edit, words):
     ros.write_text(ros.read_text().replace(*edit, 1))
     with pytest.raises(InputError, match=words):
         resolve_intrinsics(IntrinsicsOptions(file=str(ros)), 1280, 800)
+
+
+# ---- the lens's distortion, from every file that gives one ----
+
+def test_distortion_is_read_from_every_intrinsics_source(tmp_path):
+    import cv2
+    import numpy as np
+
+    from conftest import EXAMPLES
+
+    wide = (-0.30, 0.10, 0.001, -0.002, 0.015)
+    storage = cv2.FileStorage(str(tmp_path / "cam.yml"), cv2.FILE_STORAGE_WRITE)   # as calibrateCamera's sample
+    storage.write("image_width", 1920)
+    storage.write("image_height", 1080)
+    storage.write("camera_matrix", np.array([[1400.0, 0, 960], [0, 1400, 540], [0, 0, 1]]))
+    storage.write("distortion_coefficients", np.array([wide]).T)
+    storage.release()
+    as_json = tmp_path / "k.json"
+    as_json.write_text(json.dumps({"fx": 1400, "cx": 960, "cy": 540, "dist": list(wide[:4])}))
+    ros = _camera_info_yaml(tmp_path / "ost.yaml", 1920, 1080, [[1400.0, 0, 960.0], [0, 1400.0, 540.0], [0, 0, 1]],
+                            d=wide)
+    read = {name: resolve_intrinsics(IntrinsicsOptions(file=str(tmp_path / name)), 1920, 1080).distortion
+            for name in ("cam.yml", "k.json", "ost.yaml")}
+    assert read["cam.yml"] == pytest.approx(wide) and read["ost.yaml"] == pytest.approx(wide)
+    assert read["k.json"] == pytest.approx(wide[:4])
+    toml = resolve_intrinsics(IntrinsicsOptions(file=str(EXAMPLES / "demo/single/Calib.toml"), camera="cam01"),
+                              1080, 1920)
+    qca = resolve_intrinsics(IntrinsicsOptions(file=str(EXAMPLES / "demo/single/Calib.qca.txt"), camera="cam01"),
+                             1080, 1920)
+    assert toml.distortion == pytest.approx((-0.046183, 0.139983, 0.000608, 0.00069))
+    assert qca.distortion == pytest.approx(toml.distortion)
+    plain = _filestorage_yaml(tmp_path / "plain.yml", 1920, 1080, [[1400.0, 0, 960.0], [0, 1400.0, 540.0], [0, 0, 1]])
+    assert resolve_intrinsics(IntrinsicsOptions(file=str(plain)), 1920, 1080).distortion == ()   # zeros: none
+
+
+def test_a_fisheye_or_odd_distortion_is_refused_in_one_line(tmp_path):
+    k = [[1400.0, 0, 960.0], [0, 1400.0, 540.0], [0, 0, 1]]
+    fisheye = _camera_info_yaml(tmp_path / "fish.yaml", 1920, 1080, k)
+    fisheye.write_text(fisheye.read_text().replace("plumb_bob", "equidistant"))
+    with pytest.raises(InputError, match="distortion_model: must be plumb_bob or rational_polynomial"):
+        resolve_intrinsics(IntrinsicsOptions(file=str(fisheye)), 1920, 1080)
+    odd = tmp_path / "odd.json"
+    odd.write_text(json.dumps({"fx": 1400, "cx": 960, "cy": 540, "dist": [0.1, 0.2, 0.3]}))
+    with pytest.raises(InputError, match="dist: must be 4 or 5 distortion coefficients"):
+        resolve_intrinsics(IntrinsicsOptions(file=str(odd)), 1920, 1080)
+
+
+def test_predict_lifts_through_the_lens_distortion_and_writes_it(tmp_path):
+    """`predict --intrinsics cam.yml` used to give the same 3D to the millimetre whatever the
+    file's k1: the distortion is undone before the lift, written in the JSON and read back,
+    and the 2D keypoints stay the image's pixels."""
+    import cv2
+    import numpy as np
+
+    from conftest import EXAMPLES, run_posecam
+    from posecam.io.poses import read_poses
+
+    roots, uvs = {}, {}
+    for k1 in (0.0, -0.30):
+        path = tmp_path / f"k{k1}.yml"
+        storage = cv2.FileStorage(str(path), cv2.FILE_STORAGE_WRITE)
+        storage.write("camera_matrix", np.array([[1400.0, 0, 540], [0, 1400, 960], [0, 0, 1]]))
+        storage.write("distortion_coefficients", np.array([[k1, 0.0, 0.0, 0.0, 0.0]]))
+        storage.release()
+        out = tmp_path / f"k{k1}.json"
+        r = run_posecam("predict", EXAMPLES / "balance.jpg", "--intrinsics", path, "-o", out)
+        assert r.returncode == 0, r.stderr
+        assert ("distortion -0.3 0 0 0 0" in " ".join(r.stdout.split())) == bool(k1), r.stdout   # the summary says it
+        rec = read_poses(out)[0]
+        assert rec.intrinsics.distortion == (pytest.approx((k1, 0.0, 0.0, 0.0, 0.0)) if k1 else ())
+        person = rec.frames[0].people[0]
+        roots[k1], uvs[k1] = person.root, person.keypoints_2d
+    assert np.allclose(uvs[0.0], uvs[-0.30], atol=0.02)          # the image's pixels either way
+    assert np.abs(roots[0.0] - roots[-0.30]).max() > 20            # mm: the lens moves the person
+
+
+def test_values_in_messages_are_plain_numbers(tmp_path):
+    """An OpenCV YAML with fx 0 answered `got np.float64(0.0)`: numbers as the user wrote them."""
+    import numpy as np
+
+    from conftest import EXAMPLES, run_posecam
+    from posecam.geometry.camera import Intrinsics
+
+    zero = _filestorage_yaml(tmp_path / "zero.yml", 1920, 1080, [[0.0, 0, 960.0], [0, 1400.0, 540.0], [0, 0, 1]])
+    r = run_posecam("predict", EXAMPLES / "balance.jpg", "--intrinsics", zero, "-o", tmp_path / "out.json")
+    assert r.returncode == 2 and r.stderr.strip().endswith("fx: must be a number > 0 and <= 1e+06, got 0.0"), r.stderr
+    for bad, words in ((lambda: IntrinsicsOptions(fx=np.float64("nan")), "fx must be a finite number, got nan"),
+                       (lambda: Intrinsics(np.float64(0.0), 1.0, 2.0, 3.0), "got fx=0, fy=1"),
+                       (lambda: Intrinsics(np.float64("inf"), 1.0, 2.0, 3.0), "got inf, 1, 2, 3")):
+        with pytest.raises(InputError) as caught:
+            bad()
+        assert words in str(caught.value) and "np." not in str(caught.value), caught.value

@@ -175,3 +175,39 @@ def test_fuse_cli_writes_world_trc_y_up_and_a_3d_view(tmp_path):
     np.testing.assert_allclose(xyz, truth[..., [1, 2, 0]] / 1000, atol=1e-4)
     j = {n: i for i, n in enumerate(fused.joints)}
     assert (xyz[:, j["head"], 1] > xyz[:, j["r_ankle"], 1] + 1.0).all()        # Y is up
+
+
+def test_a_trc_fused_from_pose_files_steps_exactly_one_frame(tmp_path):
+    """Pose files round their times to 4 decimals (0.0167, 0.0333 at 60 fps); the TRC fused from
+    them steps index / 60 (OpenSim-free: its time column read as text)."""
+    from posecam.io.calibration import write_toml
+    from posecam.io.poses import read_poses, write_poses
+    from synth_rig import make_rig, monocular_views, skeleton_motion
+
+    cams = make_rig()
+    paths = []
+    for rec in monocular_views(cams, skeleton_motion(40)):
+        rec.fps = 60.0
+        for f in rec.frames:
+            f.time = f.index / 60.0
+        paths.append(tmp_path / f"{rec.source}.json")
+        write_poses(paths[-1], [rec])
+    assert '"time": 0.0167' in paths[0].read_text()
+    assert [f.time for f in read_poses(paths[0])[0].frames[:3]] == pytest.approx([0, 1 / 60, 2 / 60], abs=1e-9)
+    write_toml(tmp_path / "calib.toml", cams)
+    out = tmp_path / "fused.trc"
+    r = run_posecam("fuse", *paths, "--calibration", tmp_path / "calib.toml", "-o", out)
+    assert r.returncode == 0, r.stderr
+    rows = [line.split("\t") for line in out.read_text().splitlines()[5:]]
+    frame, time = np.array([int(row[0]) for row in rows]), np.array([float(row[1]) for row in rows])
+    assert len(rows) > 30 and np.abs(time - (frame - 1) / 60.0).max() < 1e-6
+
+
+def test_times_snap_to_the_rate_only_where_it_gives_them():
+    from posecam.io.media import exact_times
+
+    index = np.arange(0, 30, 3)                     # every 3rd frame of a 60 fps video, kept at 20 fps
+    assert np.allclose(exact_times(index, np.round(index / 60, 4), 20.0), index / 60, atol=1e-12)
+    varying = np.cumsum(np.r_[0, np.full(9, 0.0167), 0.03][:10])   # a variable-rate video's own times
+    assert np.array_equal(exact_times(np.arange(10), varying, 60.0), varying)
+    assert np.isnan(exact_times([0, 1], [0.0, np.nan], 60.0)[1])

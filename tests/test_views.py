@@ -41,7 +41,7 @@ def test_each_view_gets_its_own_camera_from_one_estimator(estimator, tmp_path):
 
 def test_camera_names_must_match_the_videos(tmp_path):
     calib = str(_calibration(tmp_path))
-    with pytest.raises(InputError, match="names 2 cameras for 3 videos"):
+    with pytest.raises(InputError, match="names 2 cameras for 3 views"):
         view_intrinsics(["a.mp4", "b.mp4", "c.mp4"], IntrinsicsOptions(file=calib, camera="left,right"))
     one = view_intrinsics(["a.mp4", "b.mp4"], IntrinsicsOptions(file=calib, camera="right"))
     assert [o.camera for o in one] == ["right", "right"]

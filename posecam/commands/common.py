@@ -87,8 +87,8 @@ def make_estimator_options(kwargs: dict) -> EstimatorOptions:
 
 def intrinsics_options(per_camera: bool = False) -> Callable:
     """The intrinsics flags shared by `predict` and `fuse` (`per_camera`: --camera names one camera per video)."""
-    camera_help = ("Camera names inside the --intrinsics calibration, one per video in the order of the inputs "
-                   "(cam01,cam02,...); default: matched to the video names." if per_camera else
+    camera_help = ("Camera names inside the --intrinsics calibration, one per view in the order of the inputs "
+                   "(cam01,cam02,...); default: matched to the views' names." if per_camera else
                    "Camera name inside the --intrinsics calibration (needs --intrinsics).")
 
     def decorate(f: Callable) -> Callable:
@@ -240,6 +240,31 @@ def refuse_alone(option: str, needs: str, given_with: bool) -> None:
     if ctx.get_parameter_source(option) == ParameterSource.COMMANDLINE and not given_with:
         flag = next(p.opts[0] for p in ctx.command.params if p.name == option)
         raise InputError(f"{flag} needs {needs}")
+
+
+def typed(option: str) -> str | None:
+    """The flag of `option` as typed on the command line (--no-smooth), None where it was not."""
+    from click.core import ParameterSource
+
+    ctx = click.get_current_context()
+    if ctx.get_parameter_source(option) != ParameterSource.COMMANDLINE:
+        return None
+    param = next(p for p in ctx.command.params if p.name == option)
+    value = ctx.params.get(option)
+    return (param.secondary_opts[0] if param.secondary_opts and value is False else param.opts[0])
+
+
+def refuse_typed(options: tuple[str, ...], needs: str, given_with: bool) -> None:
+    """`refuse_alone` for several options: the first of them typed, refused without `needs`."""
+    for option in options:
+        refuse_alone(option, needs, given_with)
+
+
+def warn_alone(option: str, note: str, given_with: bool) -> None:
+    """Warn that an option typed on the command line does nothing here (`note` says why)."""
+    flag = typed(option)
+    if flag and not given_with:
+        warn(f"{flag} {note}")
 
 
 def report_console():

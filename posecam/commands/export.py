@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 from rich.console import Console
 
-from posecam.commands.common import stdout_report
+from posecam.commands.common import refuse_alone, stdout_report
 from posecam.errors import InputError
 
 err = Console(stderr=True, highlight=False)
@@ -35,6 +35,8 @@ def export_command(checkpoint, output, name, verify, quantize, images, max_crops
     """
     if Path(output).suffix.lower() != ".onnx":
         raise InputError(f"output must end in .onnx, got {output}")
+    refuse_alone("images", "--verify or --quantize (the crops are for them)", bool(verify or quantize))
+    refuse_alone("max_crops", "--verify or --quantize (the crops are for them)", bool(verify or quantize))
     from posecam.io.atomic import OutputSet
     from posecam.io.media import check_input, expand_inputs
 

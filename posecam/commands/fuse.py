@@ -12,7 +12,7 @@ import click
 from posecam.commands.common import (angle_options, check_angles, check_output, estimator_options, frame_options,
                                      frame_progress, intrinsics_options, make_estimator_options, make_frame_selection,
                                      make_intrinsics_options, many_options, progress_bar, height_option,
-                                     refuse_alone, report_written, stdout_report, shown, warn)
+                                     refuse_alone, refuse_typed, report_written, stdout_report, shown, warn)
 from posecam.errors import InputError
 
 if TYPE_CHECKING:
@@ -97,6 +97,9 @@ def print_report(result: FusionResult, console, verbose: bool = False) -> None:
 
 
 MAX_OFFSET = 1000   # frames: --max-offset and each of --offsets
+# the model and detection options: they predict the videos and image folders, not the pose files
+ESTIMATOR_FLAGS = ("device", "model", "skeleton", "detector", "max_people", "min_detection_score", "min_presence",
+                   "threads")
 
 
 def parse_offsets(text: str) -> list[float]:
@@ -159,9 +162,10 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
 
     INPUTS are 2 or more videos, image folders or `posecam predict` JSON files, one per
     static camera; with --out-dir, folders of takes, each holding its cameras' videos. The
-    model, detection and intrinsics options apply to the video and image-folder inputs,
-    predicted as `posecam predict` does (without --calibration, each camera's intrinsics come
-    from --intrinsics, the flags, or posecam's default lens).
+    model and detection options apply to the video and image-folder inputs, predicted as
+    `posecam predict` does; the intrinsics options (or --calibration's cameras) to every
+    input: the videos are predicted with them, the pose files' poses lifted again through
+    them (without, each camera's intrinsics come from its pose file, or posecam's default lens).
     """
     from rich.console import Console
 
@@ -201,9 +205,14 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     many = out_dir is not None or jobs > 1 or ray_address is not None
     if not many:
         check_views(list(inputs))     # before any work: one video, a folder of videos
-    if many and (output or viz or viz3d or save_calibration or angles or plot):
+    if many and (output or viz or viz3d or save_calibration or angles or plot or flags.get("verbose")):
         raise InputError("--out-dir writes one file per take; it does not go with -o, --viz, --viz3d, --save-calibration, "
-                         "--angles or --plot")
+                         "--angles, --plot or --verbose (the camera table)")
+    if calibration and flags.get("camera"):
+        raise InputError("--camera picks cameras inside --intrinsics FILE; --calibration matches its cameras to the "
+                         "views by name (or, with as many cameras as views, in sorted order)")
+    predicted = many or any(Path(p).suffix.lower() != ".json" for p in inputs)
+    refuse_typed(ESTIMATOR_FLAGS, "a video or image-folder input (pose files were predicted already)", predicted)
     estimator, intrinsics = make_estimator_options(flags), make_intrinsics_options(flags)
     selection = make_frame_selection(flags)
     if selection and many:
@@ -227,6 +236,8 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     with progress_bar() as progress:
         recordings = load_views(list(inputs), estimator, intrinsics, calibration, rig, opts,
                                 on_frame=frame_progress(progress), frames=selection, smooth=smooth)
+    if free_intrinsics and not any(r.intrinsics is not None and r.intrinsics.given for r in recordings):
+        warn("--free-intrinsics changes nothing here: no view's lens was given, every focal length is estimated")
     with err.status("fusing") as status:
         result = fuse_recordings(recordings, opts, progress=lambda msg: status.update(msg))
     for line in result.warnings:

@@ -11,7 +11,7 @@ import click
 from posecam.commands.common import (angle_options, check_angles, check_output, estimator_options, frame_options,
                                      height_option, intrinsics_options, make_estimator_options, make_frame_selection,
                                      make_intrinsics_options, many_options, progress_bar, refuse_alone,
-                                     report_written, stdout_report, shown, stop_on_interrupt, warn)
+                                     report_written, stdout_report, shown, stop_on_interrupt, warn, warn_alone)
 from posecam.errors import InputError, OutputError
 
 
@@ -71,11 +71,14 @@ def print_summary(summaries: list[InputSummary], console, unreadable: int = 0) -
                   "fixed with, given (--height), floor (the ground plane's) or model (the pose model's bone lengths)",
                   style="dim")
     known = [sm.rec for sm in summaries if sm.rec.intrinsics]
-    same = len({(r.intrinsics.fx, r.intrinsics.fy, r.intrinsics.cx, r.intrinsics.cy) for r in known}) == 1
+    same = len({(r.intrinsics.fx, r.intrinsics.fy, r.intrinsics.cx, r.intrinsics.cy, r.intrinsics.distortion)
+                for r in known}) == 1
     for rec in known[:1] if same else known:   # one line, or one per input when they differ
         k = rec.intrinsics
         name = "" if same else f" of {shown(Path(rec.source).name)}"
-        console.print(f"intrinsics{name} ({shown(k.source)}): fx={k.fx:.1f} fy={k.fy:.1f} cx={k.cx:.1f} cy={k.cy:.1f}")
+        lens = f" distortion {' '.join(f'{d:g}' for d in k.distortion)}" if k.distortion else ""
+        console.print(f"intrinsics{name} ({shown(k.source)}): fx={k.fx:.1f} fy={k.fy:.1f} cx={k.cx:.1f} cy={k.cy:.1f}"
+                      + lens)
     if unreadable:
         console.print(f"left out: {unreadable} unreadable photo{'s' if unreadable > 1 else ''} (see the warnings; "
                       "--strict stops at the first)")
@@ -227,6 +230,7 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     from posecam.analysis.angles import add_angles, angle_names
     from posecam.viz.plot import AngleSeries, write_plot
 
+    refuse_alone("strict", "a folder of photos among the inputs", any(os.path.isdir(p) for p in inputs))
     paths, unreadable = expand_inputs(inputs, strict)   # a folder of photos: each photo an input
     for line in unreadable:
         warn(f"left out: {line}")
@@ -247,9 +251,9 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     metric = MetricOptions(heights=Heights.parse(heights), floor=floor)
     selection = make_frame_selection(flags)
     if out_dir or jobs > 1 or ray_address is not None:
-        if output or viz or viz3d or plot or angles:
-            raise InputError("--out-dir writes one file per input; it does not go with -o, --viz, --viz3d, --angles "
-                             "or --plot")
+        if output or viz or viz3d or plot or angles or show:
+            raise InputError("--out-dir writes one file per input; it does not go with -o, --viz, --viz3d, --angles, "
+                             "--plot or --show")
         from posecam.commands.many import predict_many
 
         if selection:
@@ -261,8 +265,10 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     if len(inputs) > 1 and any(is_stream(p) for p in inputs):
         raise InputError("a camera or a stream is predicted alone; give it as the only input")
     first = open_media(inputs[0], selection)
-    for path in inputs[1:]:  # fail on a bad input before spending time on the good ones
-        open_media(path, selection)
+    kinds = {first.kind} | {open_media(path, selection).kind for path in inputs[1:]}  # a bad input fails before the work
+    timed = kinds != {"image"}
+    warn_alone("smooth", "does nothing for photos (it smooths the joints of videos and frame sequences over time)", timed)
+    warn_alone("floor", "does nothing for photos (the floor is fitted to a video's foot contacts)", timed)
     pictures = _picture_paths(inputs, viz) if viz_folder else {}
     if viz and not viz_folder:
         check_output(viz, PICTURE_SUFFIXES if first.kind == "image" else VIDEO_SUFFIXES, f"--viz for {first.kind} input")

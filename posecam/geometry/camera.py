@@ -6,7 +6,7 @@ Camera coordinates: millimetres, camera at the origin, x right, y down, z forwar
 from __future__ import annotations
 
 import re
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import cv2
 import numpy as np
@@ -24,27 +24,37 @@ FOV_RANGE = (5.0, 170.0)
 # Intrinsics.source values of a lens nobody measured: posecam's guess (the default lens, the
 # photo's EXIF) or its own estimate; any other source (flags, a file, a calibration) is given
 ESTIMATED_SOURCES = ("default", "exif", "consensus", "bundle")
+# OpenCV's distortion coefficients posecam models: k1, k2, p1, p2[, k3]
+DISTORTION_LENGTHS = (4, 5)
 
 
 @dataclass(frozen=True)
 class Intrinsics:
-    """Focal lengths and principal point in pixels, and where they came from."""
+    """Focal lengths and principal point in pixels, where they came from, and the lens's
+    distortion: OpenCV's k1, k2, p1, p2[, k3] (() for none; all zeros are stored as ())."""
 
     fx: float
     fy: float
     cx: float
     cy: float
     source: str = "user"
+    distortion: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         values = (self.fx, self.fy, self.cx, self.cy)
         if not all(isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool)
                    for v in values):
-            raise InputError(f"intrinsics must be numbers, got {values}")
+            raise InputError(f"intrinsics must be numbers, got {', '.join(map(str, values))}")
         if not all(np.isfinite(v) for v in values):
-            raise InputError(f"intrinsics must be finite numbers, got {values}")
+            raise InputError(f"intrinsics must be finite numbers, got {', '.join(f'{float(v):g}' for v in values)}")
         if self.fx <= 0 or self.fy <= 0:
-            raise InputError(f"focal lengths must be positive, got fx={self.fx}, fy={self.fy}")
+            raise InputError(f"focal lengths must be positive, got fx={float(self.fx):g}, fy={float(self.fy):g}")
+        object.__setattr__(self, "distortion", distortion_tuple(self.distortion))
+
+    @property
+    def distorted(self) -> bool:
+        """Whether the lens has distortion to undo (posecam.geometry.camera.undistort_pixels)."""
+        return bool(self.distortion)
 
     @property
     def given(self) -> bool:
@@ -91,18 +101,72 @@ class Intrinsics:
 
     def scaled(self, factor: float) -> "Intrinsics":
         """The same camera for an image resized by `factor`."""
-        return Intrinsics(self.fx * factor, self.fy * factor, self.cx * factor, self.cy * factor, self.source)
+        return Intrinsics(self.fx * factor, self.fy * factor, self.cx * factor, self.cy * factor, self.source,
+                          self.distortion)
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """fx, fy, cx, cy, source, and "distortion" when the lens has one."""
+        out = asdict(self)
+        if not self.distortion:
+            del out["distortion"]
+        else:
+            out["distortion"] = list(self.distortion)
+        return out
+
+
+def distortion_tuple(values: object) -> tuple[float, ...]:
+    """OpenCV distortion coefficients as posecam keeps them: k1, k2, p1, p2[, k3] as floats, ()
+    where all are zero. Longer OpenCV vectors (8, 12, 14: rational and thin-prism terms) are
+    taken when their extra terms are zero, else InputError."""
+    d = np.asarray(values if values is not None else (), dtype=float).ravel()
+    if not np.all(np.isfinite(d)):
+        raise InputError(f"distortion coefficients must be finite numbers, got {', '.join(f'{v:g}' for v in d)}")
+    if not np.any(d):
+        return ()
+    if len(d) > 5 and not np.any(d[5:]):
+        d = d[:5]
+    if len(d) not in DISTORTION_LENGTHS:
+        raise InputError(f"posecam's cameras take 4 or 5 distortion coefficients (k1, k2, p1, p2[, k3]), got {len(d)}: "
+                         "calibrate without the rational or thin-prism model")
+    return tuple(float(v) for v in d)
+
+
+def undistort_pixels(uv: np.ndarray, k: Intrinsics, normalised: bool = False) -> np.ndarray:
+    """(..., 2) pixels of the image, as the lens `k` distorts them -> the pixels an ideal pinhole
+    camera with k's focal lengths and principal point would see (`normalised`: x/z, y/z
+    instead). What every lift and triangulation sees. NaN stays NaN."""
+    uv = np.asarray(uv, dtype=float)
+    if not k.distortion:
+        if not normalised:
+            return uv
+        return np.stack([(uv[..., 0] - k.cx) / k.fx, (uv[..., 1] - k.cy) / k.fy], axis=-1)
+    flat = uv.reshape(-1, 1, 2)
+    finite = np.isfinite(flat).all(axis=-1)[:, 0]
+    out = np.full(flat.shape, np.nan)
+    if finite.any():
+        criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+        out[finite] = cv2.undistortPointsIter(np.ascontiguousarray(flat[finite]), k.matrix,
+                                              np.array(k.distortion, dtype=np.float64), None,
+                                              None if normalised else k.matrix, criteria)
+    return out.reshape(uv.shape)
 
 
 def project(points: np.ndarray, k: Intrinsics) -> np.ndarray:
-    """(..., 3) camera-space points -> (..., 2) pixels."""
+    """(..., 3) camera-space points -> (..., 2) pixels of the image, through k's distortion."""
     z = points[..., 2]
-    u = k.fx * points[..., 0] / z + k.cx
-    v = k.fy * points[..., 1] / z + k.cy
-    return np.stack([u, v], axis=-1)
+    x, y = distort(points[..., 0] / z, points[..., 1] / z, k.distortion)
+    return np.stack([k.fx * x + k.cx, k.fy * y + k.cy], axis=-1)
+
+
+def distort(x: np.ndarray, y: np.ndarray, distortion) -> tuple[np.ndarray, np.ndarray]:
+    """Normalised image coordinates through OpenCV's k1, k2, p1, p2[, k3] lens model."""
+    if not np.any(distortion):
+        return x, y
+    k1, k2, p1, p2, k3 = np.pad(np.asarray(distortion, dtype=float), (0, 5 - len(distortion)))
+    r2 = x * x + y * y
+    radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    return (x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x),
+            y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y)
 
 
 @dataclass
@@ -115,6 +179,16 @@ class CameraCalibration:
     rotation: np.ndarray = field(default_factory=lambda: np.eye(3))     # R, 3x3, world -> camera
     translation: np.ndarray = field(default_factory=lambda: np.zeros(3))  # t, mm
     distortion: np.ndarray = field(default_factory=lambda: np.zeros(4))  # k1, k2, p1, p2[, k3]
+
+    def __post_init__(self) -> None:
+        """One distortion for the camera and its intrinsics: a camera given none takes its
+        intrinsics' (the lens a pose file or --intrinsics gave), and its intrinsics carry it."""
+        dist = np.asarray(self.distortion, dtype=float).ravel()
+        if not np.any(dist) and self.intrinsics.distortion:
+            dist = np.array(self.intrinsics.distortion)
+        self.distortion = dist
+        if distortion_tuple(dist) != self.intrinsics.distortion:
+            self.intrinsics = replace(self.intrinsics, distortion=distortion_tuple(dist))
 
     @property
     def centre(self) -> np.ndarray:
@@ -132,23 +206,13 @@ class CameraCalibration:
     def project(self, points: np.ndarray) -> np.ndarray:
         """(..., 3) world points -> (..., 2) distorted pixels."""
         p = self.to_camera(points)
-        x, y = p[..., 0] / p[..., 2], p[..., 1] / p[..., 2]
-        k1, k2, p1, p2, k3 = np.pad(self.distortion, (0, 5 - len(self.distortion)))
-        r2 = x * x + y * y
-        radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
-        xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)
-        yd = y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y
+        xd, yd = distort(p[..., 0] / p[..., 2], p[..., 1] / p[..., 2], self.distortion)
         k = self.intrinsics
         return np.stack([k.fx * xd + k.cx, k.fy * yd + k.cy], axis=-1)
 
     def normalise(self, uv: np.ndarray) -> np.ndarray:
         """(..., 2) pixels -> (..., 2) undistorted normalised image coordinates (x/z, y/z)."""
-        k = self.intrinsics
-        if not np.any(self.distortion):
-            return np.stack([(uv[..., 0] - k.cx) / k.fx, (uv[..., 1] - k.cy) / k.fy], axis=-1)
-        flat = np.ascontiguousarray(uv.reshape(-1, 1, 2), dtype=np.float64)
-        out = cv2.undistortPoints(flat, k.matrix, self.distortion.astype(np.float64))
-        return out.reshape(uv.shape)
+        return undistort_pixels(uv, self.intrinsics, normalised=True)
 
     def params(self) -> np.ndarray:
         """(9,) the camera as a vector for optimisers: Rodrigues rotation (3), translation (3),
@@ -162,7 +226,7 @@ class CameraCalibration:
         k = self.intrinsics
         aspect = np.sqrt(k.fy / k.fx)
         f, cx, cy = float(x[6]), float(x[7]), float(x[8])
-        intr = Intrinsics(f / aspect, f * aspect, cx, cy, k.source if source is None else source)
+        intr = Intrinsics(f / aspect, f * aspect, cx, cy, k.source if source is None else source, k.distortion)
         return CameraCalibration(self.name, self.size, intr, cv2.Rodrigues(np.asarray(x[:3], float))[0],
                                  np.array(x[3:6], dtype=float), self.distortion.copy())
 
@@ -191,7 +255,7 @@ class CameraCalibration:
             turned = (width - height) * (cw - ch) < 0
             raise InputError(sizes + ("; the input is turned a quarter from the calibration: give intrinsics "
                                       "calibrated as it is recorded" if turned else "; give intrinsics for this size"))
-        k = Intrinsics(k.fx, k.fy, k.cx + dw / 2, k.cy + dh / 2, k.source)
+        k = Intrinsics(k.fx, k.fy, k.cx + dw / 2, k.cy + dh / 2, k.source, k.distortion)
         return CameraCalibration(name, (width, height), k, self.rotation, self.translation, self.distortion)
 
 

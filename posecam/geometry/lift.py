@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from posecam.geometry.camera import Intrinsics
+from posecam.geometry.camera import Intrinsics, undistort_pixels
 
 
 def back_project(uv: np.ndarray, z: np.ndarray, k: Intrinsics) -> np.ndarray:
-    """(..., 2) pixels and (...) depths -> (..., 3) camera-space points (paper eq. 4)."""
+    """(..., 2) pixels and (...) depths -> (..., 3) camera-space points (paper eq. 4); the
+    pixels are the image's, their lens distortion (k.distortion) undone first."""
+    uv = undistort_pixels(uv, k)
     x = (uv[..., 0] - k.cx) * z / k.fx
     y = (uv[..., 1] - k.cy) * z / k.fy
     return np.stack([x, y, z], axis=-1)
@@ -27,7 +29,10 @@ def solve_root_translation(
     gives two equations linear in T:
         fx (X + Tx) = (u - cx)(Z + Tz),   fy (Y + Ty) = (v - cy)(Z + Tz).
     They are solved in weighted least squares. Returns T, shape (3,), in the pose's units.
+    The pixels are the image's: a lens with distortion (k.distortion) has it undone first, so
+    that the pinhole model holds.
     """
+    uv = undistort_pixels(uv, k)
     du = uv[:, 0] - k.cx
     dv = uv[:, 1] - k.cy
     n = len(relative)

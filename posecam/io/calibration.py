@@ -200,6 +200,9 @@ def read_qualisys(path: str | os.PathLike, image_widths: dict[str, int] | None =
         fy = check.number(intr["focalLengthV"] / 64, "intrinsic focalLengthV / 64", 0, MAX_PIXEL, open_lo=True)
         dist = np.array([intr["radialDistortion1"], intr["radialDistortion2"],
                          intr["tangentalDistortion1"], intr["tangentalDistortion2"]])
+        if "radialDistortion3" in cam.find("intrinsic").attrib:      # k3, OpenCV's fifth coefficient
+            k3 = _attributes(cam, "intrinsic", ("radialDistortion3",), check, -64 * MAX_PIXEL, 64 * MAX_PIXEL)
+            dist = np.append(dist, k3["radialDistortion3"]) if k3["radialDistortion3"] else dist
         if image_widths and name in image_widths:
             cx += (image_widths[name] - width) / 2
             width = image_widths[name]

@@ -10,13 +10,13 @@ import json
 import math
 import numbers
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
-from posecam.geometry.camera import CameraCalibration, Intrinsics
+from posecam.geometry.camera import CameraCalibration, Intrinsics, distortion_tuple
 from posecam.errors import InputError
 from posecam.io.exif import focal_length_35mm
-from posecam.io.validate import MAX_PIXEL, Field, read_small
+from posecam.io.validate import MAX_PIXEL, Field, read_small, shown_value
 from posecam.io.media import check_input
 
 
@@ -26,20 +26,22 @@ class IntrinsicsOptions:
     fy: float | None = None
     cx: float | None = None
     cy: float | None = None
-    file: str | None = None      # JSON (fx, fy, cx, cy or a 3x3 "matrix"), OpenCV YAML/XML, ROS YAML or a calibration
+    file: str | None = None      # JSON (fx, fy, cx, cy or a 3x3 "matrix"[, "dist"]), OpenCV YAML/XML, ROS YAML or a calibration
     camera: str | None = None    # camera name inside a calibration TOML
 
     def __post_init__(self) -> None:
         for name in ("fx", "fy", "cx", "cy"):
             value = getattr(self, name)
             if value is not None and (isinstance(value, bool) or not isinstance(value, numbers.Real)):
-                raise InputError(f"{name} must be a number, got {value!r}")
+                raise InputError(f"{name} must be a number, got {shown_value(value)}")
             if value is not None and not math.isfinite(value):
-                raise InputError(f"{name} must be a finite number, got {value!r}")
+                raise InputError(f"{name} must be a finite number, got {shown_value(value)}")
         if (self.cx is None) != (self.cy is None):
             raise InputError("give the principal point whole: --cx and --cy together")
         if self.cx is not None and self.fx is None and self.fy is None:
             raise InputError("--cx/--cy need a focal length too (--fx, and --fy if it differs)")
+        if self.file and (self.fx is not None or self.fy is not None):   # the flags would win: the file unread
+            raise InputError("give the lens once: --fx/--fy (and --cx/--cy) or --intrinsics FILE, not both")
         if self.camera is not None and not self.file:
             raise InputError(f"camera {self.camera!r} names a camera inside a calibration file: "
                              "give the file too (--intrinsics FILE)")
@@ -47,6 +49,10 @@ class IntrinsicsOptions:
 
 # the camera matrix's name in OpenCV FileStorage files (calibrateCamera samples, stereo tools)
 FILESTORAGE_MATRIX = ("camera_matrix", "cameraMatrix", "K", "M1", "intrinsic_matrix", "intrinsics")
+# the distortion coefficients' name there (calibrateCamera's sample, ROS camera_info, stereo tools)
+FILESTORAGE_DISTORTION = ("distortion_coefficients", "dist_coeffs", "distCoeffs", "distortion", "D", "D1")
+# an intrinsics JSON's distortion coefficients
+JSON_DISTORTION = ("dist", "distortion", "distortion_coefficients")
 
 
 def _checked(values: dict, check: Field, source: str) -> Intrinsics:
@@ -55,6 +61,25 @@ def _checked(values: dict, check: Field, source: str) -> Intrinsics:
     cx = check.number(values["cx"], "cx", -MAX_PIXEL, MAX_PIXEL)
     cy = check.number(values["cy"], "cy", -MAX_PIXEL, MAX_PIXEL)
     return Intrinsics(float(fx), float(fy), float(cx), float(cy), source=source)
+
+
+def _distortion(values: object, check: Field, field: str) -> tuple[float, ...]:
+    """A file's distortion coefficients k1, k2, p1, p2[, k3] (OpenCV's order), checked."""
+    flat = values
+    if isinstance(values, list) and values and all(isinstance(v, list) for v in values):   # [[k1, ...]] or a column
+        flat = [x for v in values for x in v]
+    if not isinstance(flat, list) or len(flat) not in (4, 5, 8, 12, 14):
+        raise check.fail(field, "must be 4 or 5 distortion coefficients (k1, k2, p1, p2[, k3])",
+                         len(flat) if isinstance(flat, list) else flat)
+    d = check.numbers(flat, field, ((len(flat),),), -1e3, 1e3)
+    try:
+        return distortion_tuple(d)
+    except InputError as exc:
+        raise check.fail(field, str(exc)) from None
+
+
+def _with_distortion(k: Intrinsics, d: tuple[float, ...]) -> Intrinsics:
+    return replace(k, distortion=d) if d else k
 
 
 def _from_matrix(k: object, check: Field, field: str, source: str) -> Intrinsics:
@@ -74,13 +99,17 @@ def _from_json(path: Path, data: bytes) -> Intrinsics:
         raise InputError(f"{path}: not an intrinsics JSON with fx, fy, cx, cy or a 3x3 matrix ({exc})") from None
     check.table(doc, "the document")
     source = f"file:{path.name}"
+    named = [key for key in JSON_DISTORTION if key in doc]
+    if len(named) > 1:
+        raise InputError(f"{path}: give the distortion once, not as both {' and '.join(named)}")
+    dist = _distortion(doc[named[0]], check, named[0]) if named else ()
     if "matrix" in doc:
-        return _from_matrix(doc["matrix"], check, "matrix", source)
+        return _with_distortion(_from_matrix(doc["matrix"], check, "matrix", source), dist)
     missing = [k for k in ("fx", "cx", "cy") if k not in doc]
     if missing:
         raise InputError(f"{path}: not an intrinsics JSON with fx, fy, cx, cy or a 3x3 matrix "
                          f"(missing {', '.join(missing)})")
-    return _checked({**doc, "fy": doc.get("fy", doc["fx"])}, check, source)
+    return _with_distortion(_checked({**doc, "fy": doc.get("fy", doc["fx"])}, check, source), dist)
 
 
 def _no_constant(name: str) -> None:
@@ -107,8 +136,9 @@ def _from_filestorage(path: Path, data: bytes, width: int, height: int) -> Intri
     """The camera matrix of an OpenCV FileStorage YAML/XML (cv2.FileStorage: `camera_matrix`
     and the like, as calibrateCamera's samples write) or of a ROS camera_info YAML (read by
     the same parser once given the header it lacks), fitted to this input by its
-    image_width/image_height (`_fitted`). Read from memory, so any file name works. The
-    distortion is not used: posecam's single-view camera is a pinhole."""
+    image_width/image_height (`_fitted`), with its distortion coefficients
+    (`distortion_coefficients` and the like; ROS's plumb_bob or rational_polynomial model). Read
+    from memory, so any file name works."""
     import cv2
 
     check = Field(str(path))
@@ -128,6 +158,7 @@ def _from_filestorage(path: Path, data: bytes, width: int, height: int) -> Intri
             raise InputError(f"{path}: an OpenCV FileStorage file without a camera matrix "
                              f"(one of {', '.join(FILESTORAGE_MATRIX)})")
         k = _from_matrix(_node_matrix(storage.getNode(key), check, key), check, key, f"file:{path.name}")
+        k = _with_distortion(k, _node_distortion(storage, check))
         size = _image_size(storage, check)
     finally:
         storage.release()
@@ -142,6 +173,24 @@ def _node_matrix(node, check: Field, key: str) -> list:
             or len(numbers) != 9 or not all(n.isInt() or n.isReal() for n in numbers)):
         raise check.fail(key, "must be a 3x3 matrix (rows: 3, cols: 3, data: 9 numbers)")
     return [[numbers[3 * r + c].real() for c in range(3)] for r in range(3)]
+
+
+def _node_distortion(storage, check: Field) -> tuple[float, ...]:
+    """The file's distortion coefficients (() when it gives none): an `!!opencv-matrix`, ROS's
+    {rows, cols, data} or a plain sequence; a fisheye (ROS `equidistant`) model is refused."""
+    model = storage.getNode("distortion_model")
+    if model.isString() and model.string().strip().lower() not in ("plumb_bob", "rational_polynomial", ""):
+        raise check.fail("distortion_model", "must be plumb_bob or rational_polynomial (posecam's cameras are "
+                                             "pinhole with k1 k2 p1 p2 [k3] distortion)", model.string())
+    key = next((key for key in FILESTORAGE_DISTORTION if not storage.getNode(key).isNone()), None)
+    if key is None:
+        return ()
+    node = storage.getNode(key)
+    values = node.getNode("data") if node.isMap() else node
+    items = [values.at(i) for i in range(values.size())] if values.isSeq() else []
+    if not items or not all(n.isInt() or n.isReal() for n in items):
+        raise check.fail(key, "must be 4 or 5 distortion coefficients (k1, k2, p1, p2[, k3])")
+    return _distortion([n.real() for n in items], check, key)
 
 
 def _image_size(storage, check: Field) -> tuple[int, int] | None:
@@ -176,7 +225,7 @@ def _from_toml(path: Path, camera: str | None, width: int, height: int) -> Intri
     # the one policy posecam fuse uses too: name match, then crop/pad or resize to this input
     cam = rig.camera_for(camera, width, height)
     k = cam.intrinsics
-    return Intrinsics(k.fx, k.fy, k.cx, k.cy, source=f"file:{path.name}#{camera}")
+    return Intrinsics(k.fx, k.fy, k.cx, k.cy, f"file:{path.name}#{camera}", distortion_tuple(cam.distortion))
 
 
 def is_calibration(path: str | Path) -> bool:

@@ -50,6 +50,26 @@ from posecam.errors import InputError, warn
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp")   # read as still images
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv")   # videos posecam writes, and looks for in a take folder
 DEFAULT_FPS = 30.0   # the frame rate of an image sequence, and of a video or a recording that gives none
+TIME_ROUNDING = 5e-5  # s: half the last decimal of a pose file's times (4 decimals)
+
+
+def exact_times(indices, times, fps: float | None) -> np.ndarray:
+    """Frame times as the frame rate gives them, index / rate, where every time is that to
+    within the rounding of a pose file's times (TIME_ROUNDING): a constant-rate input read
+    back, or timed by its container to the millisecond. The rate is `fps`, or `fps` times the
+    step between the indices (every k-th frame kept: `fps` is the rate of the frames kept).
+    Otherwise (a variable rate, no rate, missing times) the times as they are."""
+    index = np.asarray(indices, dtype=float)
+    t = np.asarray(times, dtype=float)
+    if not fps or not len(t) or not np.isfinite(t).all():
+        return t
+    steps = np.diff(index)
+    step = int(np.gcd.reduce(steps.astype(np.int64))) if len(steps) and (steps > 0).all() else 1
+    for rate in dict.fromkeys((fps, fps * step)):
+        exact = index / rate
+        if np.all(np.abs(exact - t) <= TIME_ROUNDING * (1 + 1e-6)):
+            return exact
+    return t
 MAX_PIXELS = 1 << 28        # 268 Mpx: larger images are refused before decoding
 _NUMBERED = re.compile(r"^(.*?)(\d+)$")
 STREAM_SCHEMES = ("rtsp://", "rtsps://", "rtmp://", "http://", "https://", "udp://", "tcp://", "srt://")
@@ -483,6 +503,8 @@ def _open(path: str | os.PathLike) -> Media:
                              "their names are not numbered frames); give each photo as an input")
         w, h = image_size(files[0])
         return Media(path, "sequence", w, h, DEFAULT_FPS, len(files), files=files)
+    if path.suffix.lower() == ".json":
+        raise InputError(f"{path} is a pose file, not an image or a video: `posecam fuse` reads pose files")
     if path.suffix.lower() in IMAGE_SUFFIXES:
         image = read_image(path)
         h, w = image.shape[:2]

@@ -1,7 +1,7 @@
 """Pose files: the JSON document and the long-form CSV that `posecam predict` and `fuse` write.
 
 JSON: {"posecam", "model", "joints", "root_joint", "inputs": [{"source", "width", "height", "frame",
-"intrinsics": {"fx", "fy", "cx", "cy", "source"}, "fps", "frames": [{"index", "time",
+"intrinsics": {"fx", "fy", "cx", "cy", "source"[, "distortion"]}, "fps", "frames": [{"index", "time",
 "people": [{"id", "score", "bbox", "keypoints_2d", "keypoints_3d", "confidence", "root"[, "height",
 "height_source", "height_estimated", "height_sd", "depth_sd"][, "doubts"][, "views"][, "observed_2d", "observed_3d"]}], "dropped": [{"stage", "score",
 "bbox"}]}][, "floor": {"normal", "distance", "spread", "contacts", "tracks"}]}]}. The height fields (m; depth_sd in mm) are there when the
@@ -43,7 +43,7 @@ from posecam.io.atomic import atomic_path
 from posecam.io.jsonstream import JsonStream
 from posecam.io.validate import (MAX_FPS, MAX_INDEX, MAX_JOINTS, MAX_MM, MAX_PEOPLE, MAX_PIXEL, MAX_SECONDS, MAX_VIEWS,
                                  Field)
-from posecam.io.media import check_input
+from posecam.io.media import check_input, exact_times
 from posecam.results import Dropped, Frame, Person, Recording
 from posecam.skeleton import skeleton_of
 
@@ -291,11 +291,17 @@ def _read_input(stream: JsonStream, check: Field, shape: dict) -> dict:
                 raise check.fail(f"intrinsics.{needed}", "is missing")
         intrinsics = Intrinsics(*(float(check.number(k[n], f"intrinsics.{n}", 0, MAX_PIXEL, open_lo=n in ("fx", "fy")))
                                   for n in ("fx", "fy", "cx", "cy")),
-                                check.text(k.get("source", "file"), "intrinsics.source"))
+                                check.text(k.get("source", "file"), "intrinsics.source"),
+                                # the lens's k1, k2, p1, p2[, k3] (absent: none)
+                                tuple(check.numbers(k.get("distortion", [0.0] * 4), "intrinsics.distortion",
+                                                    ((4,), (5,)), -1e3, 1e3)))
     frame = check.text(fields.get("frame", "camera"), "frame")
     if frame not in FRAMES_OF_REFERENCE and not frame.startswith("reference camera "):
         raise check.fail("frame", "must be camera, world or reference camera NAME", frame)
     fps = check.number(fields.get("fps"), "fps", 0, MAX_FPS, optional=True, open_lo=True)
+    # times written to 4 decimals: index / fps again where the input had a constant rate
+    for f, t in zip(frames, exact_times([f.index for f in frames], [f.time for f in frames], fps)):
+        f.time = float(t)
     return {"source": check.text(fields["source"], "source"), "width": check.side(fields["width"], "width"),
             "height": check.side(fields["height"], "height"), "intrinsics": intrinsics, "frames": frames,
             "fps": None if fps is None else float(fps), "frame_of_reference": frame,

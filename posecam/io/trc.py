@@ -21,7 +21,7 @@ import numpy as np
 
 from posecam.errors import InputError
 from posecam.io.atomic import OutputSet, atomic_path, check_output
-from posecam.io.media import DEFAULT_FPS
+from posecam.io.media import DEFAULT_FPS, exact_times
 from posecam.results import Recording
 
 
@@ -59,6 +59,7 @@ def trc_text(rec: Recording, person_id: int, name: str, y_up: bool = False) -> s
         xyz = to_y_up(xyz, rec.frame_of_reference)
     metres = xyz.reshape(len(xyz), -1) / 1000.0
     fps = rec.fps or DEFAULT_FPS
+    time = exact_times(index, time, rec.fps)      # index / fps for a constant rate, not rounded times
     rate = f"{fps:.6g}"
     joints = list(rec.joints)
     lines = [

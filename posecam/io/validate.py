@@ -47,8 +47,22 @@ def read_small(path, what: str) -> bytes:
     return data
 
 
-def _shown(value: object, limit: int = 60) -> str:
-    text = repr(value)
+def _plain(value: object) -> object:
+    """numpy's scalars and arrays as Python's numbers and lists, so that a message shows 0.0,
+    not np.float64(0.0)."""
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (list, tuple)):
+        return type(value)(_plain(v) for v in value)
+    return value
+
+
+def shown_value(value: object, limit: int = 60) -> str:
+    """A value for a message: as Python writes it ('abc', 0.0, [1, 2]; numpy's as Python's),
+    cut at `limit` characters."""
+    text = repr(_plain(value))
     return text if len(text) <= limit else text[:limit] + "..."
 
 
@@ -59,7 +73,7 @@ class Field:
         self.where, self.error = where, error
 
     def fail(self, field: str, rule: str, value: object = ...) -> PosecamError:
-        got = "" if value is ... else f", got {_shown(value)}"
+        got = "" if value is ... else f", got {shown_value(value)}"
         return self.error(f"{self.where}: {field}: {rule}{got}")
 
     def number(self, value: object, field: str, lo: float = -math.inf, hi: float = math.inf, *,

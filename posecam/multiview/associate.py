@@ -87,10 +87,11 @@ def pair_cost_calibrated(cams: list[CameraCalibration], offsets: list[int], n: i
         common = uv.shape[1]
         err = rig.reprojection_errors(rig.triangulate(uv, conf, min_conf), uv, conf, min_conf)
         focal = np.array([cams[a.view].intrinsics.fx, cams[b.view].intrinsics.fx])[:, None, None]
-        per_frame = np.nanmedian(np.where(np.isfinite(err), err / focal, np.nan).reshape(2 * common, -1), axis=1)
-        if not np.isfinite(per_frame).any():
+        rows = np.where(np.isfinite(err), err / focal, np.nan).reshape(2 * common, -1)
+        seen = np.isfinite(rows).any(axis=1)     # frames whose confident joints the two views share
+        if not seen.any():
             return PairFit(np.inf)
-        return PairFit(float(np.nanmedian(per_frame)))
+        return PairFit(float(np.median(np.nanmedian(rows[seen], axis=1))))
 
     return cost
 

@@ -244,12 +244,12 @@ def estimate_rig(assumed: list[CameraCalibration], obs: Observations,
     dist = np.where(w0 > 0, np.linalg.norm(x - target, axis=-1), np.nan)
     cameras = [CameraCalibration(c.name, c.size, c.intrinsics if c.name in opts.fixed else
                                  Intrinsics(*map(float, s.k[i]), source="consensus"),
-                                 s.rotation[i].copy(), s.translation[i].copy())
+                                 s.rotation[i].copy(), s.translation[i].copy(), c.distortion)
                for i, c in enumerate(assumed)]
     return ConsensusResult(
         rig=Rig(cameras, reference=assumed[ref].name),
         focal_scale=focal_scale(s.k, k0),
-        residual_mm=np.nanmedian(dist.reshape(n, -1), axis=1),
+        residual_mm=_row_medians(dist.reshape(n, -1)),
         joints_used=(w0 > 0).reshape(n, -1).sum(axis=1),
         iterations=it1 + it2,
         converged=converged,
@@ -272,4 +272,13 @@ def stretch_residuals(rig: Rig, assumed: list[CameraCalibration], obs: Observati
         d = dist[:, bounds[k]:bounds[k + 1]].reshape(n, -1)
         seen = np.isfinite(d).any(axis=1)
         out[seen, k] = np.nanmedian(d[seen], axis=1)
+    return out
+
+
+def _row_medians(a: np.ndarray) -> np.ndarray:
+    """(N,) each row's median of its finite values; NaN for a row with none (and no numpy
+    warning: "All-NaN slice encountered")."""
+    out = np.full(len(a), np.nan)
+    seen = np.isfinite(a).any(axis=1)
+    out[seen] = np.nanmedian(a[seen], axis=1)
     return out

@@ -162,11 +162,18 @@ def _twins(recordings: list[Recording], max_px: float = 0.5) -> list[tuple[int, 
     for a in range(len(recordings)):
         for b in range(a + 1, len(recordings)):
             common = sorted(set(people[a]) & set(people[b]))[:50]
-            same = [np.nanmin(np.nanmedian(np.linalg.norm(people[a][i][:, None] - people[b][i][None], axis=-1), axis=-1))
-                    < max_px for i in common]
+            same = [_closest(np.linalg.norm(people[a][i][:, None] - people[b][i][None], axis=-1)) < max_px
+                    for i in common]
             if same and np.mean(same) > 0.8:
                 out.append((a, b))
     return out
+
+
+def _closest(distances: np.ndarray) -> float:
+    """The smallest median over joints of (Pa, Pb, J) distances between two views' people
+    (inf where no pair shares a joint: people whose joints a file left null)."""
+    seen = np.isfinite(distances).any(axis=-1)
+    return float(np.nanmedian(distances[seen], axis=-1).min()) if seen.any() else np.inf
 
 
 HEIGHTS_AGREE = 0.10    # given heights whose ratios to the measured ones spread wider disagree with the rig

@@ -241,7 +241,8 @@ def motion_offset(score: Callable[[float, np.ndarray | None, np.ndarray | None],
         if np.isfinite(c).any():
             peaks.append(_peak(near, c))
     spread = float(np.std(peaks)) if len(peaks) > 2 else np.inf
-    return MotionOffset(round(best, 2) + 0.0, float(np.nanmax(corr)), spread)      # + 0.0: no -0
+    peak = float(np.nanmax(corr)) if np.isfinite(corr).any() else np.nan
+    return MotionOffset(round(best, 2) + 0.0, peak, spread)      # + 0.0: no -0
 
 
 # ---- the coarse offsets: bone directions, the same from every camera up to its rotation -------
@@ -501,8 +502,9 @@ def _motion_offsets(take: Take, people: list[PersonTracks], start: list[float], 
             FINE_WINDOW)
         confidence[v], spread[v] = max(float(np.nan_to_num(m.correlation)), 0.0), m.spread
         fps = take.fps or DEFAULT_FPS
-        speed = np.nanmedian([keypoint_speed(uv, conf, fps, min_conf) for uv, _, conf, _ in
-                              (p.view_arrays(v, take.lengths[v]) for p in people if ref in p.views and v in p.views)])
+        speeds = np.array([keypoint_speed(uv, conf, fps, min_conf) for uv, _, conf, _ in
+                           (p.view_arrays(v, take.lengths[v]) for p in people if ref in p.views and v in p.views)])
+        speed = float(np.nanmedian(speeds)) if np.isfinite(speeds).any() else np.nan
         why = None
         if shared[2] < MIN_MOTION:
             why = f"the people move too little to synchronise it (their joints move {shared[2]:.0f} mm about the root)"

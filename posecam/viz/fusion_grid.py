@@ -20,7 +20,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from posecam.errors import InputError, PosecamError
+from posecam.errors import InputError, PosecamError, warn
 from posecam.io.media import DEFAULT_FPS, VIDEO_SUFFIXES, FrameSelection, open_media
 from posecam.multiview.fuse import FusionResult
 from posecam.results import Frame, Person, Recording
@@ -115,6 +115,10 @@ def write_grid(path: str | os.PathLike, result: FusionResult, recordings: list[R
         views = [{f.index for f in recordings[v].frames} for _, v in kept]
         frames = [frames[_still_frame(frames, views, offsets)]]
     readers = [_ViewReader(recordings[v], frames[0].index + o) for (_, v), o in zip(kept, offsets)]
+    unread = [cam.name for (cam, _), reader in zip(kept, readers) if reader.frames is None]
+    if unread:
+        warn(f"--viz: the video{'s' if len(unread) > 1 else ''} of {', '.join(unread)} cannot be read (the pose "
+             f"file{'s' if len(unread) > 1 else ''}' source): drawn on black")
 
     def pictures() -> Iterator[np.ndarray]:
         for f in frames:
