@@ -147,14 +147,22 @@ def unliftable(rec: Recording) -> str:
 
 
 def _placed(p: Person, k: Intrinsics) -> Person:
-    """One person's metric pose placed on its 2D keypoints through `k` (joints a file left
-    null are left out of the solve; fewer than two joints: no 3D)."""
-    ok = np.isfinite(p.keypoints_2d).all(axis=-1) & np.isfinite(p.keypoints_3d).all(axis=-1)
+    """One person's metric pose placed on its 2D keypoints through `k`, the shown pose and the
+    one observed (`Person.observed`, what fuse estimates from) alike."""
+    uv, xyz = p.observed()
+    placed = _on_keypoints(p.keypoints_3d, p.keypoints_2d, p.confidence, k)
+    if p.observed_3d is None:
+        return dataclasses.replace(p, keypoints_3d=placed)
+    return dataclasses.replace(p, keypoints_3d=placed, observed_3d=_on_keypoints(xyz, uv, p.confidence, k))
+
+
+def _on_keypoints(xyz: np.ndarray, uv: np.ndarray, conf: np.ndarray, k: Intrinsics) -> np.ndarray:
+    """(J, 3) pose moved onto its (J, 2) keypoints through `k` (joints a file left null are
+    left out of the solve; fewer than two joints: no 3D)."""
+    ok = np.isfinite(uv).all(axis=-1) & np.isfinite(xyz).all(axis=-1)
     if ok.sum() < 2:
-        return dataclasses.replace(p, keypoints_3d=np.full_like(p.keypoints_3d, np.nan))
-    conf = np.nan_to_num(p.confidence[ok])
-    t = solve_root_translation(p.keypoints_3d[ok], p.keypoints_2d[ok], conf, k)
-    return dataclasses.replace(p, keypoints_3d=p.keypoints_3d + t)
+        return np.full_like(xyz, np.nan)
+    return xyz + solve_root_translation(xyz[ok], uv[ok], np.nan_to_num(conf[ok]), k)
 
 
 def _predicted(estimator: PoseEstimator, path: str, intrinsics: IntrinsicsOptions, on_frame: OnFrame | None,

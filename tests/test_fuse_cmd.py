@@ -310,6 +310,23 @@ def test_relifting_through_a_lens_keeps_the_pose_and_moves_its_root():
         assert abs(b.root[2] - a.root[2]) > 50                                      # the root moved
 
 
+def test_relifting_a_smoothed_file_moves_the_poses_fuse_estimates_from():
+    """A smoothed pose file keeps its people's keypoints as observed, which fuse estimates from:
+    lifted through another lens, those move too, not only the smoothed ones shown."""
+    from posecam.analysis.filters import smooth_recording
+    from posecam.geometry.camera import Intrinsics, project
+    from posecam.views import relensed
+
+    rec = smooth_recording(monocular_views(make_rig()[:1], skeleton_motion(20), pixel_noise=0.0, joint_noise=0.0,
+                                           depth_noise=0.0, outlier_rate=0.0)[0])
+    rec.model = "blazepose-full"
+    k = Intrinsics(1500.0, 1500.0, 960.0, 540.0, "flags")
+    for before, after in zip(rec.frames, relensed(rec, k).frames):
+        a, b = before.people[0], after.people[0]
+        assert abs(b.observed_3d[0, 2] - a.observed_3d[0, 2]) > 50
+        assert np.median(np.abs(project(b.observed_3d, k) - b.observed_2d)) < 3
+
+
 def test_pose_files_that_cannot_be_lifted_again_are_refused_in_one_line(tmp_path):
     cams, paths = _inputs(tmp_path, 20)          # model "synthetic": not a BlazePose metric pose
     out = tmp_path / "fused.json"
