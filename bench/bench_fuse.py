@@ -23,7 +23,7 @@ undistortion and a plain DLT:
 Each run of `fuse_recordings` (from the cached pose JSON) is scored against it: per camera
 pair the angle between estimated and lab relative rotation, per camera the focal length error
 and the camera centre error (cam01's frame, mm), the offsets against the truth, and every
-true pelvis's distance to the nearest fused pelvis of its frame (median, mm; fused people the
+true pelvis's distance to the nearest fused pelvis of its frame as fuse writes it (smoothed; median, mm; fused people the
 truth lacks, seen by one view only like the single take's bystander, are counted apart); and per
 estimated camera its spreads (one standard deviation of rotation, focal length, centre) beside its errors.
 
@@ -390,6 +390,13 @@ CONFIGS = {
 }
 
 
+def written_pelvis(res) -> list[list[list[float]]]:
+    """Per fused frame, each person's pelvis as `posecam fuse` writes it (smoothed, its default)."""
+    from posecam.analysis.filters import smooth_recording
+
+    return [[p.keypoints_3d[0].tolist() for p in f.people] for f in smooth_recording(res.recording).frames]
+
+
 def worker(take: str, cache: Path, offsets: list[float], out: Path) -> None:
     """Run every config on the cached pose JSON and write what `Truth.score` needs."""
     from posecam import read_poses
@@ -430,7 +437,7 @@ def worker(take: str, cache: Path, offsets: list[float], out: Path) -> None:
             continue
         dt = time.perf_counter() - t0
         cams = res.rig.cameras
-        pelvis = [[p.keypoints_3d[0].tolist() for p in f.people] for f in res.recording.frames]
+        pelvis = written_pelvis(res)
         results[label] = {"time_s": dt, "frame": "world" if cfg.get("calibration") else "camera",
                           "cameras_names": [c.name for c in cams],
                           "R": [c.rotation.tolist() for c in cams], "t": [c.translation.tolist() for c in cams],
@@ -685,7 +692,7 @@ def _run_case(recs, names, opts) -> dict:
             "R": [c.rotation.tolist() for c in cams], "t": [c.translation.tolist() for c in cams],
             "fx": [c.intrinsics.fx for c in cams], "offsets_kept": [res.offsets[v] for v in res.views],
             "warnings": res.warnings, "frame": "world" if opts.calibration is not None else "camera",
-            "pelvis": [[p.keypoints_3d[0].tolist() for p in f.people] for f in res.recording.frames],
+            "pelvis": written_pelvis(res),
             "angles": _fused_angles(res),
             "fixed": [bool(getattr(r, "intrinsics_fixed", False)) for r in res.cameras],
             "spreads": [[r.spread.rotation_deg, r.spread.focal_pct] if getattr(r, "spread", None) else None
