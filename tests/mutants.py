@@ -82,11 +82,11 @@ MUTANTS = (
            "float(k[0, 2]), float(k[1, 2]), source)", "float(k[0, 2]), float(k[0, 2]), source)",
            (f"{CALIB}::test_foreign_calibration_projects_as_opencv_does",)),
     Mutant("camera: tangential distortion's terms swapped", "posecam/geometry/camera.py",
-           "xd = x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x)",
-           "xd = x * radial + 2 * p2 * x * y + p1 * (r2 + 2 * x * x)",
+           "return (x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x),",
+           "return (x * radial + 2 * p2 * x * y + p1 * (r2 + 2 * x * x),",
            (f"{CALIB}::test_foreign_calibration_projects_as_opencv_does",)),
     Mutant("camera: undistortion skipped", "posecam/geometry/camera.py",
-           "if not np.any(self.distortion):", "if True:",
+           "    if not k.distortion:\n        if not normalised:", "    if True:\n        if not normalised:",
            (f"{CALIB}::test_foreign_calibration_projects_as_opencv_does",)),
     Mutant("qualisys: rotation read by row", "posecam/io/calibration.py",
            '.reshape(3, 3).T,\n', '.reshape(3, 3),\n',
@@ -200,6 +200,14 @@ MUTANTS = (
     Mutant("fuse: frames shared at given offsets counted from the wrong side", "posecam/multiview/fuse.py",
            "max(0.0, o_ref - o)", "max(0.0, o - o_ref)",
            ("tests/test_views.py::test_offsets_given_line_up_views_of_different_lengths",)),
+    # ---- what fusion estimates from ---------------------------------------------------------------
+    Mutant("observations: the take read from the smoothed keypoints", "posecam/multiview/observations.py",
+           "(uv[i], xyz[i]), conf[i], score[i] = p.observed(), p.confidence, p.score",
+           "(uv[i], xyz[i]), conf[i], score[i] = (p.keypoints_2d, p.keypoints_3d), p.confidence, p.score",
+           ("tests/test_fuse_cmd.py::test_fusing_videos_is_fusing_the_pose_files_predict_writes_of_them",)),
+    Mutant("pose files: the observed keypoints not written", "posecam/io/poses.py",
+           "    if p.observed_2d is not None:         #", "    if False:         #",
+           ("tests/test_fuse_cmd.py::test_fusing_videos_is_fusing_the_pose_files_predict_writes_of_them",)),
 )
 
 
