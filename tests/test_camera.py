@@ -134,3 +134,11 @@ def test_project_through_intrinsics_is_opencvs_with_the_distortion():
     distortion, as the image shows them (else a wide lens's sound poses would look off-body)."""
     relative, truth, uv = _distorted_view()
     assert np.allclose(project(relative + truth, Intrinsics(*WIDE, distortion=WIDE_DISTORTION)), uv, atol=1e-6)
+
+
+@pytest.mark.parametrize("source, given", [("flags", True), ("file:cam01.json", True), ("default", False),
+                                           ("exif", False), ("people (+-120 px)", False), ("bundle", False)])
+def test_only_measured_intrinsics_count_as_given(source, given):
+    """fuse holds a given lens; one the metric stage estimated from upright people is no
+    measurement and is estimated again with the rig."""
+    assert Intrinsics(1500.0, 1500.0, 540.0, 960.0, source).given is given

@@ -23,7 +23,9 @@ DEFAULT_FOCAL_35MM = 28.0
 FOV_RANGE = (5.0, 170.0)
 # Intrinsics.source values of a lens nobody measured: posecam's guess (the default lens, the
 # photo's EXIF) or its own estimate; any other source (flags, a file, a calibration) is given
-ESTIMATED_SOURCES = ("default", "exif", "consensus", "bundle")
+# sources of intrinsics posecam guessed or estimated; "people" is the metric stage's focal length
+# from upright people (posecam.scale.metric: "people (+-N px)")
+ESTIMATED_SOURCES = ("default", "exif", "consensus", "bundle", "people")
 # OpenCV's distortion coefficients posecam models: k1, k2, p1, p2[, k3]
 DISTORTION_LENGTHS = (4, 5)
 
@@ -59,8 +61,8 @@ class Intrinsics:
     @property
     def given(self) -> bool:
         """Whether these intrinsics were measured (flags, a file, a calibration), not guessed
-        or estimated by posecam (ESTIMATED_SOURCES)."""
-        return self.source not in ESTIMATED_SOURCES
+        or estimated by posecam (ESTIMATED_SOURCES, the first word of the source)."""
+        return self.source.partition(" ")[0] not in ESTIMATED_SOURCES
 
     def check_image(self, width: int, height: int) -> "Intrinsics":
         """These intrinsics if they are plausible for a width x height image, else InputError:
