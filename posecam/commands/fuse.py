@@ -22,7 +22,10 @@ if TYPE_CHECKING:
 def _spread(rep) -> tuple[str, str, str]:
     s = rep.spread
     focal = "fixed" if rep.intrinsics_fixed else "" if s is None else f"{s.focal_pct:.1f}"
-    return ("", focal, "") if s is None else (f"{s.rotation_deg:.2f}", focal, f"{s.position_mm:.0f}")
+    if s is None:
+        return "", focal, ""
+    mark = "*" if getattr(rep, "unpinned", None) else ""          # not pinned by the people: a warning says why
+    return f"{s.rotation_deg:.2f}{mark}", focal + (mark if focal != "fixed" else ""), f"{s.position_mm:.0f}"
 
 
 def _offset(rep, confidence: bool = True) -> str:
@@ -89,7 +92,10 @@ def print_report(result: FusionResult, console, verbose: bool = False) -> None:
                   "reproj.: median reprojection error of the joints two cameras or more see (-: none); focal: fx "
                   "(fx/fy where they differ)"
                   + ("; ±rot, ±focal, ±pos: one standard deviation of each estimated camera's rotation, focal "
-                     "length and position (at the rig's scale)" if estimated else "")
+                     "length and position (at the rig's scale; the bootstrap's widened by the keypoints' bias)"
+                     if estimated else "")
+                  + ("; *: not pinned by the people (see the warning)"
+                     if any(getattr(rep, "unpinned", None) for rep in result.cameras) else "")
                   + ("; offset conf.: --sync auto's confidence, 0 to 1; joints used: joint observations in it; L/R "
                      "swaps: frames with left and right swapped back" if verbose else
                      "; --verbose: each camera's joints used, left/right swaps, principal point and centre"),
