@@ -344,8 +344,11 @@ def bias_floor(rig: Rig, obs: Observations, min_conf: float) -> tuple[np.ndarray
     points = rig.triangulate(obs.uv, obs.conf, min_conf)
     errors = rig.reprojection_errors(points, obs.uv, obs.conf, min_conf)
     pts = points.reshape(-1, 3)
-    centroid = np.median(pts[np.isfinite(pts).all(axis=1)], axis=0)
-    angle, distance = np.full(len(rig.cameras), np.inf), np.zeros(len(rig.cameras))
+    pts = pts[np.isfinite(pts).all(axis=1)]
+    angle, distance = np.full(len(rig.cameras), np.inf), np.full(len(rig.cameras), np.inf)
+    if not len(pts):                                     # nothing triangulated: nothing pinned
+        return angle, distance
+    centroid = np.median(pts, axis=0)
     for v, cam in enumerate(rig.cameras):
         uv = obs.uv[v][(obs.conf[v] >= min_conf) & np.isfinite(obs.uv[v]).all(axis=-1)]
         e = errors[v][np.isfinite(errors[v])]
@@ -368,7 +371,7 @@ def widened(rig: Rig, obs: Observations, spreads: list[CameraSpread], min_conf: 
         a = 0.0 if v == ref else angle[v]
         f = 0.0 if cam.name in fixed else 100 * angle[v]
         out.append(CameraSpread(float(np.hypot(s.rotation_deg, np.degrees(a))), float(np.hypot(s.focal_pct, f)),
-                                float(np.hypot(s.position_mm, a * distance[v])),
+                                float(np.hypot(s.position_mm, a * distance[v] if a else 0.0)),
                                 (s.rotation_deg, s.focal_pct, s.position_mm)))
     return out
 
