@@ -70,6 +70,10 @@ def test_an_unpinned_camera_is_marked_in_the_json_and_the_table():
     print_report(Result(), console)
     text = console.export_text()
     assert "40.0*" in text and "*: not pinned" in text, text
+    from posecam.commands.fuse import camera_comments
+
+    line = camera_comments(Result())["c"]
+    assert "focal 40.0 %" in line and line.endswith("not pinned by the people"), line
 
 
 def test_fewer_than_two_cameras_left_is_a_refusal():

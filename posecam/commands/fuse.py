@@ -48,9 +48,11 @@ def camera_comments(result: FusionResult) -> dict[str, str]:
     for rep in result.cameras:
         line = f"offset {_offset(rep)} frames; reprojection {_px(rep.reprojection_px)} px"
         if rep.spread is not None:
-            rot, focal, pos = _spread(rep)
+            rot, focal, pos = (cell.rstrip("*") for cell in _spread(rep))
             focal = "held (given)" if rep.intrinsics_fixed else f"{focal} %"
             line += f"; one standard deviation: rotation {rot} deg, focal {focal}, position {pos} mm"
+            if getattr(rep, "unpinned", None):
+                line += "; not pinned by the people"
         out[rep.name] = line
     return out
 
