@@ -26,6 +26,10 @@ and the camera centre error (cam01's frame, mm), the offsets against the truth, 
 true pelvis's distance to the nearest fused pelvis of its frame as fuse writes it (smoothed; median, mm; fused people the
 truth lacks, seen by one view only like the single take's bystander, are counted apart); and per
 estimated camera its spreads (one standard deviation of rotation, focal length, centre) beside its errors.
+`--rigs` ends with the spreads' coverage (`coverage_rows`, `show_coverage`): per quantity (rotation,
+focal length, position at the lab's scale, the offsets against the uncut run's plus the cut and
+against the lab's), how many of the sweep's errors lie within 1 and 2 reported standard
+deviations, and every camera's |error| / sd; the rows are kept in DIR/<take>/coverage_<code>.json.
 
 Before / after in one run: `--before DIR` runs the same fuses with another checkout's posecam
 (`git archive <commit> posecam | tar -x -C DIR`) in a subprocess and scores them the same way.
@@ -695,8 +699,13 @@ def _run_case(recs, names, opts) -> dict:
             "pelvis": written_pelvis(res),
             "angles": _fused_angles(res),
             "fixed": [bool(getattr(r, "intrinsics_fixed", False)) for r in res.cameras],
-            "spreads": [[r.spread.rotation_deg, r.spread.focal_pct] if getattr(r, "spread", None) else None
-                        for r in res.cameras]}
+            "spreads": [[r.spread.rotation_deg, r.spread.focal_pct, r.spread.position_mm]
+                        if getattr(r, "spread", None) else None for r in res.cameras],
+            "offset_spreads": [float(getattr(r, "offset_spread", 0.0)) for r in res.cameras],
+            "bootstrap": [list(r.spread.bootstrap) if getattr(getattr(r, "spread", None), "bootstrap", None) else None
+                          for r in res.cameras],
+            "pinned": [r.to_dict().get("pinned", True) for r in res.cameras],
+            "dicts": [r.to_dict() for r in res.cameras]}
 
 
 def rigs_worker(take: str, cache: Path, offsets: list[float], out: Path) -> None:
@@ -768,6 +777,97 @@ def _coverage(r: dict, s: dict) -> str:
     ratios = [s["rot"][f"{r['cameras_names'][0]}-{n}"] / sp[0]
               for n, sp in zip(r["cameras_names"][1:], (r.get("spreads") or [None])[1:]) if sp and sp[0] > 0]
     return f"{max(ratios):5.1f}" if ratios else "    -"
+
+
+def _lab_scale_centres(truth: Truth, r: dict) -> tuple[np.ndarray, np.ndarray, float]:
+    """The run's camera centres and the lab's, both in the run's reference camera's frame (mm),
+    the run's brought to the lab's scale (its baseline, the summed distances to the reference,
+    made the lab's: reprojection cannot tell the scale, so the spreads are at the rig's), and
+    that factor."""
+    views = [NAMES.index(n) for n in r["cameras_names"]]
+    R = [np.array(x) for x in r["R"]]
+    est = np.array([R[0] @ (-rv.T @ np.array(t)) + np.array(r["t"][0]) for rv, t in zip(R, r["t"])])
+    c0 = truth.cams[views[0]]
+    lab = np.array([c0["R"] @ (-truth.cams[v]["R"].T @ truth.cams[v]["t"]) + c0["t"] for v in views])
+    k = np.linalg.norm(lab - lab[0], axis=1).sum() / max(np.linalg.norm(est - est[0], axis=1).sum(), 1e-9)
+    return est * k, lab, float(k)
+
+
+COVERED = ("rotation deg", "focal %", "position mm", "offset vs uncut+N", "offset vs lab")
+ALONE = " (the bootstrap alone)"         # the same errors against the bootstrap's own spreads, unwidened
+
+
+def coverage_rows(take: str, res: dict, truth: Truth) -> list[dict]:
+    """Every estimated camera of the sweep's runs (both lenses, every set, the cut views): per
+    quantity its error against the yardstick (the lab calibration; the truth offsets of the
+    plain DLT) and its reported standard deviation. Rotation: the relative rotation from the
+    run's reference (whose rotation is the frame: not counted); focal length: every camera whose
+    lens was estimated (not held); position: the centre, both rigs at the lab's scale; offsets:
+    the cut runs' cameras against the uncut run's offset + N and against the lab's + N, the
+    uncut runs' against the lab's."""
+    rows = []
+    for key, r in res.items():
+        if "error" in r or key.endswith(" lab") or not r.get("spreads"):
+            continue
+        names = r["cameras_names"]
+        s = truth.score(r)
+        est, lab, k = _lab_scale_centres(truth, r)
+        want, base_off, n_cut, cam = None, {}, 0, None
+        if key.startswith("cut "):
+            _, n_cut, cam, label = key.split(" ")
+            n_cut = int(n_cut)
+            views = [NAMES.index(n) for n in label.split("+")]
+            want = dict(zip([NAMES[v] for v in views], _expected(truth, n_cut, NAMES.index(cam), views)))
+            base = res.get(f"default {label}")
+            base_off = dict(zip(base["cameras_names"], base["offsets_kept"])) if base and "error" not in base else {}
+        else:
+            want = {n: truth.combination[NAMES.index(n)] - truth.combination[NAMES.index(names[0])] for n in names}
+        dicts = r.get("dicts") or [{}] * len(names)
+        for i, (n, sp) in enumerate(zip(names, r["spreads"])):
+            if sp is None:
+                continue
+            row = {"take": take, "run": key, "camera": n, "pinned": dicts[i].get("pinned", True),
+                   "reprojection_px": dicts[i].get("reprojection_px"), "fx": r["fx"][i]}
+            if i > 0:
+                row["rotation deg"] = (s["rot"][f"{names[0]}-{n}"], sp[0])
+                if len(sp) > 2:
+                    row["position mm"] = (float(np.linalg.norm(est[i] - lab[i])), sp[2] * k)
+                osd = (r.get("offset_spreads") or [0.0] * len(names))[i]
+                o = r["offsets_kept"][i]
+                if key.startswith("cut "):
+                    shift = n_cut if (n_cut > 0 or n == cam) else 0
+                    if n in base_off:
+                        row["offset vs uncut+N"] = (o - base_off[n] - shift, osd)
+                row["offset vs lab"] = (o - want[n], osd)
+            if not (r.get("fixed") or [False] * len(names))[i]:
+                row["focal %"] = (s["focal"][n], sp[1])
+            boot = (r.get("bootstrap") or [None] * len(names))[i]
+            for q, slot in (("rotation deg", 0), ("focal %", 1), ("position mm", 2)):
+                if boot and q in row:
+                    row[q + ALONE] = (row[q][0], boot[slot] * (row[q][1] / sp[slot] if sp[slot] > 0 else 1.0))
+            rows.append(row)
+    return rows
+
+
+def show_coverage(rows: list[dict], label: str) -> None:
+    """Per quantity: how many errors lie within 1 and 2 reported standard deviations, and every
+    camera's |error| / sd (the widest first)."""
+    print(f"== coverage ({label}): |error| against the lab within 1 and 2 reported standard deviations "
+          "(a Gaussian's: 68 % and 95 %; wanted: 90 % within 2)")
+    for q in [x for q in COVERED for x in (q, q + ALONE)]:
+        pairs = [(abs(r[q][0]), r[q][1], r) for r in rows if q in r]
+        if not pairs:
+            continue
+        ratio = [e / sd if sd > 0 else np.inf for e, sd, _ in pairs]
+        n1, n2 = sum(x <= 1 for x in ratio), sum(x <= 2 for x in ratio)
+        kept = [x for x, (_, _, r) in zip(ratio, pairs) if r["pinned"]]
+        print(f"   {q:18s} {len(pairs):3d} cameras: within 1 sd {n1:3d} ({100 * n1 / len(pairs):3.0f} %), within 2 sd "
+              f"{n2:3d} ({100 * n2 / len(pairs):3.0f} %); err/sd median {np.median(ratio):.2f}, worst {max(ratio):.1f}"
+              + (f"; pinned only: {sum(x <= 2 for x in kept)} of {len(kept)} within 2 sd" if len(kept) < len(pairs)
+                 else ""))
+        worst = sorted(zip(ratio, pairs), key=lambda x: -x[0])
+        print("      " + "; ".join(f"{r['take']} {r['run']} {r['camera']}{'' if r['pinned'] else ' (not pinned)'}: "
+                                   f"{e:.3g}/{sd:.3g} = {x:.1f}" for x, (e, sd, r) in worst))
 
 
 def show_rigs(take: str, runs: dict[str, dict], truth: Truth) -> None:
@@ -863,6 +963,11 @@ def rigs(cache: Path, take: str, before: Path | None) -> None:
                            env=dict(os.environ, PYTHONPATH=str(path)), check=True, cwd=path)
         runs[code] = json.loads(out.read_text())
     show_rigs(take, runs, truth)
+    rows = {code: coverage_rows(take, res, truth) for code, res in runs.items()}
+    for code, r in rows.items():
+        (cache / take / f"coverage_{code}.json").write_text(json.dumps(r))
+        show_coverage(r, f"{take}, {code}")
+    return rows
 
 
 def main() -> None:
@@ -883,9 +988,14 @@ def main() -> None:
     if args.rigs_worker:
         return rigs_worker(args.take, args.cache, [float(o) for o in args.offsets.split(",")], args.rigs_worker)
     if args.rigs:
+        every: dict[str, list] = {}
         for key in TAKES:
             if args.take in (key, "both"):
-                rigs(args.cache, key, args.before)
+                for code, r in rigs(args.cache, key, args.before).items():
+                    every.setdefault(code, []).extend(r)
+        if args.take == "both":
+            for code, r in every.items():
+                show_coverage(r, f"both takes, {code}")
         return
     if args.long:
         return long_worker(args.cache, args.loops, args.long)

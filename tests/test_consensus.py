@@ -137,8 +137,11 @@ def test_sync_without_calibration_recovers_fractional_offsets():
     cams, true = make_rig(), [0.0, 2.4, -1.7, 0.6]
     result = fuse_recordings(_fractional(cams, true), FuseOptions(sync=True))
     assert np.allclose(result.offsets, true, atol=0.2), result.offsets
-    for rep in result.cameras[1:]:
-        assert rep.offset_confidence > 0.5 and 0 < rep.offset_spread < 0.5, rep
+    for rep, t in zip(result.cameras[1:], true[1:]):
+        # the spread counts the keypoints' bias (posecam.multiview.bundle.offset_floor): it covers
+        # the error and stays about a frame on these fast keypoints (measured 0.25-1.0)
+        assert rep.offset_confidence > 0.5 and 0 < rep.offset_spread < 1.5, rep
+        assert abs(rep.offset - t) <= 2 * rep.offset_spread, (rep.offset, t, rep.offset_spread)
     assert not result.warnings, result.warnings
 
 
@@ -162,7 +165,8 @@ def test_bundle_adjustment_refines_fractional_offsets_started_a_frame_off():
         if refine is True:
             assert kept.views == [0, 1, 2, 3]
             assert np.allclose(kept.offsets, true, atol=0.2), kept.offsets
-            assert kept.offsets[0] == 0.0 and all(0 < s < 0.5 for s in kept.offset_spreads[1:]), kept.offset_spreads
+            assert kept.offsets[0] == 0.0 and all(0 < s < 1.5 for s in kept.offset_spreads[1:]), kept.offset_spreads
+            assert all(abs(o - t) <= 2 * s for o, t, s in zip(kept.offsets, true, kept.offset_spreads)), kept
         else:
             assert kept.offsets is None
     assert rotation[True] < rotation[False] and rotation[True] < rotation["true"] + 0.2, rotation

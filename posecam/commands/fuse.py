@@ -22,7 +22,10 @@ if TYPE_CHECKING:
 def _spread(rep) -> tuple[str, str, str]:
     s = rep.spread
     focal = "fixed" if rep.intrinsics_fixed else "" if s is None else f"{s.focal_pct:.1f}"
-    return ("", focal, "") if s is None else (f"{s.rotation_deg:.2f}", focal, f"{s.position_mm:.0f}")
+    if s is None:
+        return "", focal, ""
+    mark = "*" if getattr(rep, "unpinned", None) else ""          # not pinned by the people: a warning says why
+    return f"{s.rotation_deg:.2f}{mark}", focal + (mark if focal != "fixed" else ""), f"{s.position_mm:.0f}"
 
 
 def _offset(rep, confidence: bool = True) -> str:
@@ -45,9 +48,11 @@ def camera_comments(result: FusionResult) -> dict[str, str]:
     for rep in result.cameras:
         line = f"offset {_offset(rep)} frames; reprojection {_px(rep.reprojection_px)} px"
         if rep.spread is not None:
-            rot, focal, pos = _spread(rep)
+            rot, focal, pos = (cell.rstrip("*") for cell in _spread(rep))
             focal = "held (given)" if rep.intrinsics_fixed else f"{focal} %"
             line += f"; one standard deviation: rotation {rot} deg, focal {focal}, position {pos} mm"
+            if getattr(rep, "unpinned", None):
+                line += "; not pinned by the people"
         out[rep.name] = line
     return out
 
@@ -89,7 +94,10 @@ def print_report(result: FusionResult, console, verbose: bool = False) -> None:
                   "reproj.: median reprojection error of the joints two cameras or more see (-: none); focal: fx "
                   "(fx/fy where they differ)"
                   + ("; ±rot, ±focal, ±pos: one standard deviation of each estimated camera's rotation, focal "
-                     "length and position (at the rig's scale)" if estimated else "")
+                     "length and position (at the rig's scale; the bootstrap's widened by the keypoints' bias)"
+                     if estimated else "")
+                  + ("; *: not pinned by the people (see the warning)"
+                     if any(getattr(rep, "unpinned", None) for rep in result.cameras) else "")
                   + ("; offset conf.: --sync auto's confidence, 0 to 1; joints used: joint observations in it; L/R "
                      "swaps: frames with left and right swapped back" if verbose else
                      "; --verbose: each camera's joints used, left/right swaps, principal point and centre"),

@@ -323,7 +323,8 @@ def _estimated(take: Take, association: Association, sync: SyncResult, opts: Fus
         if opts.bundle:
             say("bootstrapping the cameras' spreads")
             cameras = bootstrap_spreads(cameras, people, take.joints, opts.min_conf, opts.bundle_options)
-            cameras, people, swaps = without_loose_cameras(cameras, people, swaps, take.names, take.reference)
+            cameras, people, swaps = without_loose_cameras(cameras, people, swaps, take.names, take.reference,
+                                                           what_helps(take, opts))
             warnings += cameras.warnings
     except FusionError as exc:
         raise FusionError(f"{exc}; {what_helps(take, opts)}") from None
@@ -382,6 +383,8 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
     fixed = [bool(given) or take.names[v] in opts.bundle_options.fixed_intrinsics for v in views]
     reports = camera_reports(rig, [sync.offsets[v] for v in views], [sync.confidence[v] for v in views],
                              [spread[v] for v in views], swaps, people, fused, opts.min_conf, cameras.spreads, fixed)
+    for rep, why in zip(reports, cameras.unpinned or []):
+        rep.unpinned = why
     recording = _to_recording(fused, rig, views.index(take.reference), recordings[take.reference])
     recording.cameras = [r.to_dict() for r in reports]
     return FusionResult(recording, rig, sync.offsets, reports, views, list(dict.fromkeys(warnings)), scale_source)

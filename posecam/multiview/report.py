@@ -27,6 +27,8 @@ class CameraReport:
     offset_spread: float = 0.0             # frames, one standard deviation (0: given or reference)
     spread: CameraSpread | None = None     # of an estimated camera; None: given
     intrinsics_fixed: bool = False         # the intrinsics were given and held (not estimated)
+    # of an estimated camera: why its spread says the people do not pin it (None: they do)
+    unpinned: str | None = None
 
     def to_dict(self) -> dict:
         """The report as JSON-ready values (a fused JSON's `cameras` list)."""
@@ -39,7 +41,9 @@ class CameraReport:
         if self.spread is not None:
             out.update(rotation_spread_deg=_finite(self.spread.rotation_deg, 3),
                        focal_spread_pct=_finite(self.spread.focal_pct, 3),
-                       position_spread_mm=_finite(self.spread.position_mm, 1))
+                       position_spread_mm=_finite(self.spread.position_mm, 1), pinned=self.unpinned is None)
+            if self.unpinned is not None:
+                out["pinned_reason"] = self.unpinned
         return out
 
 
