@@ -65,7 +65,8 @@ def test_two_people_with_calibration_are_never_mixed():
     for i, f in enumerate(result.recording.frames[:n]):
         for p in f.people:
             d = np.median(np.linalg.norm(world[:, i] - p.keypoints_3d, axis=-1), axis=1)   # per true person
-            assert d.min() < 150 and d.max() > 500, (i, p.id, d)
+            near = 150 if p.views >= 2 else 300       # a frame one view alone sees: that view's monocular pose
+            assert d.min() < near and d.max() > 500, (i, p.id, p.views, d)
 
 
 def test_offset_at_the_edge_of_the_range_is_a_warning():
