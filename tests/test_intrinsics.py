@@ -180,8 +180,6 @@ def test_distortion_is_read_from_every_intrinsics_source(tmp_path):
     import cv2
     import numpy as np
 
-    from conftest import EXAMPLES
-
     wide = (-0.30, 0.10, 0.001, -0.002, 0.015)
     storage = cv2.FileStorage(str(tmp_path / "cam.yml"), cv2.FILE_STORAGE_WRITE)   # as calibrateCamera's sample
     storage.write("image_width", 1920)
@@ -197,14 +195,22 @@ def test_distortion_is_read_from_every_intrinsics_source(tmp_path):
             for name in ("cam.yml", "k.json", "ost.yaml")}
     assert read["cam.yml"] == pytest.approx(wide) and read["ost.yaml"] == pytest.approx(wide)
     assert read["k.json"] == pytest.approx(wide[:4])
+    plain = _filestorage_yaml(tmp_path / "plain.yml", 1920, 1080, [[1400.0, 0, 960.0], [0, 1400.0, 540.0], [0, 0, 1]])
+    assert resolve_intrinsics(IntrinsicsOptions(file=str(plain)), 1920, 1080).distortion == ()   # zeros: none
+
+
+@pytest.mark.demo
+def test_distortion_is_read_from_the_lab_calibration_in_both_formats():
+    """Pose2Sim's demo calibration (examples/fetch_demo.py): the Qualisys file and the TOML made
+    of it give cam01 the same distortion."""
+    from conftest import EXAMPLES
+
     toml = resolve_intrinsics(IntrinsicsOptions(file=str(EXAMPLES / "demo/single/Calib.toml"), camera="cam01"),
                               1080, 1920)
     qca = resolve_intrinsics(IntrinsicsOptions(file=str(EXAMPLES / "demo/single/Calib.qca.txt"), camera="cam01"),
                              1080, 1920)
     assert toml.distortion == pytest.approx((-0.046183, 0.139983, 0.000608, 0.00069))
     assert qca.distortion == pytest.approx(toml.distortion)
-    plain = _filestorage_yaml(tmp_path / "plain.yml", 1920, 1080, [[1400.0, 0, 960.0], [0, 1400.0, 540.0], [0, 0, 1]])
-    assert resolve_intrinsics(IntrinsicsOptions(file=str(plain)), 1920, 1080).distortion == ()   # zeros: none
 
 
 def test_a_fisheye_or_odd_distortion_is_refused_in_one_line(tmp_path):
