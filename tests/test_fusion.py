@@ -116,3 +116,32 @@ def test_motion_offset_of_signals_shifted_by_a_known_fraction():
         found = motion_offset(lambda o, frames, columns: motion_correlation(a, b, o, frames, columns),
                               len(t), 8, centre=0.0, window=5.0)
         assert abs(found.offset - lag) < 0.02 and found.correlation > 0.99, (lag, found)
+
+
+def _observations(recs) -> "Observations":
+    """The one person of every view, frame by frame (views started together)."""
+    from posecam.multiview.observations import Observations
+
+    people = [[f.people[0] for f in r.frames] for r in recs]
+    return Observations(*(np.stack([np.stack([getattr(p, k) for p in view]) for view in people])
+                          for k in ("keypoints_2d", "keypoints_3d", "confidence", "score")))
+
+
+def test_a_swap_undone_exchanges_the_monocular_pose_with_the_keypoints():
+    """The frames a view labelled left as right come back whole: keypoints, confidences and the
+    monocular 3D pose each exactly as the view saw them unswapped, and nothing else changes."""
+    from posecam.multiview.left_right import fix_people
+
+    cams = make_rig()
+    world = skeleton_motion(40)
+    recs = monocular_views(cams, world)
+    flip = skeleton_of(recs[0].joints).flip_indices
+    swapped = np.arange(5, 40, 6)
+    recs_swapped = list(recs)
+    recs_swapped[1] = unswap(recs[1], swapped, recs[1].frames[0].people[0].id, flip)
+    clean, dirty = _observations(recs), _observations(recs_swapped)
+    assert not np.allclose(dirty.xyz[1, swapped], clean.xyz[1, swapped])
+    (fixed,), counts = fix_people(Rig(cams), [dirty], recs[0].joints)
+    assert counts.tolist() == [0, len(swapped), 0, 0]
+    for name in ("uv", "xyz", "conf"):
+        assert np.array_equal(getattr(fixed, name), getattr(clean, name)), name
