@@ -7,19 +7,21 @@
 Each mutant is one exact snippet of one source file and its replacement. For each, posecam/ is
 copied to a temporary folder (the models linked, not copied), the snippet replaced there (it
 must occur exactly once: a snippet that moved or changed is an error, so a refactor is noticed
-and the table updated), and the mutant's tests run with that copy first on the path. A mutant
-is killed when its tests fail; one that passes them has survived (and one whose tests collect
-nothing, misspelt or deselected as slow or demo, is not killed either). The unmutated tests of
-every mutant run once first and must pass. Exit status: 0 when every mutant is killed, 1 otherwise
-(a survivor, a missing snippet, a failing baseline).
+and the table updated), and every test of the mutant's stage (the test files of its stage's
+modules: STAGES) runs with that copy first on the path, the tests the table names for it first.
+A mutant is killed only when a test fails on an assertion (an AssertionError, or pytest's own
+fail: `pytest.raises` that saw nothing raised); the first such failure stops its run. A crash
+(an import or collection error, any other exception), a timeout, or tests that all pass leave it
+alive. The unmutated tests of every stage run once first and must all pass. Exit status: 0 when
+every mutant is killed, 1 otherwise (a survivor, a missing snippet, a failing baseline).
 
-Not collected by pytest (not named test_*). The tests of a mutant are pytest node ids or files,
-chosen to be quick: the whole check takes a few minutes on two cores.
+Not collected by pytest (not named test_*). About ten minutes on two cores.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
 import subprocess
@@ -31,8 +33,38 @@ from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-TIMEOUT_S = 300
+TIMEOUT_S = 300                 # s, a mutant's run; the unmutated run of every stage gets 3 times this
 NO_TESTS = 5                    # pytest's exit status when it collected nothing
+PLUGIN = "posecam_mutant_verdict"
+
+# A pytest plugin, written next to the copies: the tests named first run first, and the first
+# test that fails on an assertion is recorded (in MUTANT_VERDICT) and stops the run.
+PLUGIN_SOURCE = """
+import json, os
+import pytest
+
+FIRST = json.loads(os.environ.get("MUTANT_FIRST", "[]"))
+
+
+def _named(nodeid):
+    return any(nodeid == t or nodeid.startswith(t + "[") or nodeid.startswith(t + "::") for t in FIRST)
+
+
+def pytest_collection_modifyitems(items):
+    items.sort(key=lambda item: not _named(item.nodeid))
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    outcome = yield
+    report = outcome.get_result()
+    if report.when == "call" and report.failed and call.excinfo is not None \\
+            and call.excinfo.errisinstance((AssertionError, pytest.fail.Exception)):
+        with open(os.environ["MUTANT_VERDICT"], "w") as f:
+            json.dump({"test": item.nodeid, "line": str(call.excinfo.value).splitlines()[0][:120]
+                       if str(call.excinfo.value) else call.excinfo.typename}, f)
+        item.session.shouldstop = "a test failed on an assertion"
+"""
 
 
 @dataclass(frozen=True)
@@ -41,7 +73,8 @@ class Mutant:
     file: str                   # relative to the repository
     original: str               # exact snippet, found exactly once in the file
     replacement: str
-    tests: tuple[str, ...]      # pytest node ids or files (relative to the repository) that must fail
+    tests: tuple[str, ...]      # pytest node ids or files (relative to the repository) run first: these catch it
+    stage: tuple[str, ...] = () # the test files of its stage's modules (STAGES), all run
 
 
 CAMERA = "tests/test_camera.py"
@@ -149,7 +182,8 @@ MUTANTS = (
            "np.eye(3) + np.sin(theta) * kx", "np.eye(3) - np.sin(theta) * kx",
            (f"{CONSENSUS}::test_bundle_adjustment_recovers_a_perturbed_rig_and_its_metric_scale",)),
     Mutant("bundle: square pixels assumed in the residuals", "posecam/multiview/bundle.py",
-           "proj = p[self.obs_v, 6:7] * self.axes[self.obs_v] * pc[:, :2]", "proj = p[self.obs_v, 6:7] * pc[:, :2]",
+           "proj = p[self.obs_v, LOG_F, None] * self.axes[self.obs_v] * pc[:, :2]",
+           "proj = p[self.obs_v, LOG_F, None] * pc[:, :2]",
            (f"{CONSENSUS}::test_bundle_adjustment_recovers_a_perturbed_rig_and_its_metric_scale",)),
     Mutant("bundle: bones' scale inverted", "posecam/multiview/bundle.py",
            "ratio = bones_mm[None] / lengths", "ratio = lengths / bones_mm[None]",
@@ -158,7 +192,7 @@ MUTANTS = (
            "others = [i for i in range(n_v) if i != ref]", "others = list(range(n_v))",
            (f"{CONSENSUS}::test_bundle_adjustment_recovers_a_perturbed_rig_and_its_metric_scale",)),
     Mutant("bundle: log focal length's derivative not times f", "posecam/multiview/bundle.py",
-           "cam[:, :, 6] = f * pc[:, :2]", "cam[:, :, 6] = pc[:, :2]",
+           "cam[:, :, LOG_F] = f * pc[:, :2]", "cam[:, :, LOG_F] = pc[:, :2]",
            (f"{CONSENSUS}::test_bundle_adjustment_derivatives_are_the_residuals_own",)),
     Mutant("bundle: rotation's derivative with its sign flipped", "posecam/multiview/bundle.py",
            "d_rot = np.cross(np.swapaxes(rj, 1, 2)[v], rx[:, None, :])",
@@ -179,6 +213,56 @@ MUTANTS = (
     Mutant("sync: motion peak's parabola sign flipped", "posecam/multiview/sync.py",
            "return float(lags[k] + 0.5 * (c0 - c2) / den", "return float(lags[k] - 0.5 * (c0 - c2) / den",
            (f"{FUSION}::test_motion_offset_of_signals_shifted_by_a_known_fraction",)),
+    # ---- the coarse sync and the views' agreement -------------------------------------------
+    Mutant("coarse sync: the lag's sign flipped", "posecam/multiview/sync.py",
+           "at = int(lags[np.nanargmax(score)]) * step", "at = -int(lags[np.nanargmax(score)]) * step",
+           ("tests/test_sync.py::test_coarse_offsets_of_views_cut_at_different_frames",)),
+    Mutant("coarse sync: bones compared without the rotation between the cameras", "posecam/multiview/sync.py",
+           'corr = np.einsum("lij,lji->l", r, centred)', 'corr = np.einsum("lii->l", centred)',
+           ("tests/test_sync.py::test_bones_seen_by_two_turned_cameras_correlate_at_their_lag_only",)),
+    Mutant("coarse sync: the bones' poses correlated, not their motion", "posecam/multiview/sync.py",
+           'out[k, 9:18] = np.einsum("mbi,mbj->ij", cb, ca).ravel()',
+           'out[k, 9:18] = np.einsum("mbi,mbj->ij", pb, pa).ravel()',
+           ("tests/test_sync.py::test_bones_seen_by_two_turned_cameras_correlate_at_their_lag_only",)),
+    Mutant("sync: the views' agreement read at the opposite offset", "posecam/multiview/sync.py",
+           "out[v] = (motion_correlation(shared[0], shared[1], offsets[v]), shared[2])",
+           "out[v] = (motion_correlation(shared[0], shared[1], -offsets[v]), shared[2])",
+           ("tests/test_sync.py::test_motion_agreement_is_read_at_each_views_offset",)),
+    # ---- association across views -------------------------------------------------------------
+    Mutant("association: the calibrated pair gate opened", "posecam/multiview/associate.py",
+           "        if c > max_cost:\n            break", "        if False:\n            break",
+           ("tests/test_association.py::test_people_each_camera_alone_sees_are_not_one_person_through_a_calibration",)),
+    Mutant("association: the consensus counts frames, not how well they fit", "posecam/multiview/associate.py",
+           "return float(np.sum(np.diff(bounds) * (residual / MAX_PAIR_ANGLE - 1.0)))",
+           "return -float(np.sum(np.diff(bounds)))",
+           ("tests/test_association.py::test_two_people_are_told_apart_without_a_calibration",)),
+    Mutant("association: a view's tracks that overlap in time joined", "posecam/multiview/associate.py",
+           "if any(x.view == y.view and _overlap(x, y) > MAX_SHARED for x in ga for y in gb):", "if False:",
+           (f"{FUSION}::test_two_people_with_calibration_are_never_mixed",)),
+    # ---- the calibration's gate -----------------------------------------------------------------
+    Mutant("calibration gate: views of another scene kept", "posecam/multiview/calibrate.py",
+           "and agreement[v][1] >= MIN_MOTION and not agreement[v][0] >= MIN_SAME_MOTION]", "and False]",
+           ("tests/test_fuse_cmd.py::test_gate_refuses_two_unrelated_real_recordings",)),
+    Mutant("calibration gate: a camera the bootstrap leaves loose kept", "posecam/multiview/calibrate.py",
+           "if v != reference and not boot <= MAX_BOOT_ROTATION_DEG:", "if False:",
+           ("tests/test_spreads.py::test_a_camera_whose_spread_says_it_is_not_pinned_is_kept_marked_and_warned_about",
+            "tests/test_spreads.py::test_fewer_than_two_cameras_left_is_a_refusal")),
+    Mutant("calibration gate: the reprojection error not checked", "posecam/multiview/calibrate.py",
+           "elif not np.isfinite(errors[i]) or errors[i] > MAX_ERROR_PX:", "elif not np.isfinite(errors[i]):",
+           ("tests/test_fuse_cmd.py::test_gate_refuses_two_unrelated_real_recordings",)),
+    # ---- left and right -------------------------------------------------------------------------
+    Mutant("left/right: the 3D pose not swapped back with the keypoints", "posecam/multiview/left_right.py",
+           "uv[v, f], xyz[v, f], conf[v, f] = uv[v, f][:, flip], xyz[v, f][:, flip], conf[v, f][:, flip]",
+           "uv[v, f], conf[v, f] = uv[v, f][:, flip], conf[v, f][:, flip]",
+           (f"{FUSION}::test_a_swap_undone_exchanges_the_monocular_pose_with_the_keypoints",)),
+    Mutant("left/right: any gain taken for a swap", "posecam/multiview/left_right.py",
+           "act = ratios[best, frames] < SWAP_RATIO", "act = ratios[best, frames] < 1.0",
+           (f"{FUSION}::test_left_right_swaps_are_found_and_undone",)),
+    # ---- re-identification ----------------------------------------------------------------------
+    Mutant("re-identification: the looks' gate switched off", "posecam/tracking/reid.py",
+           "    return unambiguous_pairs(cost, o.reid_distance, o.reid_margin)",
+           "    return unambiguous_pairs(cost, np.inf, o.reid_margin)",
+           (TRACKING,)),
     # ---- the tracker -----------------------------------------------------------------------
     Mutant("tracker: matching-cost gate removed", "posecam/tracking/assignment.py",
            "if motion[i, j] <= max_cost and np.isfinite(cost[i, j])]", "if np.isfinite(cost[i, j])]",
@@ -211,6 +295,31 @@ MUTANTS = (
 )
 
 
+# The test files of each stage's modules, by the start of the mutated file's path: a mutant runs
+# all of them (first match wins).
+MULTIVIEW = (CONSENSUS, FUSION, "tests/test_sync.py", "tests/test_association.py", "tests/test_spreads.py",
+             "tests/test_views.py", "tests/test_fuse_cmd.py")
+STAGES = (
+    ("posecam/geometry/lift.py", (CAMERA, "tests/test_predict.py")),
+    ("posecam/geometry/camera.py", (CAMERA, CALIB)),
+    ("posecam/io/calibration.py", (CALIB,)),
+    ("posecam/io/validate.py", (CALIB,)),
+    ("posecam/io/intrinsics.py", ("tests/test_intrinsics.py",)),
+    ("posecam/io/poses.py", ("tests/test_pose_files.py", "tests/test_fuse_cmd.py")),
+    ("posecam/scale/", (METRIC, "tests/test_heights.py")),
+    ("posecam/multiview/", MULTIVIEW),
+    ("posecam/tracking/", (TRACKING, "tests/test_embedder.py", "tests/test_reid.py")),
+    ("posecam/analysis/doubts.py", ("tests/test_doubts.py",)),
+)
+
+
+def stage_tests(m: Mutant) -> tuple[str, ...]:
+    """The test files a mutant runs: its stage's (those that exist) and those of the tests it names."""
+    stage = next((files for prefix, files in STAGES if m.file.startswith(prefix)), ())
+    files = [f for f in stage if (ROOT / f).exists()] + [t.split("::")[0] for t in m.tests]
+    return tuple(dict.fromkeys(files))
+
+
 def _check_snippets(mutants: tuple[Mutant, ...]) -> list[str]:
     """One line per mutant whose snippet is not found exactly once."""
     problems = []
@@ -232,22 +341,32 @@ def _copy(dest: Path, mutant: Mutant | None) -> None:
         path.write_text(path.read_text().replace(mutant.original, mutant.replacement, 1))
 
 
-def _pytest(copy: Path, tests: tuple[str, ...], stop_first: bool) -> tuple[int, str, float]:
-    """Run the tests against the copy (run from it: the copy comes first on the path, for the
-    subprocesses the tests start too); return code, the last line of interest, seconds."""
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(copy), str(ROOT)]), "PYTHONDONTWRITEBYTECODE": "1"}
-    args = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "--rootdir", str(ROOT),
-            "-c", str(ROOT / "pyproject.toml"), *(["-x"] if stop_first else []), *(str(ROOT / t) for t in tests)]
+@dataclass
+class Outcome:
+    code: int                   # pytest's exit status; -1: timed out
+    killer: dict | None         # the first test that failed on an assertion: {"test", "line"}
+    last: str                   # pytest's last line of interest
+    seconds: float
+
+
+def _pytest(copy: Path, files: tuple[str, ...], first: tuple[str, ...], plugin_dir: Path,
+            timeout: float = TIMEOUT_S) -> Outcome:
+    """Run the test files against the copy (run from it: the copy comes first on the path, for
+    the subprocesses the tests start too), the `first` tests first, with the verdict plugin."""
+    verdict = copy / "verdict.json"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(copy), str(plugin_dir), str(ROOT)]),
+           "PYTHONDONTWRITEBYTECODE": "1", "MUTANT_FIRST": json.dumps(list(first)), "MUTANT_VERDICT": str(verdict)}
+    args = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", PLUGIN, "--rootdir", str(ROOT),
+            "-c", str(ROOT / "pyproject.toml"), *(str(ROOT / t) for t in files)]
     start = time.monotonic()
     try:
-        run = subprocess.run(args, cwd=copy, env=env, capture_output=True, text=True, timeout=TIMEOUT_S)
+        run = subprocess.run(args, cwd=copy, env=env, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
-        return -1, f"timed out after {TIMEOUT_S} s", time.monotonic() - start
+        return Outcome(-1, None, f"timed out after {timeout:.0f} s", time.monotonic() - start)
     lines = [ln for ln in run.stdout.splitlines() if ln.startswith(("FAILED", "ERROR"))] or run.stdout.splitlines()[-1:]
-    line = lines[0] if lines else run.stderr.strip()[-200:]
-    if "tests/" in line:                   # the node id, as the table names it
-        line = line.split(None, 1)[0] + " tests/" + line.split("tests/", 1)[1]
-    return run.returncode, line, time.monotonic() - start
+    last = lines[0] if lines else run.stderr.strip()[-200:]
+    killer = json.loads(verdict.read_text()) if verdict.exists() else None
+    return Outcome(run.returncode, killer, last, time.monotonic() - start)
 
 
 def _imports_the_copy(copy: Path) -> bool:
@@ -257,45 +376,54 @@ def _imports_the_copy(copy: Path) -> bool:
     return Path(out.stdout.strip()).resolve().is_relative_to(copy.resolve())
 
 
+def _verdict(o: Outcome) -> str:
+    if o.killer is not None:
+        return "killed"
+    return {0: "SURVIVED", NO_TESTS: "NO TESTS", -1: "TIMEOUT"}.get(o.code, "CRASHED")
+
+
 def run(mutants: tuple[Mutant, ...], jobs: int) -> int:
     problems = _check_snippets(mutants)
     for p in problems:
         print(f"MISSING  {p}", file=sys.stderr)
     live = [m for m in mutants if not any(p.startswith(f"{m.name}:") for p in problems)]
     with tempfile.TemporaryDirectory(prefix="posecam-mutants-") as tmp:
+        (Path(tmp) / f"{PLUGIN}.py").write_text(PLUGIN_SOURCE)
         base = Path(tmp) / "unmutated"
         _copy(base, None)
         if not _imports_the_copy(base):
             print("the copy of posecam is not the one imported: check PYTHONPATH", file=sys.stderr)
             return 1
-        tests = tuple(dict.fromkeys(t for m in live for t in m.tests))
-        code, line, seconds = _pytest(base, tests, stop_first=False)
-        print(f"unmutated: {len(tests)} test selections {'pass' if code == 0 else 'FAIL'} ({seconds:.0f} s)")
-        if code == NO_TESTS:
-            line = "no tests ran: a selection is misspelt or deselected (slow, demo)"
-        if code != 0:
-            print(f"  {line}", file=sys.stderr)
+        files = tuple(dict.fromkeys(f for m in live for f in stage_tests(m)))
+        named = tuple(dict.fromkeys(t for m in live for t in m.tests))
+        o = _pytest(base, files, named, Path(tmp), 3 * TIMEOUT_S)
+        print(f"unmutated: {len(files)} test files {'pass' if o.code == 0 else 'FAIL'} ({o.seconds:.0f} s)")
+        missing = [t for t in named if "::" in t and t.split("::")[1].split("[")[0] not in
+                   (ROOT / t.split("::")[0]).read_text()]
+        if o.code != 0 or missing:
+            print(f"  {o.last}" if o.code != 0 else f"  tests named but not found: {', '.join(missing)}",
+                  file=sys.stderr)
             return 1
 
-        def one(i_m: tuple[int, Mutant]) -> tuple[Mutant, int, str, float]:
+        def one(i_m: tuple[int, Mutant]) -> tuple[Mutant, Outcome]:
             i, m = i_m
             copy = Path(tmp) / f"m{i}"
             _copy(copy, m)
-            code, line, seconds = _pytest(copy, m.tests, stop_first=True)
+            outcome = _pytest(copy, stage_tests(m), m.tests, Path(tmp))
             shutil.rmtree(copy, ignore_errors=True)
-            return m, code, line, seconds
+            return m, outcome
 
         with ThreadPoolExecutor(max_workers=jobs) as pool:
             results = list(pool.map(one, enumerate(live)))
     width = max(len(m.name) for m in mutants)
     print(f"\n{'mutant':<{width}}  {'result':<8}  {'s':>4}  caught by")
     survived = 0
-    for m, code, line, seconds in results:
-        killed = code not in (0, NO_TESTS)
-        survived += not killed
-        print(f"{m.name:<{width}}  {'killed' if killed else 'SURVIVED' if code == 0 else 'NO TESTS':<8}  "
-              f"{seconds:4.0f}  {line if killed else ', '.join(m.tests)}")
-    print(f"\n{len(results) - survived} killed, {survived} survived, {len(problems)} snippets missing")
+    for m, o in results:
+        verdict = _verdict(o)
+        survived += verdict != "killed"
+        why = o.killer["test"] if o.killer else o.last if verdict != "SURVIVED" else ", ".join(stage_tests(m))
+        print(f"{m.name:<{width}}  {verdict:<8}  {o.seconds:4.0f}  {why}")
+    print(f"\n{len(results) - survived} killed, {survived} not killed, {len(problems)} snippets missing")
     return 1 if survived or problems else 0
 
 
@@ -308,7 +436,7 @@ def main() -> None:
     chosen = tuple(m for m in MUTANTS if args.k in m.name)
     if args.list:
         for m in chosen:
-            print(f"{m.name}  [{m.file}]  <- {', '.join(m.tests)}")
+            print(f"{m.name}  [{m.file}]  <- {', '.join(stage_tests(m))}")
         return
     sys.exit(run(chosen, max(1, args.jobs)))
 
