@@ -433,7 +433,7 @@ def test_bundle_adjustment_derivatives_are_the_residuals_own():
     principal point, points) against central differences of its residuals, on three cameras
     with non-square pixels and 30 points."""
     from posecam.geometry.camera import Rig
-    from posecam.multiview.bundle import _axes, _Problem
+    from posecam.multiview.bundle import CENTRE, LOG_F, ROTATION, TRANSLATION, _axes, _Problem
 
     rig = Rig(_in_reference_frame(make_rig())[:3], "front")
     rng = np.random.default_rng(7)
@@ -441,10 +441,10 @@ def test_bundle_adjustment_derivatives_are_the_residuals_own():
     obs_v, obs_m = np.repeat(np.arange(3), 30), np.tile(np.arange(30), 3)
     uv = np.stack([c.project(points) for c in rig.cameras])[obs_v, obs_m] + rng.normal(0, 3.0, (90, 2))
     p0 = np.c_[rig.params(), np.zeros(3)]
-    p0[:, 6] = np.log(p0[:, 6])
+    p0[:, LOG_F] = np.log(p0[:, LOG_F])
     free = np.zeros(p0.shape, bool)
-    free[:, 6:9] = True
-    free[1:, :6] = True
+    free[:, LOG_F] = free[:, CENTRE] = True
+    free[1:, ROTATION] = free[1:, TRANSLATION] = True
     problem = _Problem(p0, free, obs_v, obs_m, uv, rng.uniform(0.2, 0.4, 90), 30, _axes(rig))
     x = np.concatenate([p0[free], points.ravel()]) + rng.normal(0, 1e-3, free.sum() + 90)
     analytic = problem.jacobian(x).toarray()

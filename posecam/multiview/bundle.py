@@ -72,6 +72,11 @@ LEFT_OUT = ("pelvis", "r_hip", "l_hip", "left_hip", "right_hip")
 # errors are cam03's 2.7-3.5 frames in every run), checked on the two-person take: docs/benchmarks.md
 OFFSET_FLOOR = 1.5
 
+# The slots of a camera's vector in the adjustment: CameraCalibration.params (rotation vector,
+# translation, focal length f = sqrt(fx fy), optimised as log f, principal point) and its time offset
+ROTATION, TRANSLATION, LOG_F, CENTRE, OFFSET = slice(0, 3), slice(3, 6), 6, slice(7, 9), 9
+SLOTS = 10
+
 
 @dataclass
 class BundleOptions:
@@ -158,8 +163,8 @@ def coverage_frames(points: np.ndarray, weight: np.ndarray, n: int) -> np.ndarra
 class _Problem:
     """The adjustment's unknowns and observations (see the module docstring)."""
 
-    p0: np.ndarray          # (V, 10) camera vectors, log f in slot 6, the time offset in slot 9
-    free: np.ndarray        # (V, 10) which slots are unknowns
+    p0: np.ndarray          # (V, SLOTS) camera vectors (ROTATION, TRANSLATION, LOG_F, CENTRE, OFFSET)
+    free: np.ndarray        # (V, SLOTS) which slots are unknowns
     obs_v: np.ndarray       # (N,) camera of each observation
     obs_m: np.ndarray       # (N,) point of each observation
     obs_uv: np.ndarray      # (N, 2) pixels (at the start offsets)
@@ -172,10 +177,10 @@ class _Problem:
     base: np.ndarray | None = None      # (V,)
 
     def observed(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-        """(N, 2) the keypoints at the cameras' offsets (p[:, 9]) and their derivatives d/d offset."""
+        """(N, 2) the keypoints at the cameras' offsets (p[:, OFFSET]) and their derivatives d/d offset."""
         if self.samples is None:
             return self.obs_uv, None
-        return catmull_rom(self.samples, p[self.obs_v, 9] - self.base[self.obs_v])
+        return catmull_rom(self.samples, p[self.obs_v, OFFSET] - self.base[self.obs_v])
 
     @property
     def n_cam(self) -> int:
@@ -184,28 +189,28 @@ class _Problem:
     def unpack(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         p = self.p0.copy()
         p[self.free] = x[:self.n_cam]
-        p[:, 6] = np.exp(p[:, 6])
+        p[:, LOG_F] = np.exp(p[:, LOG_F])
         return p, x[self.n_cam:].reshape(self.n_points, 3)
 
     def residuals(self, x: np.ndarray) -> np.ndarray:
         p, pts = self.unpack(x)
-        rot = rodrigues(p[:, :3])
-        pc = np.einsum("nij,nj->ni", rot[self.obs_v], pts[self.obs_m]) + p[self.obs_v, 3:6]
+        rot = rodrigues(p[:, ROTATION])
+        pc = np.einsum("nij,nj->ni", rot[self.obs_v], pts[self.obs_m]) + p[self.obs_v, TRANSLATION]
         z = np.maximum(pc[:, 2], 1.0)
-        proj = p[self.obs_v, 6:7] * self.axes[self.obs_v] * pc[:, :2] / z[:, None] + p[self.obs_v, 7:9]
+        proj = p[self.obs_v, LOG_F, None] * self.axes[self.obs_v] * pc[:, :2] / z[:, None] + p[self.obs_v, CENTRE]
         return ((proj - self.observed(p)[0]) * self.obs_w[:, None]).ravel()
 
     def blocks(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The residuals' exact derivatives, per observation: (N, 2, 10) against its camera's
-        vector (log f in slot 6, the offset in slot 9) and (N, 2, 3) against its point."""
+        """The residuals' exact derivatives, per observation: (N, 2, SLOTS) against its camera's
+        vector (its slots: ROTATION, TRANSLATION, LOG_F, CENTRE, OFFSET) and (N, 2, 3) against its point."""
         p, pts = self.unpack(x)
         v, X = self.obs_v, pts[self.obs_m]
-        rot = rodrigues(p[:, :3])
-        rj = rot @ rotation_jacobian(p[:, :3], rot)                       # (V, 3, 3)
+        rot = rodrigues(p[:, ROTATION])
+        rj = rot @ rotation_jacobian(p[:, ROTATION], rot)                 # (V, 3, 3)
         rx = np.einsum("nij,nj->ni", rot[v], X)
-        pc = rx + p[v, 3:6]
+        pc = rx + p[v, TRANSLATION]
         z = np.maximum(pc[:, 2], 1.0)
-        f = p[v, 6:7] * self.axes[v]                                      # (N, 2) fx, fy
+        f = p[v, LOG_F, None] * self.axes[v]                              # (N, 2) fx, fy
         dproj = np.zeros((len(v), 2, 3))                                 # d(f xy / z) / d pc, weighted
         dproj[:, 0, 0], dproj[:, 1, 1] = f[:, 0] / z, f[:, 1] / z
         dproj[:, :, 2] = -f * pc[:, :2] / z[:, None] ** 2
@@ -213,17 +218,17 @@ class _Problem:
         cam = np.zeros((len(v), 2, p.shape[1]))
         # d(R X)/dr = -R [X]x J = -[R X]x R J: column k is (R J)_k x (R X)
         d_rot = np.cross(np.swapaxes(rj, 1, 2)[v], rx[:, None, :])        # (N, k, 3)
-        cam[:, :, 0:3] = np.einsum("nai,nki->nak", dproj, d_rot)           # rotation vector
-        cam[:, :, 3:6] = dproj                                            # translation
-        cam[:, :, 6] = f * pc[:, :2] / z[:, None] * self.obs_w[:, None]          # log f
-        cam[:, 0, 7] = cam[:, 1, 8] = self.obs_w                          # cx, cy
+        cam[:, :, ROTATION] = np.einsum("nai,nki->nak", dproj, d_rot)
+        cam[:, :, TRANSLATION] = dproj
+        cam[:, :, LOG_F] = f * pc[:, :2] / z[:, None] * self.obs_w[:, None]
+        cam[:, 0, CENTRE.start] = cam[:, 1, CENTRE.start + 1] = self.obs_w              # cx, cy
         speed = self.observed(p)[1]
         if speed is not None:                                             # the keypoint moves with the offset
-            cam[:, :, 9] = -speed * self.obs_w[:, None]
+            cam[:, :, OFFSET] = -speed * self.obs_w[:, None]
         return cam, dproj @ rot[v]
 
     def slots(self) -> np.ndarray:
-        """(V, 9) column of each camera slot among the unknowns, -1 where fixed."""
+        """(V, SLOTS) column of each camera slot among the unknowns, -1 where fixed."""
         slot = -np.ones(self.free.shape, int)
         slot[self.free] = np.arange(self.n_cam)
         return slot
@@ -250,7 +255,7 @@ def _axes(rig: Rig) -> np.ndarray:
 
 def camera_covariance(problem: _Problem, x: np.ndarray, loss_weights: np.ndarray,
                       clusters: np.ndarray) -> np.ndarray:
-    """(V, 10, 10) covariance of each camera's vector (slot 6: log f, 9: offset) at the solution: a
+    """(V, SLOTS, SLOTS) covariance of each camera's vector (LOG_F: log f) at the solution: a
     cluster-robust sandwich S^-1 M S^-1. S: the Gauss-Newton normal matrix with the points
     marginalised (Schur complement), each residual weighted as the robust loss weighs it
     (`loss_weights` (2N,)); M: the outer products of the residuals' reduced gradients summed
@@ -286,8 +291,8 @@ def camera_covariance(problem: _Problem, x: np.ndarray, loss_weights: np.ndarray
     middle = summed.T @ summed * g / max(g - 1, 1)
     p, _ = problem.unpack(x)
     gauge = np.zeros(n_cam)                                               # every t scaled together
-    t_slots = slot[:, 3:6]
-    gauge[t_slots[t_slots >= 0]] = p[:, 3:6][t_slots >= 0]
+    t_slots = slot[:, TRANSLATION]
+    gauge[t_slots[t_slots >= 0]] = p[:, TRANSLATION][t_slots >= 0]
     proj = np.eye(n_cam)
     if np.any(gauge):
         u = gauge / np.linalg.norm(gauge)
@@ -338,15 +343,15 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     # and its time offset): rotation and translation but the reference's, the focal length, the
     # principal point if asked, the offset but the reference's with timed keypoints
     refine = timed is not None and opts.refine_offsets
-    p0 = np.c_[rig.params(), np.zeros(n_v) if offsets is None else offsets]   # (V, 10)
-    p0[:, 6] = np.log(p0[:, 6])                                           # optimised as log f
+    p0 = np.c_[rig.params(), np.zeros(n_v) if offsets is None else offsets]   # (V, SLOTS)
+    p0[:, LOG_F] = np.log(p0[:, LOG_F])
     free = np.zeros(p0.shape, bool)
     lens_free = np.array([c.name not in opts.fixed_intrinsics for c in cams])
-    free[:, 6] = lens_free
-    free[:, 7:9] = lens_free[:, None] & (not opts.fix_principal_point)
+    free[:, LOG_F] = lens_free
+    free[:, CENTRE] = lens_free[:, None] & (not opts.fix_principal_point)
     others = [i for i in range(n_v) if i != ref]
-    free[others, :6] = True
-    free[others, 9] = refine
+    free[others, ROTATION] = free[others, TRANSLATION] = True
+    free[others, OFFSET] = refine
     samples = None
     if refine:
         samples = held(timed.frames(frames).uv.transpose(0, 2, 3, 1, 4)[obs_v, obs_f, obs_j])   # (N, S, 2)
@@ -357,17 +362,17 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     bounds = (-np.inf, np.inf)
     if refine:                                                            # the offsets within the samples
         lo, hi = np.full(p0.shape, -np.inf), np.full(p0.shape, np.inf)
-        lo[:, 9], hi[:, 9] = timed.bounds()
+        lo[:, OFFSET], hi[:, OFFSET] = timed.bounds()
         bounds = (np.r_[lo[free], np.full(3 * n_m, -np.inf)], np.r_[hi[free], np.full(3 * n_m, np.inf)])
     fun, jac = problem.residuals, problem.jacobian
     if not opts.fix_principal_point:                                      # weak prior: near the centre
         size = np.array([c.size for c in cams], dtype=float)
-        prior_cols = problem.slots()[:, 7:9].ravel()
+        prior_cols = problem.slots()[:, CENTRE].ravel()
         prior_w = 1.0 / (opts.centre_sigma * size).ravel()
 
         def fun(x):
             p, _ = problem.unpack(x)
-            return np.concatenate([problem.residuals(x), (p[:, 7:9] - size / 2).ravel() * prior_w])
+            return np.concatenate([problem.residuals(x), (p[:, CENTRE] - size / 2).ravel() * prior_w])
 
         def jac(x):
             prior = csr_matrix((prior_w, (np.arange(2 * n_v), prior_cols)), shape=(2 * n_v, len(x)))
@@ -382,8 +387,8 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     loss_w = 1.0 / np.sqrt(1.0 + (problem.residuals(fit.x) / F_SCALES[-1]) ** 2)     # soft_l1's weights
     cov = camera_covariance(problem, fit.x, loss_w, obs_v * n_j + obs_j)
     if refine:                                                            # the keypoints at the refined offsets
-        uv, conf = timed.frames(frames).at(p[:, 9])
-    p, shifts = p[:, :9], p[:, 9]
+        uv, conf = timed.frames(frames).at(p[:, OFFSET])
+    p, shifts = p[:, :OFFSET], p[:, OFFSET]
     scale = 1.0
     if bones_mm is not None:
         skel = skeleton_of(joints)
@@ -393,9 +398,9 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
         lengths = np.linalg.norm(full[:, idx[:, 0]] - full[:, idx[:, 1]], axis=-1)     # (F, B)
         ratio = bones_mm[None] / lengths
         scale = float(np.nanmedian(ratio)) if np.isfinite(ratio).any() else 1.0
-    pts, p[:, 3:6] = pts * scale, p[:, 3:6] * scale
-    cov[:, 3:6, :] *= scale
-    cov[:, :, 3:6] *= scale
+    pts, p[:, TRANSLATION] = pts * scale, p[:, TRANSLATION] * scale
+    cov[:, TRANSLATION, :] *= scale
+    cov[:, :, TRANSLATION] *= scale
     out = [replace(c.with_params(x), intrinsics=c.intrinsics) if c.name in opts.fixed_intrinsics
            else c.with_params(x, "bundle") for c, x in zip(rig.cameras, p)]
     observed = problem.observed(np.c_[p, shifts])[0]
@@ -406,7 +411,7 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     median = np.array([np.nanmedian(e) if np.isfinite(e).any() else np.nan for e in err])
     offset_spreads = None
     if refine:
-        offset_spreads = np.sqrt(np.maximum(cov[:, 9, 9], 0.0) + offset_floor(problem, np.c_[p, shifts], median) ** 2)
+        offset_spreads = np.sqrt(np.maximum(cov[:, OFFSET, OFFSET], 0.0) + offset_floor(problem, np.c_[p, shifts], median) ** 2)
         offset_spreads[ref] = 0.0
     if not np.all(np.isfinite(median)) or np.nanmedian(median) > opts.max_error_px:
         raise FusionError(f"bundle adjustment did not converge: median reprojection error "
@@ -450,16 +455,17 @@ class CameraSpread:
 
     @classmethod
     def of(cls, cam, cov: np.ndarray) -> "CameraSpread":
-        """From the (9, 9) covariance of the camera's vector: the centre -R^T t is propagated
-        to first order (the rotation's part by finite differences)."""
+        """From the covariance of the camera's vector (its slots: ROTATION, TRANSLATION, LOG_F, ...):
+        the centre -R^T t is propagated to first order (the rotation's part by finite differences)."""
         r0, t = cv2.Rodrigues(cam.rotation)[0].ravel(), cam.translation
 
         def centre(x):
-            return -cv2.Rodrigues(x[:3])[0].T @ x[3:6]
+            return -cv2.Rodrigues(x[ROTATION])[0].T @ x[TRANSLATION]
 
         x0 = np.r_[r0, t]
         jac = np.stack([(centre(x0 + h) - centre(x0 - h)) / 2e-6 for h in np.eye(6) * 1e-6], axis=1)
-        pos = jac @ cov[:6, :6] @ jac.T
-        return cls(float(np.degrees(np.sqrt(max(np.linalg.eigvalsh(cov[:3, :3]).max(), 0.0)))),
-                   float(100 * np.sqrt(max(cov[6, 6], 0.0))),
+        pose = slice(ROTATION.start, TRANSLATION.stop)
+        pos = jac @ cov[pose, pose] @ jac.T
+        return cls(float(np.degrees(np.sqrt(max(np.linalg.eigvalsh(cov[ROTATION, ROTATION]).max(), 0.0)))),
+                   float(100 * np.sqrt(max(cov[LOG_F, LOG_F], 0.0))),
                    float(np.sqrt(max(np.linalg.eigvalsh(pos).max(), 0.0))))
