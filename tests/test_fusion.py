@@ -92,7 +92,7 @@ def test_calibrated_sync_finds_sub_frame_offsets():
     the whole frame is found by the triangulation's error, the fraction by the parabola through
     it and its neighbours, each within 0.15 frame (measured 2.36 and -1.71; the step's sign
     flipped gives 1.64 and -2.29)."""
-    from posecam.multiview.sync import estimate_offsets
+    from posecam.multiview.rig_sync import estimate_offsets
 
     for cam, offset in ((1, 2.35), (2, -1.65)):
         result = estimate_offsets(*_pair(cam, offset), max_offset=5)
@@ -102,7 +102,7 @@ def test_calibrated_sync_finds_sub_frame_offsets():
 def test_motion_offset_of_signals_shifted_by_a_known_fraction():
     """Smooth signals (sums of sines) and the same signals 1.23 frames later, written here from
     the sines (no interpolation): the correlation's peak is found within 0.02 frame."""
-    from posecam.multiview.sync import motion_correlation, motion_offset
+    from posecam.multiview.motion_sync import motion_correlation, motion_offset
 
     rng = np.random.default_rng(5)
     freq, phase, amp = rng.uniform(0.01, 0.06, (3, 8)), rng.uniform(0, 2 * np.pi, (3, 8)), rng.uniform(0.5, 1, (3, 8))

@@ -5,7 +5,8 @@ import numpy as np
 
 from posecam.multiview.associate import associate_people
 from posecam.multiview.fuse import FuseOptions, check_take, fuse_recordings
-from posecam.multiview.sync import bone_correlation, bone_directions, coarse_offsets, motion_agreement
+from posecam.multiview.coarse_sync import bone_correlation, bone_directions, coarse_offsets
+from posecam.multiview.same_scene import motion_agreement
 from posecam.results import Recording
 from synth_rig import make_rig, monocular_views, skeleton_motion
 

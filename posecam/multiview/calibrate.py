@@ -32,7 +32,9 @@ from posecam.multiview.associate import Association
 from posecam.multiview.bundle import BundleOptions, CameraSpread, bundle_adjust
 from posecam.multiview.consensus import ConsensusOptions, estimate_rig, stretch_residuals
 from posecam.multiview.observations import Observations, Take, TimedKeypoints
-from posecam.multiview.sync import MIN_MOTION, SyncResult, motion_agreement
+from posecam.multiview.motion_sync import MIN_MOTION
+from posecam.multiview.same_scene import MIN_SAME_MOTION, motion_agreement
+from posecam.multiview.sync import SyncResult
 from posecam.skeleton import skeleton_of
 
 MIN_FRAMES = 15                 # frames a camera must share with the others (>= 6 confident joints)
@@ -49,11 +51,6 @@ FOCAL_WIDTHS = (0.2, 10.0)      # plausible focal lengths, in image widths
 MAX_ROTATION_SPREAD_DEG = 3.0
 MAX_FOCAL_SPREAD_PCT = 15.0
 OUTLIER_FACTOR = 3.0            # a person's stretch this many times the median residual: outlier
-# views of one scene move alike: the joint speeds of the people two views share correlate by
-# 0.37-0.83 on Pose2Sim's takes (each pair of cameras, at the offsets found); unrelated walkers
-# can too (OpenCV's vtest.avi against itself 40 s later: 0.61 at the best of a wide search,
-# refused by the bootstrap instead): below this the views are not fused, one scene or not
-MIN_SAME_MOTION = 0.38
 # the reported spreads: a bootstrap of the bundle adjustment (`bootstrap_spreads`), this many
 # replicates, each weighing every joint and every block of BOOT_BLOCK frames by a multinomial
 # count, warm-started from the rig on BOOT_FRAMES frames and ending at a relative cost change of

@@ -42,7 +42,8 @@ from posecam.multiview.fuse_people import FusedPerson, fuse_person
 from posecam.multiview.left_right import fix_people
 from posecam.multiview.observations import Observations, Take
 from posecam.multiview.report import CameraReport, camera_reports
-from posecam.multiview.sync import RIG_MAX_OFFSET, SyncResult, coarse_offsets, synchronise
+from posecam.multiview.coarse_sync import coarse_offsets
+from posecam.multiview.sync import RIG_MAX_OFFSET, SyncResult, synchronise
 from posecam.results import Frame, Person, Recording
 from posecam.skeleton import skeleton_of
 
@@ -56,7 +57,7 @@ class FuseOptions:
     # offsets are given (cameras started by hand)
     sync: bool | None = None
     # frames either way the offsets may reach; None: without a calibration, any that leaves the views
-    # half the shorter one's frames (posecam.multiview.sync.coarse_offsets); with one, 10
+    # half the shorter one's frames (posecam.multiview.coarse_sync.coarse_offsets); with one, 10
     max_offset: int | None = None
     reference: int = 0
     bundle: bool = True                    # refine an estimated rig by bundle adjustment
@@ -256,7 +257,7 @@ def known_lenses(take: Take, opts: FuseOptions) -> frozenset[str]:
 
 def _start(take: Take, opts: FuseOptions) -> list[float]:
     """Where the offsets start: the ones given; to be found without a calibration, where the
-    views' bones move alike (posecam.multiview.sync.coarse_offsets); else zeros."""
+    views' bones move alike (posecam.multiview.coarse_sync.coarse_offsets); else zeros."""
     if opts.offsets is not None:
         return list(opts.offsets)
     if opts.sync and opts.calibration is None:

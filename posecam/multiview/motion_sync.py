@@ -1,0 +1,155 @@
+"""Frame offsets between videos of one scene from each view's own motion, without a rig
+(module convention of posecam.multiview.sync): signals of two views (each joint's speed about the
+root, or the bones' directions: posecam.multiview.coarse_sync) cross-correlated on a
+tenth-of-a-frame grid refined by a parabola, with a spread from a bootstrap over blocks of frames
+and over the signals. (Pose2Sim's synchronisation correlates 2D vertical speeds, in whole
+frames.)
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from posecam.geometry.triangulate import MIN_CONFIDENCE
+from posecam.io.media import DEFAULT_FPS
+from posecam.multiview.observations import PersonTracks, Take, lowpass, shift
+
+LOWPASS_HZ = 3.0                # Butterworth cut-off of the motion signals
+LAG_STEP = 0.1                  # frames: the lag grid before the parabolic refinement
+MIN_MOTION = 45.0               # mm: below this excursion of the joints about the root (the
+                                # median over joints of their low-passed standard deviation over
+                                # time) the people are too still to pin an offset
+BOOTSTRAP = 30                  # resamples of blocks of frames and of joints for the offset's spread
+
+
+def _smoothed(xyz: np.ndarray, conf: np.ndarray, fps: float, min_conf: float) -> tuple[np.ndarray, np.ndarray]:
+    """(F, J, 3) joints about the root (joint 0), gaps bridged, low-passed; (F, J) where seen."""
+    seen = (conf >= min_conf) & (conf[:, :1] >= min_conf) & np.isfinite(xyz).all(axis=-1)
+    out = lowpass(xyz - xyz[:, :1], seen, fps, LOWPASS_HZ)
+    out[:, 0] = np.nan
+    return out, seen & np.isfinite(out).all(axis=-1)
+
+
+def motion_signals(xyz: np.ndarray, conf: np.ndarray, fps: float, min_conf: float = MIN_CONFIDENCE) -> tuple[np.ndarray, float]:
+    """(F, J) each joint's speed about the root (joint 0) in the view's monocular metric pose,
+    m/s, low-passed, NaN where the joint or the root is not seen (conf < min_conf); and the
+    joints' excursion (mm: median over joints of their standard deviation over time).
+    A speed about the root is the same from every camera (it depends neither on where the
+    camera stands nor on how its image is scaled), unlike the 2D vertical speed Pose2Sim uses."""
+    smooth, seen = _smoothed(xyz, conf, fps, min_conf)
+    speed = np.linalg.norm(np.gradient(smooth, axis=0), axis=-1) * fps / 1000.0
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        spread = np.nanstd(np.where(seen[..., None], smooth, np.nan), axis=0)          # (J, 3)
+        excursion = float(np.nanmedian(np.linalg.norm(spread, axis=-1)[1:]))
+    return np.where(seen, speed, np.nan), excursion if np.isfinite(excursion) else 0.0
+
+
+def keypoint_speed(uv: np.ndarray, conf: np.ndarray, fps: float, min_conf: float = MIN_CONFIDENCE) -> float:
+    """Median speed (px a frame) of a view's keypoints (F, J, 2) seen with conf >= min_conf,
+    low-passed at LOWPASS_HZ; NaN where none is seen twice in a row."""
+    seen = (conf >= min_conf) & np.isfinite(uv).all(axis=-1)
+    speed = np.linalg.norm(np.gradient(lowpass(uv, seen, fps, LOWPASS_HZ), axis=0), axis=-1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return float(np.nanmedian(np.where(seen, speed, np.nan)))
+
+
+def shifted_pair(ref: np.ndarray, other: np.ndarray, lag: float, frames: np.ndarray | None,
+                  columns: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+    """ref and other at `lag` (module convention), each moved by half of it, so both are
+    interpolated alike (interpolating one side only smooths it, and biases the peak towards
+    whole frames); optionally only `frames` and `columns`."""
+    n = len(ref)
+    a, b = shift(ref, -lag / 2, n), shift(other, lag / 2, n)
+    if frames is not None:
+        a, b = a[frames], b[frames]
+    if columns is not None:
+        a, b = a[:, columns], b[:, columns]
+    return a, b
+
+
+def motion_correlation(ref: np.ndarray, other: np.ndarray, lag: float, frames: np.ndarray | None = None,
+                       columns: np.ndarray | None = None) -> float:
+    """Pearson correlation of ref (F, K) with other at `lag` (module convention), over every
+    signal and frame where both have a value (optionally only `frames` and `columns`, repeats
+    counting twice). Each side moves by half the lag, so both are interpolated alike
+    (interpolating one side only smooths it, and biases the peak towards whole frames)."""
+    a, b = shifted_pair(ref, other, lag, frames, columns)
+    ok = np.isfinite(a) & np.isfinite(b)
+    if ok.sum() < 30:
+        return np.nan
+    x, y = a[ok] - a[ok].mean(), b[ok] - b[ok].mean()
+    return float(x @ y / max(np.sqrt((x @ x) * (y @ y)), 1e-12))
+
+
+def _peak(lags: np.ndarray, corr: np.ndarray) -> float:
+    """The lag of the correlation's maximum, refined by a parabola through its neighbours."""
+    k = int(np.nanargmax(corr))
+    if 0 < k < len(lags) - 1 and np.isfinite(corr[k - 1:k + 2]).all():
+        c0, c1, c2 = corr[k - 1:k + 2]
+        den = c0 - 2 * c1 + c2
+        if den < 0:
+            return float(lags[k] + 0.5 * (c0 - c2) / den * (lags[1] - lags[0]))
+    return float(lags[k])
+
+
+@dataclass
+class MotionOffset:
+    offset: float               # frames, module convention
+    correlation: float          # of the signals at that offset, -1..1
+    spread: float               # frames: standard deviation over block-bootstrap resamples
+
+
+def motion_offset(score: Callable[[float, np.ndarray | None, np.ndarray | None], float], n: int, k: int,
+                  centre: float, window: float, seed: int = 0) -> MotionOffset:
+    """The sub-frame lag at which score(lag, frames, columns) (a correlation of two views'
+    signals: n frames, k columns, optionally only some frames and columns, repeats counting
+    twice) peaks, on a grid of LAG_STEP frames within `window` of `centre`, refined by a
+    parabola; its spread is that of the peak over resamples of blocks of frames (a tenth of the
+    take each) and of the columns: a monocular pose's errors depend on where the camera stands,
+    so signals that two views see differently pull the peak apart, and resampling the frames
+    alone would hide it (Pose2Sim's single take, joint speeds: cam03 -0.4 +- 0.8 frames over
+    frames alone, +- 1.2 over frames and joints, where the lab rig puts it at +4.2)."""
+    lags = np.round(centre + np.arange(-window, window + LAG_STEP / 2, LAG_STEP), 6)
+    corr = np.array([score(o, None, None) for o in lags])
+    if not np.isfinite(corr).any():
+        return MotionOffset(centre, np.nan, np.inf)
+    best = _peak(lags, corr)
+    rng = np.random.default_rng(seed)
+    block = max(10, n // 10)
+    near = lags[np.abs(lags - best) <= 2.0]
+    peaks = []
+    for _ in range(BOOTSTRAP):
+        starts = rng.integers(0, max(n - block, 1), size=max(n // block, 1))
+        frames = np.concatenate([np.arange(s, min(s + block, n)) for s in starts])
+        columns = rng.integers(0, k, size=k)
+        c = np.array([score(o, frames, columns) for o in near])
+        if np.isfinite(c).any():
+            peaks.append(_peak(near, c))
+    spread = float(np.std(peaks)) if len(peaks) > 2 else np.inf
+    peak = float(np.nanmax(corr)) if np.isfinite(corr).any() else np.nan
+    return MotionOffset(round(best, 2) + 0.0, peak, spread)      # + 0.0: no -0
+
+
+def shared_motion(take: Take, people: list[PersonTracks], v: int,
+                   min_conf: float) -> tuple[np.ndarray, np.ndarray, float] | None:
+    """Motion signals (`motion_signals`) of the people view v shares with the reference, the
+    reference's and v's side by side, and the smaller of their excursions (mm); None when they
+    share nobody."""
+    ref = take.reference
+    shared = [p for p in people if ref in p.views and v in p.views]
+    if not shared:
+        return None
+    fps = take.fps or DEFAULT_FPS
+    signals, excursion = [], []
+    for u in (ref, v):
+        parts = [motion_signals(*p.view_arrays(u, take.lengths[u])[1:3], fps, min_conf) for p in shared]
+        signals.append(np.concatenate([s for s, _ in parts], axis=1))
+        excursion.append(max(e for _, e in parts))
+    return signals[0], signals[1], min(excursion)
+
