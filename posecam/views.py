@@ -67,8 +67,8 @@ def load_views(inputs: list[str], options: EstimatorOptions | None = None, intri
                on_frame: OnFrame | None = None, estimator: PoseEstimator | None = None,
                frames: FrameSelection | None = None, smooth: bool = True) -> list[Recording]:
     """One recording per view (a pose JSON file may hold several). Every input is opened, and
-    the views' lengths compared from their headers (a warning on any difference; InputError
-    past what `fuse`'s offsets allow), before anything is predicted. The videos are predicted
+    the views' lengths compared from their headers (InputError past what `fuse`'s offsets allow;
+    fusing them says they differ: FusionResult.warnings), before anything is predicted. The videos are predicted
     by `estimator` (default: one built from `options`) as `posecam predict` predicts them,
     its default metric scale then, with `smooth`, smoothed: fusing them is fusing the pose
     files `posecam predict [--no-smooth] -o` writes of them. `on_frame(frame, rgb, media)` sees
@@ -95,9 +95,7 @@ def load_views(inputs: list[str], options: EstimatorOptions | None = None, intri
         counts = [len(media[path].selected)] if path in media else [len(r.frames) for r in poses[path]]
         names += [Path(path).name] * len(counts)
         lengths += counts
-    differ = check_lengths(names, lengths, fuse or FuseOptions())
-    if differ:
-        warn(differ)
+    check_lengths(names, lengths, fuse or FuseOptions())   # refused before any prediction; the fuse warns
     if videos and estimator is None:
         estimator = shared_estimator(options)
     recordings = []

@@ -20,6 +20,10 @@ def test_sync_finds_offsets_and_fusion_beats_single_views():
     recs = monocular_views(cams, world, offsets=[0, 3, -2, 1])
     result = fuse_recordings(recs, FuseOptions(calibration=Rig(cams), sync=True))
     assert np.allclose(result.offsets, [0, 3, -2, 1], atol=0.2), result.offsets       # sub-frame search
+    # the views' lengths differ (80, 83, 80, 81 frames): the result says so, as the command does
+    assert [w for w in result.warnings if "differ in length" in w] == [
+        "the views differ in length (front 80, right 83, back 80, left 81 frames): fuse lines them up by their "
+        "first frames (shifted by --offsets or --sync auto); are they one take?"], result.warnings
     avg = _mpjpe(result, cams, world)
     tri = _mpjpe(fuse_recordings(recs, FuseOptions(calibration=Rig(cams), offsets=result.offsets,
                                                    method="triangulate")), cams, world)

@@ -59,7 +59,6 @@ class FuseOptions:
     # frames either way the offsets may reach; None: without a calibration, any that leaves the views
     # half the shorter one's frames (posecam.multiview.coarse_sync.coarse_offsets); with one, 10
     max_offset: int | None = None
-    reference: int = 0
     bundle: bool = True                    # refine an estimated rig by bundle adjustment
     min_conf: float = MIN_CONFIDENCE
     bundle_options: BundleOptions = field(default_factory=BundleOptions)
@@ -96,13 +95,14 @@ def view_names(recordings: list[Recording]) -> list[str]:
 
 
 MIN_SHARED = 0.5    # share of the shorter view's frames that views lined up by given offsets must share
+REFERENCE = 0       # the view whose camera and frames the fused recording is in: the first
 
 
 def check_lengths(names: list[str], lengths: list[int], opts: FuseOptions) -> str | None:
     """Views of different lengths are what cameras started and stopped by hand give: lined up
     by offsets found without a calibration, or by the offsets given, which must leave each view
-    MIN_SHARED of its frames (or of the reference's, if fewer) in common with the reference; a
-    warning line says they differ. Views taken as started together (no offsets, no search
+    MIN_SHARED of its frames (or of the reference's, if fewer) in common with the reference
+    (REFERENCE); a warning line says they differ. Views taken as started together (no offsets, no search
     without a calibration) may differ by at most the search of a calibrated sync (`max_offset`):
     InputError past what they allow."""
     sync = finds_offsets(opts.sync, opts.calibration is not None, opts.offsets is not None)
@@ -110,12 +110,12 @@ def check_lengths(names: list[str], lengths: list[int], opts: FuseOptions) -> st
         return None
     shown = ", ".join(f"{n} {k}" for n, k in zip(names, lengths))
     if opts.offsets is not None and len(opts.offsets) == len(lengths):
-        ref, o_ref = lengths[opts.reference], opts.offsets[opts.reference]
+        ref, o_ref = lengths[REFERENCE], opts.offsets[REFERENCE]
         for name, n, o in zip(names, lengths, opts.offsets):       # reference frames i with i + o in the view
             shared = max(0, int(np.floor(min(ref, n - (o - o_ref)) - max(0.0, o_ref - o))))
             if shared < MIN_SHARED * min(n, ref):
                 raise InputError(f"the views have different lengths ({shown} frames) and at the offsets given "
-                                 f"{name} shares only {shared} of its frames with {names[opts.reference]}: "
+                                 f"{name} shares only {shared} of its frames with {names[REFERENCE]}: "
                                  "check --offsets, or fuse recordings of the same take")
     else:
         search = opts.max_offset if opts.max_offset is not None else RIG_MAX_OFFSET if sync else 0
@@ -127,8 +127,8 @@ def check_lengths(names: list[str], lengths: list[int], opts: FuseOptions) -> st
 
 
 def check_take(recordings: list[Recording], opts: FuseOptions) -> Take:
-    """The recordings as one take's views (posecam.multiview.observations.Take), or InputError /
-    FusionError saying why they are not."""
+    """The recordings as one take's views (posecam.multiview.observations.Take; its warnings: the
+    views' lengths differ, `check_lengths`), or InputError / FusionError saying why they are not."""
     if len(recordings) < 2:
         raise InputError(f"fusion needs two views or more, got {len(recordings)}")
     if opts.method not in ("average", "triangulate"):
@@ -138,7 +138,7 @@ def check_take(recordings: list[Recording], opts: FuseOptions) -> Take:
     if opts.offsets is not None and len(opts.offsets) != len(recordings):
         raise InputError(f"--offsets needs one value per view ({len(recordings)}), got {len(opts.offsets)}")
     names = view_names(recordings)
-    check_lengths(names, [len(r.frames) for r in recordings], opts)
+    differ = check_lengths(names, [len(r.frames) for r in recordings], opts)
     rates = [r.fps for r in recordings if r.fps]
     if rates and max(rates) > 1.01 * min(rates):
         raise InputError(f"the views have different frame rates ({', '.join(f'{f:g}' for f in rates)} fps)")
@@ -150,7 +150,9 @@ def check_take(recordings: list[Recording], opts: FuseOptions) -> Take:
     for a, b in _twins(recordings):
         raise FusionError(f"views {names[a]} and {names[b]} hold the same poses (one recording given twice?): "
                           "fusion needs different cameras")
-    return Take.of(names, recordings, opts.reference)
+    take = Take.of(names, recordings, REFERENCE)
+    take.warnings = [differ] if differ else []
+    return take
 
 
 def _twins(recordings: list[Recording], max_px: float = 0.5) -> list[tuple[int, int]]:
@@ -388,4 +390,5 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
         rep.unpinned = why
     recording = _to_recording(fused, rig, views.index(take.reference), recordings[take.reference])
     recording.cameras = [r.to_dict() for r in reports]
-    return FusionResult(recording, rig, sync.offsets, reports, views, list(dict.fromkeys(warnings)), scale_source)
+    return FusionResult(recording, rig, sync.offsets, reports, views, list(dict.fromkeys(take.warnings + warnings)),
+                        scale_source)

@@ -16,7 +16,7 @@ Offsets (`shift`): view c's frame i + o shows the reference's frame i (posecam.m
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -255,6 +255,7 @@ class Take:
     joints: tuple[str, ...]
     reference: int                       # the view whose camera and frames the others are put in
     fps: float | None                    # the reference's frame rate, where known
+    warnings: list[str] = field(default_factory=list)   # what checking the views found (posecam.multiview.fuse)
 
     @classmethod
     def of(cls, names: list[str], recordings: list[Recording], reference: int) -> "Take":
