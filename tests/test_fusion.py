@@ -106,7 +106,7 @@ def test_calibrated_sync_finds_sub_frame_offsets():
 def test_motion_offset_of_signals_shifted_by_a_known_fraction():
     """Smooth signals (sums of sines) and the same signals 1.23 frames later, written here from
     the sines (no interpolation): the correlation's peak is found within 0.02 frame."""
-    from posecam.multiview.motion_sync import motion_correlation, motion_offset
+    from posecam.multiview.motion_sync import motion_correlations, motion_offset
 
     rng = np.random.default_rng(5)
     freq, phase, amp = rng.uniform(0.01, 0.06, (3, 8)), rng.uniform(0, 2 * np.pi, (3, 8)), rng.uniform(0.5, 1, (3, 8))
@@ -117,7 +117,7 @@ def test_motion_offset_of_signals_shifted_by_a_known_fraction():
     t = np.arange(200.0)
     for lag in (1.23, -2.71):
         a, b = signals(t), signals(t - lag)     # the other camera's frame i + lag is frame i here
-        found = motion_offset(lambda o, frames, columns: motion_correlation(a, b, o, frames, columns),
+        found = motion_offset(lambda o, resamples: motion_correlations(a, b, o, resamples),
                               len(t), 8, centre=0.0, window=5.0)
         assert abs(found.offset - lag) < 0.02 and found.correlation > 0.99, (lag, found)
 

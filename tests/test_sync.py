@@ -5,7 +5,8 @@ import numpy as np
 
 from posecam.multiview.associate import associate_people
 from posecam.multiview.fuse import FuseOptions, check_take, fuse_recordings
-from posecam.multiview.coarse_sync import bone_correlation, bone_directions, coarse_offsets
+from posecam.multiview.coarse_sync import _bone_products, _resampled_products, bone_correlation, bone_directions, coarse_offsets
+from posecam.multiview.motion_sync import Resamples, motion_correlations, shifted_pair
 from posecam.multiview.same_scene import motion_agreement
 from posecam.results import Recording
 from synth_rig import make_rig, monocular_views, skeleton_motion
@@ -72,3 +73,26 @@ def test_a_take_with_a_view_cut_short_fuses_with_the_defaults():
     result = fuse_recordings(recs)
     assert result.views == [0, 1, 2], result.warnings
     assert np.allclose(result.offsets, [0.0, 0.0, -8.0], atol=0.5), result.offsets
+
+
+def test_a_resample_weighs_frames_and_columns_as_drawing_them_again_would():
+    """The bootstrap scores every resample at once, each frame and column weighted by how often
+    it was drawn: the same figures as the signals with those frames and columns repeated
+    (joint speeds' Pearson correlation, the bones' sums), written out here by indexing."""
+    rng = np.random.default_rng(3)
+    a, b = rng.normal(size=(60, 5)), rng.normal(size=(60, 5))
+    a[rng.random(a.shape) < 0.1] = np.nan
+    frames, columns = rng.integers(0, 60, 60), rng.integers(0, 5, 5)
+    drawn = Resamples(np.bincount(frames, minlength=60)[None].astype(float),
+                      np.bincount(columns, minlength=5)[None].astype(float))
+    x, y = (s[frames][:, columns] for s in shifted_pair(a, b, 0.4))
+    ok = np.isfinite(x) & np.isfinite(y)
+    expected = np.corrcoef(x[ok], y[ok])[0, 1]
+    assert np.isclose(motion_correlations(a, b, 0.4, drawn)[0], expected, atol=1e-12)
+    bones_a, bones_b = rng.normal(size=(40, 6, 3)), rng.normal(size=(40, 6, 3))
+    bones_b[rng.random((40, 6)) < 0.2] = np.nan
+    frames, columns = rng.integers(0, 40, 40), rng.integers(0, 6, 6)
+    drawn = Resamples(np.bincount(frames, minlength=40)[None].astype(float),
+                      np.bincount(columns, minlength=6)[None].astype(float))
+    by_index = _bone_products(bones_a[frames][:, columns], bones_b[frames][:, columns], np.zeros(1, int))
+    assert np.allclose(_resampled_products(bones_a, bones_b, drawn), by_index, atol=1e-9)

@@ -257,8 +257,8 @@ def cameras_from_people(take: Take, association: Association, sync: SyncResult, 
         return est
 
     est = estimate([v for v in every if v not in sync.unpinned])
+    agreement = motion_agreement(take, association.people, sync.offsets, min_conf)
     while True:                          # views whose people do not move as the reference's: not one scene
-        agreement = motion_agreement(take, association.people, sync.offsets, min_conf)
         unrelated = [(agreement[v][0], v) for v in est.views if v in agreement
                      and agreement[v][1] >= MIN_MOTION and not agreement[v][0] >= MIN_SAME_MOTION]
         if not unrelated:

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from posecam.io.media import DEFAULT_FPS
-from posecam.multiview.motion_sync import LOWPASS_HZ, shifted_pair
+from posecam.multiview.motion_sync import LOWPASS_HZ, Resamples, shifted_pair
 from posecam.multiview.observations import Take, ViewTrack, lowpass
 from posecam.skeleton import skeleton_of
 
@@ -84,13 +84,42 @@ def _motion_match(products: np.ndarray, significance: bool = True) -> np.ndarray
     return np.where(products[:, 20] >= MIN_BONE_PAIRS, corr, np.nan)
 
 
-def bone_correlation(ref: np.ndarray, other: np.ndarray, lag: float, frames: np.ndarray | None = None,
-                     columns: np.ndarray | None = None) -> float:
-    """`_motion_match`'s correlation of two views' bones (F, K, 3) (`bone_directions`, the same
-    people's side by side) at a sub-frame lag, each side moved by half of it (interpolated
-    alike, as `motion_correlation` does), optionally only some frames and bones."""
-    a, b = shifted_pair(ref, other, lag, frames, columns)
-    return float(_motion_match(_bone_products(a, b, np.zeros(1, int)), significance=False)[0])
+def _resampled_products(a: np.ndarray, b: np.ndarray, resamples: Resamples) -> np.ndarray:
+    """`_bone_products` of two views' bones (F, K, 3) at lag 0, in each resample of their frames
+    and bones (each weighted by how often it was drawn: a bone drawn twice is two bones, each
+    centred on its own mean): (R, 21)."""
+    both = np.isfinite(a).all(axis=-1) & np.isfinite(b).all(axis=-1)                     # (F, K)
+    pa, pb = np.where(both[..., None], a, 0.0), np.where(both[..., None], b, 0.0)
+    f, k = both.shape
+    wf, wc = resamples.frames, resamples.columns                                            # (R, F), (R, K)
+    n = wf @ both                                                                           # (R, K)
+    sa, sb = (wf @ pa.reshape(f, -1)).reshape(-1, k, 3), (wf @ pb.reshape(f, -1)).reshape(-1, k, 3)
+    h = (wf @ (pb[..., :, None] * pa[..., None, :]).reshape(f, -1)).reshape(-1, k, 3, 3)    # sum of b a^T
+    each = np.maximum(n, 1)[..., None]
+    centred = h - sb[..., :, None] * sa[..., None, :] / each[..., None]
+    aa = wf @ (pa * pa).sum(axis=-1) - (sa * sa).sum(axis=-1) / each[..., 0]
+    bb = wf @ (pb * pb).sum(axis=-1) - (sb * sb).sum(axis=-1) / each[..., 0]
+    return np.concatenate([np.einsum("rk,rkij->rij", wc, h).reshape(-1, 9),
+                           np.einsum("rk,rkij->rij", wc, centred).reshape(-1, 9),
+                           np.stack([(wc * aa).sum(axis=1), (wc * bb).sum(axis=1), (wc * n).sum(axis=1)], axis=1)],
+                          axis=1)
+
+
+def bone_correlations(ref: np.ndarray, other: np.ndarray, lag: float, resamples: Resamples,
+                      frames: np.ndarray | None = None) -> np.ndarray:
+    """(R,) `_motion_match`'s correlation of two views' bones (F, K, 3) (`bone_directions`, the
+    same people's side by side) at a sub-frame lag, each side moved by half of it (interpolated
+    alike, as `motion_correlation` does), on `frames` (all by default), in each resample of
+    those frames and of the bones."""
+    a, b = shifted_pair(ref, other, lag)
+    if frames is not None:
+        a, b = a[frames], b[frames]
+    return _motion_match(_resampled_products(a, b, resamples), significance=False)
+
+
+def bone_correlation(ref: np.ndarray, other: np.ndarray, lag: float) -> float:
+    """`bone_correlations` of the bones as they are."""
+    return float(bone_correlations(ref, other, lag, Resamples.whole(*ref.shape[:2]))[0])
 
 
 @dataclass

@@ -42,11 +42,17 @@ def motion_signals(xyz: np.ndarray, conf: np.ndarray, fps: float, min_conf: floa
     camera stands nor on how its image is scaled), unlike the 2D vertical speed Pose2Sim uses."""
     smooth, seen = _smoothed(xyz, conf, fps, min_conf)
     speed = np.linalg.norm(np.gradient(smooth, axis=0), axis=-1) * fps / 1000.0
+    return np.where(seen, speed, np.nan), _excursion(smooth, seen)
+
+
+def _excursion(smooth: np.ndarray, seen: np.ndarray) -> float:
+    """The joints' excursion about the root (mm: the median over joints of their standard
+    deviation over time) of `_smoothed`'s joints; 0 where none is seen."""
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         spread = np.nanstd(np.where(seen[..., None], smooth, np.nan), axis=0)          # (J, 3)
         excursion = float(np.nanmedian(np.linalg.norm(spread, axis=-1)[1:]))
-    return np.where(seen, speed, np.nan), excursion if np.isfinite(excursion) else 0.0
+    return excursion if np.isfinite(excursion) else 0.0
 
 
 def keypoint_speed(uv: np.ndarray, conf: np.ndarray, fps: float, min_conf: float = MIN_CONFIDENCE) -> float:
@@ -59,32 +65,52 @@ def keypoint_speed(uv: np.ndarray, conf: np.ndarray, fps: float, min_conf: float
         return float(np.nanmedian(np.where(seen, speed, np.nan)))
 
 
-def shifted_pair(ref: np.ndarray, other: np.ndarray, lag: float, frames: np.ndarray | None,
-                  columns: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
+def shifted_pair(ref: np.ndarray, other: np.ndarray, lag: float) -> tuple[np.ndarray, np.ndarray]:
     """ref and other at `lag` (module convention), each moved by half of it, so both are
     interpolated alike (interpolating one side only smooths it, and biases the peak towards
-    whole frames); optionally only `frames` and `columns`."""
+    whole frames)."""
     n = len(ref)
     a, b = shift(ref, -lag / 2, n), shift(other, lag / 2, n)
-    if frames is not None:
-        a, b = a[frames], b[frames]
-    if columns is not None:
-        a, b = a[:, columns], b[:, columns]
     return a, b
 
 
-def motion_correlation(ref: np.ndarray, other: np.ndarray, lag: float, frames: np.ndarray | None = None,
-                       columns: np.ndarray | None = None) -> float:
-    """Pearson correlation of ref (F, K) with other at `lag` (module convention), over every
-    signal and frame where both have a value (optionally only `frames` and `columns`, repeats
-    counting twice). Each side moves by half the lag, so both are interpolated alike
-    (interpolating one side only smooths it, and biases the peak towards whole frames)."""
-    a, b = shifted_pair(ref, other, lag, frames, columns)
+@dataclass
+class Resamples:
+    """R resamples of a pair of signals' frames and columns, as weights: how many times each
+    frame (R, F) and each column (R, K) is drawn (a frame or column drawn twice counts twice)."""
+
+    frames: np.ndarray
+    columns: np.ndarray
+
+    @classmethod
+    def whole(cls, n: int, k: int) -> "Resamples":
+        """The signals as they are: one resample, every frame and column once."""
+        return cls(np.ones((1, n)), np.ones((1, k)))
+
+
+def motion_correlations(ref: np.ndarray, other: np.ndarray, lag: float, resamples: Resamples) -> np.ndarray:
+    """(R,) Pearson correlation of ref (F, K) with other at `lag` (module convention), over every
+    signal and frame where both have a value, in each resample (its frames and columns
+    weighted by how often they were drawn); NaN where fewer than 30 values are shared. Each side
+    moves by half the lag, so both are interpolated alike (interpolating one side only smooths
+    it, and biases the peak towards whole frames)."""
+    a, b = shifted_pair(ref, other, lag)
     ok = np.isfinite(a) & np.isfinite(b)
-    if ok.sum() < 30:
-        return np.nan
-    x, y = a[ok] - a[ok].mean(), b[ok] - b[ok].mean()
-    return float(x @ y / max(np.sqrt((x @ x) * (y @ y)), 1e-12))
+    a, b = np.where(ok, a, 0.0), np.where(ok, b, 0.0)
+
+    def total(x: np.ndarray) -> np.ndarray:                # (R,) weighted sum of (F, K) values
+        return np.einsum("rf,fk,rk->r", resamples.frames, x, resamples.columns)
+
+    n = total(ok.astype(float))
+    ma, mb = total(a) / np.maximum(n, 1), total(b) / np.maximum(n, 1)
+    sxy, sxx, syy = total(a * b) - n * ma * mb, total(a * a) - n * ma * ma, total(b * b) - n * mb * mb
+    corr = sxy / np.maximum(np.sqrt(np.maximum(sxx * syy, 0.0)), 1e-12)
+    return np.where(n >= 30, corr, np.nan)
+
+
+def motion_correlation(ref: np.ndarray, other: np.ndarray, lag: float) -> float:
+    """`motion_correlations` of the signals as they are."""
+    return float(motion_correlations(ref, other, lag, Resamples.whole(*ref.shape))[0])
 
 
 def _peak(lags: np.ndarray, corr: np.ndarray) -> float:
@@ -105,35 +131,42 @@ class MotionOffset:
     spread: float               # frames: standard deviation over block-bootstrap resamples
 
 
-def motion_offset(score: Callable[[float, np.ndarray | None, np.ndarray | None], float], n: int, k: int,
-                  centre: float, window: float, seed: int = 0) -> MotionOffset:
-    """The sub-frame lag at which score(lag, frames, columns) (a correlation of two views'
-    signals: n frames, k columns, optionally only some frames and columns, repeats counting
-    twice) peaks, on a grid of LAG_STEP frames within `window` of `centre`, refined by a
-    parabola; its spread is that of the peak over resamples of blocks of frames (a tenth of the
-    take each) and of the columns: a monocular pose's errors depend on where the camera stands,
-    so signals that two views see differently pull the peak apart, and resampling the frames
-    alone would hide it (Pose2Sim's single take, joint speeds: cam03 -0.4 +- 0.8 frames over
-    frames alone, +- 1.2 over frames and joints, where the lab rig puts it at +4.2)."""
+def motion_offset(score: Callable[[float, Resamples], np.ndarray], n: int, k: int, centre: float, window: float,
+                  seed: int = 0) -> MotionOffset:
+    """The sub-frame lag at which score(lag, resamples) (a correlation of two views' signals: n
+    frames, k columns, per resample of them: `Resamples`) peaks, on a grid of LAG_STEP frames
+    within `window` of `centre`, refined by a parabola; its spread is that of the peak over
+    BOOTSTRAP resamples of blocks of frames (a tenth of the take each) and of the columns: a
+    monocular pose's errors depend on where the camera stands, so signals that two views see
+    differently pull the peak apart, and resampling the frames alone would hide it (Pose2Sim's
+    single take, joint speeds: cam03 -0.4 +- 0.8 frames over frames alone, +- 1.2 over frames
+    and joints, where the lab rig puts it at +4.2). Every resample is scored at once, lag by lag."""
     lags = np.round(centre + np.arange(-window, window + LAG_STEP / 2, LAG_STEP), 6)
-    corr = np.array([score(o, None, None) for o in lags])
+    whole = Resamples.whole(n, k)
+    corr = np.array([score(o, whole)[0] for o in lags])
     if not np.isfinite(corr).any():
         return MotionOffset(centre, np.nan, np.inf)
     best = _peak(lags, corr)
-    rng = np.random.default_rng(seed)
-    block = max(10, n // 10)
     near = lags[np.abs(lags - best) <= 2.0]
-    peaks = []
-    for _ in range(BOOTSTRAP):
-        starts = rng.integers(0, max(n - block, 1), size=max(n // block, 1))
-        frames = np.concatenate([np.arange(s, min(s + block, n)) for s in starts])
-        columns = rng.integers(0, k, size=k)
-        c = np.array([score(o, frames, columns) for o in near])
-        if np.isfinite(c).any():
-            peaks.append(_peak(near, c))
+    c = np.stack([score(o, _resamples(n, k, seed)) for o in near], axis=1)      # (BOOTSTRAP, lags)
+    peaks = [_peak(near, row) for row in c if np.isfinite(row).any()]
     spread = float(np.std(peaks)) if len(peaks) > 2 else np.inf
     peak = float(np.nanmax(corr)) if np.isfinite(corr).any() else np.nan
     return MotionOffset(round(best, 2) + 0.0, peak, spread)      # + 0.0: no -0
+
+
+def _resamples(n: int, k: int, seed: int) -> Resamples:
+    """BOOTSTRAP resamples of n frames in blocks of a tenth of them (at least 10) and of k
+    columns, drawn with replacement."""
+    rng = np.random.default_rng(seed)
+    block = max(10, n // 10)
+    frames, columns = np.zeros((BOOTSTRAP, n)), np.zeros((BOOTSTRAP, k))
+    for r in range(BOOTSTRAP):
+        starts = rng.integers(0, max(n - block, 1), size=max(n // block, 1))
+        drawn = np.concatenate([np.arange(s, min(s + block, n)) for s in starts])
+        frames[r] = np.bincount(drawn, minlength=n)
+        columns[r] = np.bincount(rng.integers(0, k, size=k), minlength=k)
+    return Resamples(frames, columns)
 
 
 def shared_motion(take: Take, people: list[PersonTracks], v: int,
@@ -152,4 +185,15 @@ def shared_motion(take: Take, people: list[PersonTracks], v: int,
         signals.append(np.concatenate([s for s, _ in parts], axis=1))
         excursion.append(max(e for _, e in parts))
     return signals[0], signals[1], min(excursion)
+
+
+def shared_excursion(take: Take, people: list[PersonTracks], v: int, min_conf: float) -> float | None:
+    """`shared_motion`'s excursion alone (mm), without the signals; None when view v shares
+    nobody with the reference."""
+    shared = [p for p in people if take.reference in p.views and v in p.views]
+    if not shared:
+        return None
+    fps = take.fps or DEFAULT_FPS
+    return min(max(_excursion(*_smoothed(*p.view_arrays(u, take.lengths[u])[1:3], fps, min_conf)) for p in shared)
+               for u in (take.reference, v))
 

@@ -27,8 +27,8 @@ import numpy as np
 
 from posecam.geometry.camera import Rig
 from posecam.io.media import DEFAULT_FPS
-from posecam.multiview.coarse_sync import bone_correlation, bone_directions, sampling_step
-from posecam.multiview.motion_sync import MIN_MOTION, keypoint_speed, motion_offset, shared_motion
+from posecam.multiview.coarse_sync import bone_correlations, bone_directions, sampling_step
+from posecam.multiview.motion_sync import MIN_MOTION, keypoint_speed, motion_offset, shared_excursion
 from posecam.multiview.observations import PersonTracks, Take, lowpass
 from posecam.multiview.rig_sync import estimate_offsets
 
@@ -117,7 +117,7 @@ def _shared_bones(take: Take, people: list[PersonTracks], v: int, min_conf: floa
 def _motion_offsets(take: Take, people: list[PersonTracks], start: list[float], min_conf: float) -> SyncResult:
     """Offsets without a rig: per view, the sub-frame lag within FINE_WINDOW frames of its start
     (`coarse_offsets`) at which the bones of the people it shares with the reference move
-    alike (`bone_correlation`, `motion_offset`); a view whose offset that does not pin (people
+    alike (`bone_correlations`, `motion_offset`); a view whose offset that does not pin (people
     too still, a spread that moves its keypoints by more than MAX_SHIFT_PX, a peak at the
     window's edge) is left out (`unpinned`), with a warning: fused at a wrong offset, its camera
     would be estimated wrong too."""
@@ -127,23 +127,22 @@ def _motion_offsets(take: Take, people: list[PersonTracks], start: list[float], 
     for v in range(n_views):
         if v == ref:
             continue
-        shared = shared_motion(take, people, v, min_conf)
-        if shared is None:
+        excursion = shared_excursion(take, people, v, min_conf)
+        if excursion is None:
             confidence[v], spread[v] = 0.0, np.inf
             continue
         a, b = _shared_bones(take, people, v, min_conf)
         sampled = np.arange(0, len(a), sampling_step(take.fps or DEFAULT_FPS, len(a)))     # a long take's
-        m = motion_offset(lambda lag, frames, columns: bone_correlation(
-            a, b, lag, sampled if frames is None else sampled[frames], columns), len(sampled), a.shape[1], start[v],
-            FINE_WINDOW)
+        m = motion_offset(lambda lag, resamples: bone_correlations(a, b, lag, resamples, sampled), len(sampled),
+                          a.shape[1], start[v], FINE_WINDOW)
         confidence[v], spread[v] = max(float(np.nan_to_num(m.correlation)), 0.0), m.spread
         fps = take.fps or DEFAULT_FPS
         speeds = np.array([keypoint_speed(uv, conf, fps, min_conf) for uv, _, conf, _ in
                            (p.view_arrays(v, take.lengths[v]) for p in people if ref in p.views and v in p.views)])
         speed = float(np.nanmedian(speeds)) if np.isfinite(speeds).any() else np.nan
         why = None
-        if shared[2] < MIN_MOTION:
-            why = f"the people move too little to synchronise it (their joints move {shared[2]:.0f} mm about the root)"
+        if excursion < MIN_MOTION:
+            why = f"the people move too little to synchronise it (their joints move {excursion:.0f} mm about the root)"
         elif not m.spread * speed <= MAX_SHIFT_PX:
             why = (f"its motion pins the offset poorly (best {m.offset:+.1f} ± {m.spread:.1f} frames, which moves "
                    f"its keypoints by ± {m.spread * speed:.0f} px)")
