@@ -216,7 +216,7 @@ def adjust_from_lab(truth: bf.Truth, uv: np.ndarray, conf: np.ndarray, joints: t
 
 
 def at_lab(label: str, truth: bf.Truth, joints: tuple) -> dict:
-    from posecam.multiview.bundle import LEFT_OUT
+    from posecam.multiview.bundle import LEFT_OUT, left_out
 
     uv, conf, res, _ = lab_residuals(truth)
     bias, noise, count = bias_noise(res)
@@ -224,7 +224,7 @@ def at_lab(label: str, truth: bf.Truth, joints: tuple) -> dict:
     n_v, n_p, n_f, n_j = conf.shape
     before = float(np.nanmedian(np.linalg.norm(res, axis=-1)))
     after = float(np.nanmedian(np.linalg.norm(res - bias[:, :, None], axis=-1)))
-    used = ~np.isin(joints, LEFT_OUT)
+    used = ~left_out(joints, LEFT_OUT)
     print(f"-- {label}: {int(np.isfinite(res).all(axis=-1).sum())} residuals at the lab rig, median {before:.1f} px, "
           f"{after:.1f} px once each (view, person, joint)'s bias is taken out; per (view, person, joint) of the "
           f"adjustment's joints: bias median {np.nanmedian(size[..., used]):.1f} px (max {np.nanmax(size[..., used]):.1f}), "

@@ -64,8 +64,9 @@ from posecam.geometry.triangulate import observation_weights, triangulate
 # soft-L1 loss: residuals (in pixel_sigma) beyond this scale count less; graduated, each scale to
 # convergence from the last (1 alone takes twice the evaluations: 238 against 112, single take)
 F_SCALES = (2.0, 1.0)
-# joints kept out of the adjustment: not one 3D point from every side (module docstring)
-LEFT_OUT = ("pelvis", "r_hip", "l_hip", "left_hip", "right_hip")
+# joint roles (posecam.skeleton.Skeleton.roles) kept out of the adjustment: not one 3D point from
+# every side (module docstring)
+LEFT_OUT = ("mid_hip", "r_hip", "l_hip")
 # a refined offset's spread: its Jacobian's in quadrature with this many times the camera's median
 # reprojection error over its keypoints' median speed (`offset_floor`). Fitted on the single take's
 # --rigs sweep (offsets against the lab's within 2 sd: 29 of 39 at 1.0, 35 at 1.25, 37 at 1.5; the
@@ -92,7 +93,7 @@ class BundleOptions:
     # with the same rig on both Pose2Sim takes (rotation within 0.04 deg, focal 0.3 %)
     ftol: float = 1e-6
     max_error_px: float = 60.0        # median reprojection error above this: did not converge
-    left_out: tuple[str, ...] = LEFT_OUT   # joint names the adjustment does not use
+    left_out: tuple[str, ...] = LEFT_OUT   # joint roles the adjustment does not use (`left_out`)
     # with timed keypoints (`bundle_adjust`), each camera's time offset is one more unknown, within
     # this many frames of where it starts, on keypoints low-passed at offset_lowpass_hz; None:
     # where fusion finds the offsets itself (posecam.multiview.fuse)
@@ -116,6 +117,15 @@ class BundleResult:
     spreads: list["CameraSpread"]     # (V,) one standard deviation of each camera
     offsets: np.ndarray | None = None         # (V,) refined offsets (frames), when they were unknowns
     offset_spreads: np.ndarray | None = None  # (V,) their standard deviations (frames; reference: 0)
+
+
+def left_out(joints: tuple[str, ...], roles: tuple[str, ...]) -> np.ndarray:
+    """(J,) True for the joints of `joints`' skeleton that play one of the `roles` (the joint, or
+    the several whose mean plays it: BlazePose's mid_hip is its two hips)."""
+    skeleton = skeleton_of(joints)
+    out = np.zeros(len(joints), bool)
+    out[[i for role in roles for i in skeleton.role(role)]] = True
+    return out
 
 
 def rodrigues(r: np.ndarray) -> np.ndarray:
@@ -329,7 +339,7 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     frames = coverage_frames(np.where(np.isfinite(centroid).all(axis=1, keepdims=True), centroid, np.nan),
                              seen.astype(float), opts.max_frames)
     uv, conf, points = uv[:, frames], conf[:, frames], start[frames]
-    w = observation_weights(uv, conf) * ~np.isin(joints, opts.left_out)
+    w = observation_weights(uv, conf) * ~left_out(joints, opts.left_out)
     used = ((w > 0).sum(axis=0) >= 2) & np.isfinite(points).all(axis=-1)
     point_index = -np.ones(used.shape, dtype=int)
     point_index[used] = np.arange(used.sum())
