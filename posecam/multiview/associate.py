@@ -27,13 +27,11 @@ from scipy.optimize import least_squares
 from posecam.errors import FusionError
 from posecam.geometry.camera import CameraCalibration, Rig
 from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
-from posecam.multiview.consensus import (ConsensusOptions, camera_points, estimate_rig, fuse_points,
-                                        intrinsics_vectors)
+from posecam.multiview.consensus import (FOCAL_RANGE, MAX_PAIR_ANGLE, ConsensusOptions, camera_points, estimate_rig,
+                                        fuse_points, intrinsics_vectors)
 from posecam.multiview.observations import Observations, PersonTracks, Take, ViewTrack, shift
 
 MIN_COMMON_FRAMES = 10          # a pair of tracks needs this many frames seen by both
-MAX_PAIR_ANGLE = 0.03           # rad (50 px at f = 1700): calibrated pair gate
-FOCAL_RANGE = (0.25, 4.0)       # focal / assumed focal a pair may imply
 MAX_SHARED = 2                  # frames two tracks of one view may share and still join
 PAIR_FRAMES = 300               # common frames (evenly spaced) that score a calibrated pair
 

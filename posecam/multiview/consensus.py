@@ -37,6 +37,21 @@ from posecam.geometry.floor import robust_sd
 from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.multiview.observations import Observations
 
+# ---- the rules the stages share (one place: the association, the calibration's gate and fusion) ----
+# a focal length the people imply: plausible between FOCAL_WIDTHS image widths (the calibration's
+# gate); within FOCAL_RANGE times the one the monocular poses assumed for a pair of tracks (the
+# association: wider is another person or no geometry); a consensus's factor above MIN_FOCAL_SCALE
+# (else the poses give no focal length at all)
+FOCAL_WIDTHS = (0.2, 10.0)
+FOCAL_RANGE = (0.25, 4.0)
+MIN_FOCAL_SCALE = 0.05
+# the same person across views: a pair of tracks through a calibration reprojects within
+# MAX_PAIR_ANGLE (rad, the median over their frames: 50 px at f = 1700); once associated, a view's
+# pose in one frame within MAX_VIEW_ANGLE of the others' (about 70 px; one frame is noisier than
+# a track's median)
+MAX_PAIR_ANGLE = 0.03
+MAX_VIEW_ANGLE = 0.04
+
 # A monocular pose's depth is this many times less certain than its lateral position.
 DEPTH_NOISE_RATIO = 4.0
 MIN_SHARED_JOINTS = 12
@@ -114,7 +129,7 @@ def fit_focal(assumed: CameraCalibration, xyz: np.ndarray, root: np.ndarray, k: 
     ok = w > 0
     rel, root, zt, wv = (z0 - root)[ok], root[ok], target[..., 2][ok], w[ok]
     g = float(np.sum(wv * root * (zt - rel)) / np.sum(wv * root * root))
-    if not np.isfinite(g) or g <= 0.05:
+    if not np.isfinite(g) or g <= MIN_FOCAL_SCALE:
         raise FusionError(f"camera {assumed.name}: the poses give no positive focal length")
     out = k.copy()
     out[0], out[1] = g * assumed.intrinsics.fx, g * assumed.intrinsics.fy

@@ -16,10 +16,8 @@ import numpy as np
 
 from posecam.geometry.camera import Intrinsics, Rig
 from posecam.geometry.triangulate import MIN_CONFIDENCE
-from posecam.multiview.consensus import fuse_points, scaled_depths
+from posecam.multiview.consensus import MAX_VIEW_ANGLE, fuse_points, scaled_depths
 from posecam.multiview.observations import Observations
-
-MAX_VIEW_ANGLE = 0.04           # rad, about 70 px at f = 1700
 
 
 @dataclass
