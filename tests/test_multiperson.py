@@ -219,6 +219,7 @@ def test_min_cost_assignment_matches_scipy_on_random_matrices():
         rows, cols = min_cost_assignment(cost)
         ref_rows, ref_cols = linear_sum_assignment(cost)
         assert len(rows) == min(n, m) and len(set(rows)) == len(rows) and len(set(cols)) == len(cols)
+        assert all(r < n for r in rows) and all(c < m for c in cols), (n, m, rows, cols)
         assert np.isclose(cost[rows, cols].sum(), cost[ref_rows, ref_cols].sum())
 
 
