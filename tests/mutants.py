@@ -33,7 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-TIMEOUT_S = 300                 # s, a mutant's run; the unmutated run of every stage gets 3 times this
+TIMEOUT_S = 600                 # s, a mutant's run; the unmutated run of every stage gets 3 times this
 NO_TESTS = 5                    # pytest's exit status when it collected nothing
 PLUGIN = "posecam_mutant_verdict"
 
@@ -240,24 +240,15 @@ MUTANTS = (
            "if any(x.view == y.view and _overlap(x, y) > MAX_SHARED for x in ga for y in gb):", "if False:",
            (f"{FUSION}::test_two_people_with_calibration_are_never_mixed",)),
     # ---- the calibration's gate -----------------------------------------------------------------
-    Mutant("calibration gate: views of another scene kept", "posecam/multiview/calibrate.py",
-           "and agreement[v][1] >= MIN_MOTION and not agreement[v][0] >= MIN_SAME_MOTION]", "and False]",
-           ("tests/test_fuse_cmd.py::test_gate_refuses_two_unrelated_real_recordings",)),
     Mutant("calibration gate: a camera the bootstrap leaves loose kept", "posecam/multiview/calibrate.py",
            "if v != reference and not boot <= MAX_BOOT_ROTATION_DEG:", "if False:",
            ("tests/test_spreads.py::test_a_camera_whose_spread_says_it_is_not_pinned_is_kept_marked_and_warned_about",
             "tests/test_spreads.py::test_fewer_than_two_cameras_left_is_a_refusal")),
-    Mutant("calibration gate: the reprojection error not checked", "posecam/multiview/calibrate.py",
-           "elif not np.isfinite(errors[i]) or errors[i] > MAX_ERROR_PX:", "elif not np.isfinite(errors[i]):",
-           ("tests/test_fuse_cmd.py::test_gate_refuses_two_unrelated_real_recordings",)),
     # ---- left and right -------------------------------------------------------------------------
     Mutant("left/right: the 3D pose not swapped back with the keypoints", "posecam/multiview/left_right.py",
            "uv[v, f], xyz[v, f], conf[v, f] = uv[v, f][:, flip], xyz[v, f][:, flip], conf[v, f][:, flip]",
            "uv[v, f], conf[v, f] = uv[v, f][:, flip], conf[v, f][:, flip]",
            (f"{FUSION}::test_a_swap_undone_exchanges_the_monocular_pose_with_the_keypoints",)),
-    Mutant("left/right: any gain taken for a swap", "posecam/multiview/left_right.py",
-           "act = ratios[best, frames] < SWAP_RATIO", "act = ratios[best, frames] < 1.0",
-           (f"{FUSION}::test_left_right_swaps_are_found_and_undone",)),
     # ---- re-identification ----------------------------------------------------------------------
     Mutant("re-identification: the looks' gate switched off", "posecam/tracking/reid.py",
            "    return unambiguous_pairs(cost, o.reid_distance, o.reid_margin)",
