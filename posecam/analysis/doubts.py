@@ -144,7 +144,7 @@ class DoubtStage(Generic[Item]):
             root = float(np.linalg.norm(p.root - path) / np.linalg.norm(p.root))
         limbs, own = np.array([x for _, _, x in rows]), self._limbs(p)
         known = (np.isfinite(limbs).sum(axis=0) >= MIN_SAMPLES) & np.isfinite(own) & (own > 0)
-        ratio = [np.log(own[i] / np.nanmedian(limbs[:, i])) for i in np.flatnonzero(known)]
+        ratio = np.log(own[known] / np.nanmedian(limbs[:, known], axis=0)) if known.any() else np.zeros(0)
         if len(ratio) >= MIN_SAMPLES:
             bones = float(np.median(ratio))
         return root, bones
