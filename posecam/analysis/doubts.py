@@ -127,7 +127,8 @@ class DoubtStage(Generic[Item]):
         while self._held and (final or self._held[0][0].time + self.window <= self._last + 1e-6):
             frame, item = self._held.popleft()
             for p in frame.people:
-                p.doubts = tuple(d for d in DOUBTS if d in p.doubts or d in self._track_doubts(p, frame.time))
+                found = p.doubts + self._track_doubts(p, frame.time)
+                p.doubts = tuple(d for d in DOUBTS if d in found)
             self._forget(frame.time)
             out.append(item)
         return out
