@@ -4,7 +4,7 @@
                                   [--before CHECKOUT]
 
 1. Speed and memory: frames per second and peak resident memory of `posecam predict` on the
-   single take's 100-frame 1088x1920 clip (`--camera`, cam01), and of MediaPipe 0.10.21's
+   single take's 100-frame 1080x1920 clip (`--camera`, cam01), and of MediaPipe 0.10.21's
    Python pose solution (same BlazePose network family, `model_complexity=1` = the full
    model) on the same clip. MediaPipe runs in a throwaway virtual environment
    (.cache/mediapipe-venv, made on first use); each run is a fresh process, alternating the
@@ -102,7 +102,7 @@ def speed(video: Path, runs: int, model: str, detector: str, others: dict[str, P
                 results[name + tag].append(run_child(sys.executable, "posecam", str(path), model, detector, code=code))
             if name == "posecam":
                 results["mediapipe"].append(run_child(mp_python, "mediapipe", str(video)))
-    print(f"\nSpeed on the single take's {video.name} (1088x1920, 100 frames), {runs} runs each, medians"
+    print(f"\nSpeed on the single take's {video.name} (100 frames, portrait), {runs} runs each, medians"
           + (f" (before: the posecam in {before})" if before else "") + ":")
     print(f"{'':41s}{'fps':>8s}{'s/run':>8s}{'peak MB':>9s}")
     rows = [(f"posecam{c}", f"posecam predict{c} ({model}, {detector})") for c in codes]
