@@ -4,18 +4,24 @@
                                   [--before CHECKOUT]
 
 1. Speed and memory: frames per second and peak resident memory of `posecam predict` on the
-   100-frame 1080x1920 cam01 clip, and of MediaPipe 0.10.21's Python pose solution (same
-   BlazePose network family, `model_complexity=1` = the full model) on the same clip. MediaPipe
-   runs in a throwaway virtual environment (.cache/mediapipe-venv, made on first use); each run
-   is a fresh process, alternating the two, and medians are printed.
+   single take's 100-frame 1080x1920 clip (`--camera`, cam01), and of MediaPipe 0.10.21's
+   Python pose solution (same BlazePose network family, `model_complexity=1` = the full
+   model) on the same clip. MediaPipe runs in a throwaway virtual environment
+   (.cache/mediapipe-venv, made on first use); each run is a fresh process, alternating the
+   two, and medians are printed.
 2. Accuracy: for each of the 4 demo cameras, with the lab calibration's intrinsics, the mean
    distance between posecam's root (pelvis) and the pelvis triangulated from all 4 views
    through the lab's Qualisys calibration (the videos' frame offsets are set as measured).
 3. Frames per second of `posecam predict` on the two multi-person recordings: Pose2Sim's
    two-person take (cam03, 1088x1920) and, with --vtest, OpenCV's vtest.avi (768x576, 795
    frames of pedestrians); medians of the same runs.
+4. Where a frame's time goes (one more run in this process, after the timed ones): the
+   milliseconds a frame spent waiting for its decoded image (the decoding runs ahead in a
+   thread of its own), in the detector, the appearance embedder and the pose model, and the
+   rest, with each model's runs a frame, for each clip.
 With --before CHECKOUT (a folder holding an older `posecam/`) each posecam run is followed by
-the same run of the older code, in the same alternation, and both are printed.
+the same run of the older code, in the same alternation, and both are printed. `--camera`
+picks the single take's clip (cam01: the subject and a bystander; cam03: the subject alone).
 """
 
 from __future__ import annotations
@@ -96,7 +102,7 @@ def speed(video: Path, runs: int, model: str, detector: str, others: dict[str, P
                 results[name + tag].append(run_child(sys.executable, "posecam", str(path), model, detector, code=code))
             if name == "posecam":
                 results["mediapipe"].append(run_child(mp_python, "mediapipe", str(video)))
-    print(f"\nSpeed on {video.name} (1080x1920, 100 frames), {runs} runs each, medians"
+    print(f"\nSpeed on the single take's {video.name} (100 frames, portrait), {runs} runs each, medians"
           + (f" (before: the posecam in {before})" if before else "") + ":")
     print(f"{'':41s}{'fps':>8s}{'s/run':>8s}{'peak MB':>9s}")
     rows = [(f"posecam{c}", f"posecam predict{c} ({model}, {detector})") for c in codes]
@@ -106,6 +112,57 @@ def speed(video: Path, runs: int, model: str, detector: str, others: dict[str, P
         fps = statistics.median(r["frames"] / r["seconds"] for r in rs)
         print(f"{label:41s}{fps:8.1f}{statistics.median(r['seconds'] for r in rs):8.2f}"
               f"{statistics.median(r['peak_mb'] for r in rs):9.0f}")
+
+
+def stages(clips: dict[str, Path], model: str, detector: str) -> None:
+    """Per-frame milliseconds of each stage of `posecam predict`'s chain, for each clip."""
+    import collections
+
+    from posecam import EstimatorOptions, PoseEstimator
+
+    est = PoseEstimator(EstimatorOptions(model=model, detector=detector))
+    spent: dict[str, float] = collections.defaultdict(float)
+    calls: collections.Counter = collections.Counter()
+
+    def timed(name: str, call):
+        def run(*args, **kwargs):
+            start = time.perf_counter()
+            try:
+                return call(*args, **kwargs)
+            finally:
+                spent[name] += time.perf_counter() - start
+                calls[name] += 1
+        return run
+
+    models = {"detector": est.detector.model, "pose": est.pose_model.model, "embedder": est.embedder and est.embedder.model}
+    for name, m in models.items():
+        if m is not None:
+            m.run = timed(name, m.run)
+    print(f"\nWhere a frame's time goes ({model}, {detector}; ms a frame, model runs a frame in brackets):")
+    names = ["decode wait", *[n for n, m in models.items() if m is not None]]
+    print(f"{'':22s}" + "".join(f"{n:>22s}" for n in names) + f"{'rest':>8s}{'fps':>7s}")
+    for label, path in clips.items():
+        spent.clear()
+        calls.clear()
+        stream = est.stream_file(path)
+        decoded = stream.media.frames()
+
+        def frames():
+            while True:
+                start = time.perf_counter()
+                item = next(decoded, None)
+                spent["decode wait"] += time.perf_counter() - start
+                if item is None:
+                    return
+                yield item
+
+        stream.frames = est._confirmed(frames(), stream.recording.intrinsics, stream.media.sample_fps)
+        start = time.perf_counter()
+        n = sum(1 for _ in stream.poses())
+        total = time.perf_counter() - start
+        cells = "".join(f"{1000 * spent[k] / n:13.1f} " + (f"({calls[k] / n:4.2f}) " if k in models else " " * 8)
+                        for k in names)
+        print(f"{label:22s}{cells}{1000 * (total - sum(spent.values())) / n:8.1f}{n / total:7.1f}")
 
 
 def _first_person(frames: list, attr: str, shape: tuple[int, ...]):
@@ -156,6 +213,7 @@ def main() -> None:
     ap.add_argument("--model", default="full")
     ap.add_argument("--detector", default="movenet")
     ap.add_argument("--vtest", help="OpenCV's vtest.avi (apt-get download opencv-doc) for its frames/s")
+    ap.add_argument("--camera", default="cam01", choices=CAMERAS, help="the single take's clip timed")
     ap.add_argument("--no-accuracy", action="store_true")
     ap.add_argument("--before", help="a folder with an older posecam/, timed in the same runs")
     ap.add_argument("--child", help=argparse.SUPPRESS)
@@ -173,7 +231,8 @@ def main() -> None:
     others = {"two-person cam03": pose2sim_demo_path("videos/cam03.mp4").parents[2] / "Demo_MultiPerson/videos/cam03.mp4"}
     if a.vtest:
         others["vtest.avi"] = Path(a.vtest)
-    speed(videos["cam01"], a.runs, a.model, a.detector, others, Path(a.before).resolve() if a.before else None)
+    speed(videos[a.camera], a.runs, a.model, a.detector, others, Path(a.before).resolve() if a.before else None)
+    stages({f"single take {a.camera}": videos[a.camera], **others}, a.model, a.detector)
     if not a.no_accuracy:
         accuracy(videos, pose2sim_demo_path("calibration/Calib.qca.txt"), a.model, a.detector)
 

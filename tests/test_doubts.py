@@ -7,13 +7,14 @@ at frame by frame; the frames named below are those where the drawn skeleton is 
 import csv
 import dataclasses
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from conftest import invoke_posecam
-from posecam.analysis.doubts import DoubtStage
+from posecam.analysis.doubts import DoubtStage, finite_medians
 from posecam.geometry.camera import project
 from posecam.io.poses import read_poses
 from posecam.multiview.observations import tracks_of
@@ -140,3 +141,15 @@ def test_predict_writes_counts_and_draws_the_doubts(tmp_path, suffix):
     assert doubted
     summary = " ".join(run.stdout.split())
     assert f"{len(doubted)} poses doubtful in {CLIP.name}" in summary
+
+
+def test_finite_medians_are_nanmedians():
+    rng = np.random.default_rng(3)
+    for rows in (1, 2, 3, 8, 101, 300):
+        values = rng.normal(300.0, 40.0, (rows, 8))
+        values[rng.random(values.shape) < 0.3] = np.nan
+        values[:, 0] = np.nan   # a limb never seen
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)   # the column never seen: all NaN
+            want = np.nanmedian(values, axis=0)
+        np.testing.assert_array_equal(finite_medians(values), want)

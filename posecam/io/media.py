@@ -31,6 +31,7 @@ no such switch, is muted while an image is decoded.
 from __future__ import annotations
 
 import os
+import queue
 import re
 import stat
 import struct
@@ -50,6 +51,7 @@ from posecam.errors import InputError, warn
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp")   # read as still images
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv")   # videos posecam writes, and looks for in a take folder
 DEFAULT_FPS = 30.0   # the frame rate of an image sequence, and of a video or a recording that gives none
+READ_AHEAD = 2      # video frames decoded ahead of the one being posed (a thread of their own)
 TIME_ROUNDING = 5e-5  # s: half the last decimal of a pose file's times (4 decimals)
 
 
@@ -140,7 +142,8 @@ class Media:
 
     def frames(self) -> Iterator[tuple[int, float, np.ndarray]]:
         """Yield (index, time in s, RGB uint8 image) of the selected frames, index and time
-        those of the source; memory stays flat for any length."""
+        those of the source; memory stays flat for any length. A video's frames are decoded
+        ahead, in a thread of their own (`read_ahead`)."""
         if self.kind == "image":
             yield 0, 0.0, self.image if self.image is not None else read_image(self.path)
         elif self.kind == "sequence":
@@ -152,7 +155,7 @@ class Media:
                                      f"{self.path} are {self.width}x{self.height}")
                 yield i, i / DEFAULT_FPS, rgb
         else:
-            yield from self._video_frames()
+            yield from read_ahead(self._video_frames())
 
     def _video_frames(self) -> Iterator[tuple[int, float, np.ndarray]]:
         wanted = self.selected
@@ -175,6 +178,53 @@ class Media:
         if not ok and index < self.frame_count:
             warn(f"{self.path} ended after {index} of its {self.frame_count} declared frames "
                  "(a truncated or damaged video?)")
+
+
+class _Failed:
+    """What a reader thread raised, handed to the thread reading its frames."""
+
+    def __init__(self, error: BaseException):
+        self.error = error
+
+
+def read_ahead(items: Iterator, depth: int = READ_AHEAD) -> Iterator:
+    """`items` (a video's frames) produced in a thread of their own, at most `depth` ahead of
+    the one the caller holds: OpenCV decodes without Python's lock, so the next frame is decoded
+    while this one is posed. What the thread raises is raised here; memory stays flat (at most
+    `depth` frames wait), and the thread stops (and closes `items`) once the caller stops,
+    ends or is interrupted (a daemon thread: Ctrl-C never waits for it)."""
+    waiting: queue.Queue = queue.Queue(maxsize=depth)
+    stop, done = threading.Event(), object()
+
+    def hand(item: object) -> bool:
+        while not stop.is_set():
+            try:
+                waiting.put(item, timeout=0.1)
+                return True
+            except queue.Full:
+                continue
+        return False
+
+    def read() -> None:
+        try:
+            for item in items:
+                if not hand(item):
+                    return
+            hand(done)
+        except BaseException as exc:  # noqa: BLE001 -- raised again in the caller's thread
+            hand(_Failed(exc))
+        finally:
+            items.close()
+
+    reader = threading.Thread(target=read, name="posecam-decode", daemon=True)
+    reader.start()
+    try:
+        while (item := waiting.get()) is not done:
+            if isinstance(item, _Failed):
+                raise item.error
+            yield item
+    finally:
+        stop.set()
 
 
 def _seek(cap: cv2.VideoCapture, index: int) -> None:
