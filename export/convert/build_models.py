@@ -261,8 +261,9 @@ the npm package is MIT. Converted from TF.js to ONNX by posecam's own converter
 (`export/convert/tfjs_onnx.py`): no weight changes (float16 initializers read through a Cast);
 the graph's constant SparseToDense nodes are folded. Outputs match TF.js's CPU backend to 2e-5
 absolute (`tests/test_tfjs_converter.py`). posecam reads only its person class: a general
-detector, with other failure modes than MoveNet's, run where MoveNet may have missed someone
-(`posecam/inference/second_look.py`); its boxes carry no keypoints.
+detector, with other failure modes than MoveNet's, for a second look where someone followed is lost
+(`posecam/tracking/second_look.py`, `EstimatorOptions(second_look=True)`; off by default: no gain
+measured yet, docs/benchmarks.md); its boxes carry no keypoints.
 
 - input `input_1` [1, 3, 416, 416] float32 NCHW, **BGR**, (pixel - (103.53, 116.28, 123.675)) /
   (57.375, 57.12, 58.395); posecam letterboxes the image into the square.
