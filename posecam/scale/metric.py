@@ -158,7 +158,7 @@ class MetricStage:
         self._frames_seen = 0
         self._measurable = segments(rec.joints) is not None
         self._model_mm = 1000.0 * MODEL_STATURE[rec.model] if rec.model in MODEL_STATURE else None
-        self._core = np.array([not any(part in j and not j.startswith("foot") for part in ARM_PARTS)
+        self._core = np.array([not any(part in j and "foot" not in j for part in ARM_PARTS)
                                for j in rec.joints], float)
 
     def push(self, frame: Frame) -> list[Frame]:
