@@ -212,6 +212,38 @@ def depth_sd_coverage(cams, recs, ref) -> tuple[float, float, int]:
     return float(np.mean(r <= 1)), float(np.mean(r <= 2)), len(r)
 
 
+STILL_FRAMES = 30            # a stand-still window: this many frames of one track ...
+STILL_PX = 20.0              # ... whose 2D pelvis stays within this many pixels on each axis
+
+
+def still_depth_sd(cams, recs, ref) -> tuple[float, float, int]:
+    """The root depth's spread (mm) where a person stays on the spot: over each window of
+    STILL_FRAMES consecutive frames of a track whose 2D pelvis moves less than STILL_PX on
+    each axis (the pose may change: arms, a lunge), the sd of posecam's root depth and of
+    the lab DLT pelvis's (its own motion, the floor of what can be reached; on the window's
+    frames with a reference, at least half); medians over the
+    windows (taken every STILL_FRAMES / 2 frames) and their count."""
+    ours, lab = [], []
+    for c, (cam, rec) in enumerate(zip(cams, recs)):
+        tracks: dict[int, list] = {}
+        for f in rec.frames:
+            for p in f.people:
+                tracks.setdefault(p.id, []).append((f.index, p.keypoints_2d[PELVIS], p.root[2],
+                                                    ref.get((c, f.index, p.id))))
+        for rows in tracks.values():
+            for a in range(0, len(rows) - STILL_FRAMES + 1, STILL_FRAMES // 2):
+                w = rows[a:a + STILL_FRAMES]
+                seen = [cam.to_camera(r[3][0])[2] for r in w if r[3] is not None]
+                if w[-1][0] - w[0][0] != STILL_FRAMES - 1 or len(seen) < STILL_FRAMES // 2:
+                    continue
+                uv = np.array([r[1] for r in w])
+                if (uv.max(axis=0) - uv.min(axis=0)).max() >= STILL_PX:
+                    continue
+                ours.append(np.std([r[2] for r in w]))
+                lab.append(np.std(seen))
+    return (float(np.median(ours)) if ours else np.nan, float(np.median(lab)) if lab else np.nan, len(ours))
+
+
 def heights(recs, ref) -> dict[str, list[float]]:
     """Estimated heights (m) of the tracks, by who they are (the reference's majority), per track."""
     out = {"adult": [], "child": []}
@@ -265,6 +297,10 @@ def take_bench(take: str, cache: Path) -> None:
         smooth = root_errors(cams, [smooth_recording(r) for r in scaled], ref)
         print(f"{label:40s}" + "".join(f"{e:8.0f}" for e in (*raw, np.mean(raw))) + " |"
               + "".join(f"{e:8.0f}" for e in (*smooth, np.mean(smooth))))
+        still = still_depth_sd(cams, scaled, ref)
+        still_smooth = still_depth_sd(cams, [smooth_recording(r) for r in scaled], ref)
+        print(f"{'':40s}on the spot ({still[2]} windows of {STILL_FRAMES} frames, pelvis within {STILL_PX:.0f} px): "
+              f"depth sd {still[0]:.0f} mm unsmoothed, {still_smooth[0]:.0f} smoothed (the lab pelvis's {still[1]:.0f})")
         if take == "multi":
             print(f"{'':40s}adult / child: " + ", ".join(
                 f"{c} {a:.0f} / {b:.0f}" for c, a, b in zip(CAMERAS, root_errors(cams, scaled, ref, "adult"),

@@ -30,16 +30,17 @@ from posecam.scale.metric import MetricOptions, MetricStage
 from posecam.geometry.boxes import boxes_overlap
 from posecam.geometry.camera import Intrinsics
 from posecam.geometry.triangulate import MIN_CONFIDENCE
-from posecam.inference.detector import Detection, detect_any_turn, load_detector
+from posecam.inference.detector import Detection, MoveNetDetector, detect_any_turn, load_detector, load_second_look
 from posecam.inference.embedder import load_embedder
 from posecam.inference.pose_model import PoseCandidate, make_lifter, make_pose_model
-from posecam.inference.roi import Roi
+from posecam.inference.roi import Roi, past_border
 from posecam.inference.session import load_model
 from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
 from posecam.io.media import FrameSelection, Media, open_media
 from posecam.results import Dropped, Frame, Person, Recording
 from posecam.skeleton import BLAZEPOSE33, BLAZEPOSE_LANDMARKS, H36M_JOINTS, SKELETONS, blazepose_to_h36m, skeleton_of
 from posecam.tracking import ConfirmedIds, Track, Tracker, TrackerOptions, foreign_joints, number_people, oks
+from posecam.tracking.second_look import due, second_look
 
 MIN_PERSON_PX = 40    # the detector searches for people at least this tall (image pixels)
 # The rate frames are tracked at when they come with none and no times (`PoseEstimator.track`
@@ -62,6 +63,7 @@ class EstimatorOptions:
     min_presence: float = 0.5           # drop a person whose pose model presence falls below
     redetect_every: int = 15            # frames between detector runs while nobody may be missing
     appearance: bool = True             # re-identify people by their looks (the bundled embedder); False: ids from motion alone
+    second_look: bool = False           # look again with NanoDet where someone followed is lost (no gain measured yet: off)
     threads: int | None = None
     device: str = "cpu"                 # "cpu" or "cuda" (onnxruntime-gpu's CUDA provider)
 
@@ -195,6 +197,9 @@ class PoseEstimator:
         self.detector = load_detector(opts.detector, opts.threads, opts.min_detection_score, opts.detector_size,
                                       opts.device)
         self.min_detection_score = self.detector.start_score
+        # the second look for the people MoveNet misses (MoveNet reads the people it finds)
+        self.second_look = load_second_look(opts.threads, opts.device) \
+            if opts.second_look and isinstance(self.detector, MoveNetDetector) else None
         self.embedder = load_embedder(threads=opts.threads, device=opts.device) if opts.appearance else None
         pose = load_model(opts.model, opts.threads, device=opts.device)
         if pose.contract.kind in ("detector", "embedder"):
@@ -253,6 +258,10 @@ class PoseEstimator:
                 detections = self.detector(image_rgb, tiles=search.regions, whole=search.whole)
             else:                  # nobody followed: every tile, and people in any orientation
                 detections = detect_any_turn(self.detector, image_rgb, person_px)
+            if self.second_look is not None and due(tracker, run, tracker.fps):
+                tracker.looked_at = tracker.next_frame
+                detections = detections + second_look(self.second_look, self.detector, image_rgb, detections,
+                                                      [t.box for t in tracker.active()])
         tracks = tracker.begin_frame(detections, image_rgb, search)
         if not tracks:
             return [], [], list(tracker.refused)
@@ -276,7 +285,8 @@ class PoseEstimator:
                   detections: list[Detection]) -> tuple[PoseCandidate, str | None]:
         """The pose of the track's own person, and why it is dropped (None: kept). A pose the
         pose model doubts (presence below min_presence) or with 3 or more joints on a neighbour
-        is tried again: from an upright crop of the person's box, then from the detector's crop
+        is tried again: from an upright crop of the person's box, from one reaching past the
+        image's border where it cuts the box (`past_border`), then from the detector's crop
         turned by 90, -90 and 180 degrees (people lying, upside down), the first pose kept
         winning. Joints that still fall on a neighbour lose their confidence (so the lift places
         the root without them), and the pose is refused ("neighbour") when most of its joints
@@ -296,8 +306,9 @@ class PoseEstimator:
 
         foreign = foreign_of(c)
         if rank(c, foreign)[0] is False:
-            r = own.roi
-            retries = [Roi.around_points(own.box.reshape(2, 2))] + \
+            r, h, w = own.roi, *image_rgb.shape[:2]
+            cut = past_border(own.box, w, h)   # a person the border cuts: the crop reaches past it
+            retries = [Roi.around_points(own.box.reshape(2, 2))] + ([cut] if cut else []) + \
                 [replace(r, angle=r.angle + turn) for turn in (np.pi / 2, -np.pi / 2, np.pi)]
             for roi in retries:
                 redo = self.pose_model(image_rgb, [roi])[0]

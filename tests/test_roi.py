@@ -1,4 +1,5 @@
 import numpy as np
+import pytest
 
 from posecam.inference.detector import CROP_KEYPOINT_SCORE
 from posecam.inference.roi import Roi, body_roi
@@ -67,3 +68,17 @@ def test_body_roi_falls_back_to_the_box_without_hips():
     conf[list(HIPS)] = 0.0
     roi = body_roi(pts, conf, np.array([100.0, 200.0, 200.0, 600.0]), HIPS, SHOULDERS, CROP_KEYPOINT_SCORE)
     assert (roi.cx, roi.cy, roi.angle) == (150.0, 400.0, 0.0) and roi.size == 400 * 1.25
+
+
+def test_a_person_cut_by_the_border_is_cropped_past_it():
+    """A box the left border cuts (its visible part 250 x 540 px of a 560 px wide image): the
+    crop holds the whole box, with a tenth of its height to spare on the inner side, and
+    reaches past the cut side, where the rest of the body is; a box clear of the border gets none."""
+    from posecam.inference.roi import past_border
+
+    box = np.array([5.0, 460.0, 255.0, 1000.0])
+    roi = past_border(box, 560, 1920)
+    x0, y0, x1, y1 = roi.box
+    assert x1 == pytest.approx(255.0 + 54.0) and x0 < -300.0      # inner side at the box's plus a tenth; far past the edge
+    assert y0 < 460.0 and y1 > 1000.0
+    assert past_border(np.array([100.0, 460.0, 350.0, 1000.0]), 560, 1920) is None

@@ -105,3 +105,27 @@ def body_roi(points: np.ndarray, conf: np.ndarray, box: np.ndarray, hips: tuple[
             if roi.size <= MAX_BOX_RATIO * float(np.max(box[2:] - box[:2])):
                 return roi
     return Roi.around_points(np.asarray(box, np.float64).reshape(2, 2))
+
+
+CUT_GAP = 0.1          # a box this close to the border (fraction of its longer side) may be cut by it
+CUT_REACH = 1.6        # the side of a cut person's crop over their box's longer side
+
+
+def past_border(box: np.ndarray, width: int, height: int) -> Roi | None:
+    """An upright ROI for a person whose box (x0, y0, x1, y1) the image's border may cut (it
+    comes within CUT_GAP of its longer side of it): a square CUT_REACH times that side, its
+    inner sides a tenth of it beyond the box's and reaching past the cut sides, where the rest
+    of the body is (the crop is padded there); None when the box is clear of the border."""
+    long_side = float(np.max(box[2:] - box[:2]))
+    gap = CUT_GAP * long_side
+    cut = np.array([box[0] <= gap, box[1] <= gap, box[2] >= width - gap, box[3] >= height - gap])
+    if not cut.any():
+        return None
+    side, pad = CUT_REACH * long_side, 0.1 * long_side
+    centre = (box[:2] + box[2:]) / 2
+    for axis in (0, 1):
+        if cut[axis] and not cut[axis + 2]:        # cut at the low side: the square ends past the high side
+            centre[axis] = box[axis + 2] + pad - side / 2
+        elif cut[axis + 2] and not cut[axis]:      # cut at the high side
+            centre[axis] = box[axis] - pad + side / 2
+    return Roi(float(centre[0]), float(centre[1]), side)

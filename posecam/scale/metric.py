@@ -56,6 +56,12 @@ LENS_SAMPLES = 64               # per track: upright frames kept for the lens
 # their tracks' own sizes).
 MODEL_STATURE = {"blazepose-full": 1.678, "blazepose-lite": 1.647}
 LENS_DISAGREES = 2.0            # standard uncertainties between the default lens and the people's for a warning
+# The joints that move the most with the pose (the arms: elbows, wrists, hands) also move the
+# root's depth most when the pose model misplaces them in depth: jumping jacks on the spot swing
+# the root's depth with the arms. Each frame's root is placed again on the other joints (head,
+# torso, legs), where at least CORE_JOINTS of them are confident.
+ARM_PARTS = ("elbow", "wrist", "pinky", "thumb", "_index")
+CORE_JOINTS = 6
 
 
 
@@ -152,6 +158,8 @@ class MetricStage:
         self._frames_seen = 0
         self._measurable = segments(rec.joints) is not None
         self._model_mm = 1000.0 * MODEL_STATURE[rec.model] if rec.model in MODEL_STATURE else None
+        self._core = np.array([not any(part in j and "foot" not in j for part in ARM_PARTS)
+                               for j in rec.joints], float)
 
     def push(self, frame: Frame) -> list[Frame]:
         self._since_fit += 1
@@ -328,12 +336,23 @@ class MetricStage:
             h = float(stature(p.keypoints_3d, p.confidence, self.rec.joints))
             s = ts.scale * (ts.stature / h if np.isfinite(h) else 1.0)     # the track's height, then its scale
             breathing = self._tracks[p.id].breathing
-            depth = float(p.root[2]) * s
+            xyz = self._on_core(p.keypoints_3d * s, p)
+            depth = float(p.skeleton.root_point(xyz)[2])
             people.append(dataclasses.replace(
-                p, keypoints_3d=p.keypoints_3d * s, height=ts.scale * ts.stature / 1000.0, height_source=ts.source,
+                p, keypoints_3d=xyz, height=ts.scale * ts.stature / 1000.0, height_source=ts.source,
                 height_estimated=ts.estimated, height_sd=ts.estimated_sd,
                 depth_sd=abs(depth) * float(np.hypot(ts.relative_sd, breathing))))
         return dataclasses.replace(frame, people=people)
+
+
+    def _on_core(self, xyz: np.ndarray, p: Person) -> np.ndarray:
+        """The pose `xyz` placed again on its 2D keypoints by the joints off the arms (see
+        ARM_PARTS), through the lens of the frames given out; as it is where too few are seen."""
+        weights = p.confidence * self._core
+        k = self.intrinsics
+        if k is None or (weights >= MIN_CONFIDENCE).sum() < CORE_JOINTS:
+            return xyz
+        return place_on_keypoints(xyz, p.keypoints_2d, weights, k)
 
 
 def scale_recording(rec: Recording, options: MetricOptions | None = None) -> Recording:

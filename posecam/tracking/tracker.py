@@ -39,6 +39,7 @@ class Tracker:
         self.refused: list[Dropped] = []     # this frame's confident detections over max_people
         self._smallest: float | None = None  # height (px) of the smallest confirmed person so far
         self._lost_now: set[int] = set()     # ids of people followed whom the pose model lost since the last detector run
+        self.looked_at: int | None = None    # the last frame with a second look (posecam.tracking.second_look)
 
     def detector_run(self, width: int, height: int) -> DetectorRun | None:
         """Whether to run the detector on this frame (a `width` x `height` image), and for
@@ -55,6 +56,15 @@ class Tracker:
     def person_px(self) -> float | None:
         """The height (px) of the smallest person confirmed so far in this video (None: nobody yet)."""
         return self._smallest
+
+    @property
+    def next_frame(self) -> int:
+        """The index of the frame `begin_frame` takes next."""
+        return self._frame + 1
+
+    def missing_people(self) -> bool:
+        """Whether someone confirmed is lost and still remembered (looked for)."""
+        return any(t.lost > 0 and t.number is not None for t in self.tracks)
 
     def active(self) -> list[Track]:
         return [t for t in self.tracks if t.lost == 0]

@@ -1,0 +1,130 @@
+"""The athlete through hard footage: edits of the single take's cam01 anyone can see, and on how
+many frames posecam keeps him (under one id).
+
+    python bench/bench_hard_people.py [--before CHECKOUT] [--clips backlit,border,...]
+
+The clips (100 frames, 60 fps, written to --cache, .cache/bench_hard_people): `backlit` (frames 20-79
+darkened to 12 % under a low sun's glare over him), `backlit_all` (every frame so), `rot180`
+(turned 180 deg), `border` (cropped at x = 520: the left edge cuts him), `occluded` (a grey
+box over his body for frames 30-59), `lost_backlit` (hidden by a grey box for frames 30-49,
+then backlit). Yardstick: his box on the plain clip (the tallest person of each frame: he is,
+by eye, on frames 0, 50 and 99), carried through each edit; a frame counts where he is in view
+(half of him or more for `border`, not hidden for `lost_backlit`). Found: frames with a person
+on his box (IoU > 0.3); one id: frames under his most frequent id. With --before the same runs
+of an older posecam/ (its folder first on the path, in a child process) come first.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+SOURCE = REPO / "examples" / "demo" / "single" / "cam01.mp4"
+CUT_X = 520          # border: the columns kept start here
+CLIPS = ("backlit", "backlit_all", "rot180", "border", "occluded", "lost_backlit")
+
+
+def make_clips(out_dir: Path) -> None:
+    import cv2
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    cap = cv2.VideoCapture(str(SOURCE))
+    frames = []
+    while True:
+        ok, f = cap.read()
+        if not ok:
+            break
+        frames.append(f)
+    h, w = frames[0].shape[:2]
+    yy, xx = np.mgrid[0:h, 0:w]
+    glare = np.exp(-(((xx - 0.55 * w) ** 2 + (yy - 0.3 * h) ** 2) / (2 * (0.3 * w) ** 2)))[..., None]
+
+    def dark(f):
+        return np.clip(f * 0.12 + 255 * glare, 0, 255).astype(np.uint8)
+
+    def box(f, y0, y1, x0, x1):
+        g = f.copy()
+        g[y0:y1, x0:x1] = 128
+        return g
+
+    edits = {
+        "backlit": [dark(f) if 20 <= i < 80 else f for i, f in enumerate(frames)],
+        "backlit_all": [dark(f) for f in frames],
+        "rot180": [f[::-1, ::-1] for f in frames],
+        "border": [f[:, CUT_X:] for f in frames],
+        "occluded": [box(f, 600, 1300, 250, 800) if 30 <= i < 60 else f for i, f in enumerate(frames)],
+        "lost_backlit": [box(f, 300, 1500, 0, 1000) if 30 <= i < 50 else dark(f) if i >= 50 else f
+                         for i, f in enumerate(frames)],
+    }
+    for name, images in edits.items():
+        path = out_dir / f"{name}.mp4"
+        if path.exists():
+            continue
+        hh, ww = images[0].shape[:2]
+        out = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 60, (ww, hh))
+        for im in images:
+            out.write(np.ascontiguousarray(im))
+        out.release()
+
+
+def measure(clips: list[str], out_dir: Path) -> dict:
+    from posecam import PoseEstimator
+    from posecam.geometry.boxes import box_iou
+
+    est = PoseEstimator()
+    w, h = 1080, 1920
+    plain = est.predict_file(SOURCE)
+    him = [max(f.people, key=lambda p: p.bbox[3] - p.bbox[1]).bbox for f in plain.frames]
+    carry = {"rot180": lambda b: np.array([w - b[2], h - b[3], w - b[0], h - b[1]]),
+             "border": lambda b: np.array([max(b[0] - CUT_X, 0), b[1], b[2] - CUT_X, b[3]])}
+    out = {}
+    for name in clips:
+        rec = est.predict_file(out_dir / f"{name}.mp4")
+        ids, counted = [], 0
+        for i, (f, b) in enumerate(zip(rec.frames, him)):
+            if (name == "border" and b[2] - CUT_X < 0.5 * (b[2] - b[0])) or (name == "lost_backlit" and 30 <= i < 50):
+                continue
+            counted += 1
+            want = carry.get(name, lambda b: b)(b)[None]
+            best = max(f.people, key=lambda p: box_iou(p.bbox, want)[0, 0], default=None)
+            ids.append(best.id if best is not None and box_iou(best.bbox, want)[0, 0] > 0.3 else None)
+        c = Counter(i for i in ids if i is not None)
+        out[name] = {"counted": counted, "found": sum(i is not None for i in ids),
+                     "one id": c.most_common(1)[0][1] if c else 0, "ids": len(c)}
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--before", help="a folder with an older posecam/")
+    ap.add_argument("--clips", default=",".join(CLIPS))
+    ap.add_argument("--cache", type=Path, default=REPO / ".cache" / "bench_hard_people", help="where the clips are written")
+    ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)   # a child's figures
+    a = ap.parse_args()
+    clips = a.clips.split(",")
+    make_clips(a.cache)
+    if a.json:
+        print(json.dumps(measure(clips, a.cache)))
+        return
+    runs = {}
+    if a.before:
+        env = {**os.environ, "PYTHONPATH": str(Path(a.before).resolve())}
+        done = subprocess.run([sys.executable, __file__, "--json", "--clips", a.clips, "--cache", str(a.cache.resolve())],
+                              env=env, cwd="/",
+                              capture_output=True, text=True, check=True)
+        runs["before"] = json.loads(done.stdout.strip().splitlines()[-1])
+    runs["after"] = measure(clips, a.cache)
+    for name in clips:
+        print(f"{name:14s}" + "  ".join(f"{who}: {json.dumps(r[name])}" for who, r in runs.items()))
+
+
+if __name__ == "__main__":
+    main()

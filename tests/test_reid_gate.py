@@ -1,0 +1,88 @@
+"""The re-identification's gates on real pedestrians (vtest.avi, people told apart by hand):
+looks alone never give a lost person's id to someone where that person could not be, and a
+lost person's motion match is refused to someone who looks otherwise."""
+
+import json
+
+import numpy as np
+import pytest
+
+from conftest import DATA
+from posecam.inference.detector import Detection
+from posecam.inference.embedder import load_embedder
+from posecam.inference.roi import Roi
+from posecam.io.media import read_image
+from posecam.tracking import TrackerOptions, reid
+from posecam.tracking.motion import BoxKalman
+from posecam.tracking.track import Track
+
+PEOPLE = json.loads((DATA / "vtest_people" / "people.json").read_text())["people"]
+FPS = 10.0   # vtest.avi's rate
+
+
+@pytest.fixture(scope="module")
+def embedder():
+    return load_embedder()
+
+
+def _frame() -> np.ndarray:
+    return read_image(DATA / "vtest_people" / "vtest_175.jpg")
+
+
+def _box(person: str) -> np.ndarray:
+    return np.array(PEOPLE[person]["175"], float)
+
+
+def _pasted(image: np.ndarray, source: np.ndarray, to: np.ndarray) -> np.ndarray:
+    """`image` with the pixels of box `source` copied, resized, into box `to`."""
+    import cv2
+
+    x0, y0, x1, y1 = source.astype(int)
+    u0, v0, u1, v1 = to.astype(int)
+    out = image.copy()
+    out[v0:v1, u0:u1] = cv2.resize(image[y0:y1, x0:x1], (u1 - u0, v1 - v0), interpolation=cv2.INTER_LINEAR)
+    return out
+
+
+def _detection(box: np.ndarray) -> Detection:
+    return Detection(0.9, box, np.zeros((17, 2)), np.zeros(17), Roi.around_points(box.reshape(2, 2)))
+
+
+def _lost(embedder, image: np.ndarray, box: np.ndarray, frames_lost: int) -> Track:
+    """A person last seen at `box` in `image`, `frames_lost` frames ago, with a gallery of their looks there."""
+    t = Track(0, Roi.around_points(box.reshape(2, 2)), BoxKalman(box), np.zeros((17, 2)), np.zeros(17),
+              lost=frames_lost, number=0)
+    t.gallery = [embedder(image, box[None])[0]]
+    return t
+
+
+def test_looks_alone_do_not_bring_back_someone_too_far_or_of_another_height(embedder):
+    """The man in the black jacket, lost one frame ago: his own crop where he was is him again;
+    the same crop pasted 4 of his heights away (he walks 1 a second), or stretched to twice his
+    height where he was, looks just as much like him and is not him."""
+    image, o = _frame(), TrackerOptions()
+    box = _box("black_jacket_jeans")
+    tall = box[3] - box[1]
+    lost = _lost(embedder, image, box, 1)
+    far = box + [-4 * tall, 0, -4 * tall, 0]
+    taller = np.array([box[0] - tall / 4, box[3] - 2 * tall, box[2] + tall / 4, box[3]])
+    for where, expected in ((box, True), (far, False), (taller, False)):
+        shown = image if where is box else _pasted(image, box, where)
+        looks = reid.Looks(embedder, shown)
+        d = _detection(where)
+        assert lost.appearance_distance(looks([d]))[0] < o.reid_distance   # the looks alone say: him
+        assert bool(reid.recognised([lost], [d], looks, FPS, o)) is expected, where
+
+
+def test_a_lost_persons_motion_match_is_refused_to_someone_who_looks_otherwise(embedder):
+    """Where the man in the black jacket was lost, the man in the leather jacket (his crop
+    pasted there): the motion matches as well as his own crop does, the looks refuse it."""
+    image, o = _frame(), TrackerOptions()
+    box = _box("black_jacket_jeans")
+    lost = _lost(embedder, image, box, 1)
+    other = _pasted(image, _box("leather_jacket_black_trousers"), box)
+    motion = np.array([[0.2]])   # within the gate (match_cost)
+    own = reid.with_looks([lost], [_detection(box)], motion, o.match_cost, reid.Looks(embedder, image), o)
+    stranger = reid.with_looks([lost], [_detection(box)], motion, o.match_cost, reid.Looks(embedder, other), o)
+    assert np.isfinite(own[0, 0])
+    assert np.isinf(stranger[0, 0])
