@@ -302,7 +302,7 @@ STAGES = (
     ("posecam/io/poses.py", ("tests/test_pose_files.py", "tests/test_fuse_cmd.py")),
     ("posecam/scale/", (METRIC, "tests/test_heights.py")),
     ("posecam/multiview/", MULTIVIEW),
-    ("posecam/tracking/", (TRACKING, "tests/test_embedder.py", "tests/test_reid.py")),
+    ("posecam/tracking/", (TRACKING, "tests/test_embedder.py", "tests/test_reid.py", "tests/test_reid_gate.py")),
     ("posecam/analysis/doubts.py", ("tests/test_doubts.py",)),
 )
 

@@ -9,7 +9,7 @@ import pytest
 
 from conftest import DATA
 from posecam.inference.detector import Detection
-from posecam.inference.embedder import load_embedder
+from posecam.inference.embedder import colour_distance, load_embedder
 from posecam.inference.roi import Roi
 from posecam.io.media import read_image
 from posecam.tracking import TrackerOptions, reid
@@ -86,3 +86,21 @@ def test_a_lost_persons_motion_match_is_refused_to_someone_who_looks_otherwise(e
     stranger = reid.with_looks([lost], [_detection(box)], motion, o.match_cost, reid.Looks(embedder, other), o)
     assert np.isfinite(own[0, 0])
     assert np.isinf(stranger[0, 0])
+
+
+def test_the_same_colours_without_the_persons_shape_are_not_him(embedder):
+    """The woman in the light blue jacket, lost one frame ago where she was: her crop's pixels
+    shuffled keep her colours (the colour gate lets it through) but not her shape; the looks'
+    distance gate refuses it, her own crop there is her."""
+    image, o = _frame(), TrackerOptions()
+    box = _box("light_blue_jacket_bag")
+    lost = _lost(embedder, image, box, 1)
+    x0, y0, x1, y1 = box.astype(int)
+    crop = image[y0:y1, x0:x1].reshape(-1, 3)
+    shuffled = image.copy()
+    shuffled[y0:y1, x0:x1] = crop[np.random.default_rng(0).permutation(len(crop))].reshape(y1 - y0, x1 - x0, 3)
+    d = _detection(box)
+    assert reid.recognised([lost], [d], reid.Looks(embedder, image), FPS, o)
+    looks = reid.Looks(embedder, shuffled)
+    assert colour_distance(looks([d]), np.stack(lost.gallery)).min() < o.reid_colour
+    assert not reid.recognised([lost], [d], looks, FPS, o)
