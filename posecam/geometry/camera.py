@@ -8,7 +8,6 @@ from __future__ import annotations
 import re
 from dataclasses import asdict, dataclass, field, replace
 
-import cv2
 import numpy as np
 
 from posecam.errors import InputError, warn
@@ -146,6 +145,8 @@ def undistort_pixels(uv: np.ndarray, k: Intrinsics, normalised: bool = False) ->
     finite = np.isfinite(flat).all(axis=-1)[:, 0]
     out = np.full(flat.shape, np.nan)
     if finite.any():
+        import cv2   # loaded where a lens has distortion: `import posecam.scale` and the CLI's start stay light
+
         criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
         out[finite] = cv2.undistortPointsIter(np.ascontiguousarray(flat[finite]), k.matrix,
                                               np.array(k.distortion, dtype=np.float64), None,
@@ -219,12 +220,16 @@ class CameraCalibration:
     def params(self) -> np.ndarray:
         """(9,) the camera as a vector for optimisers: Rodrigues rotation (3), translation (3),
         focal length f = sqrt(fx fy), cx, cy. `with_params` is the inverse."""
+        import cv2
+
         rvec = cv2.Rodrigues(np.asarray(self.rotation, dtype=np.float64))[0].ravel()
         k = self.intrinsics
         return np.r_[rvec, self.translation, np.sqrt(k.fx * k.fy), k.cx, k.cy]
 
     def with_params(self, x: np.ndarray, source: str | None = None) -> "CameraCalibration":
         """A copy with the parameters of `params` (the aspect fy / fx and the distortion kept)."""
+        import cv2
+
         k = self.intrinsics
         aspect = np.sqrt(k.fy / k.fx)
         f, cx, cy = float(x[6]), float(x[7]), float(x[8])
