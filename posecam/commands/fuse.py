@@ -180,7 +180,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     from posecam.io.calibration import read_calibration, write_toml
     from posecam.analysis.filters import smooth_recording
     from posecam.io.poses import POSE_SUFFIXES, write_poses
-    from posecam.io.trc import MARKER_SUFFIXES, check_markers_output, write_markers
+    from posecam.io.markers import MARKER_SUFFIXES, check_markers_output, write_markers
     from posecam.io.media import VIDEO_SUFFIXES
     from posecam.viz.sinks import PICTURE_SUFFIXES
     from posecam.scale.heights import Heights

@@ -215,7 +215,7 @@ def predict_command(inputs, output, viz, out_dir, out_format, jobs, ray_address,
     from posecam.estimate import shared_estimator
     from posecam.io.atomic import OutputSet
     from posecam.io.poses import POSE_SUFFIXES, PoseWriter
-    from posecam.io.trc import MARKER_SUFFIXES, check_markers_output, write_markers
+    from posecam.io.markers import MARKER_SUFFIXES, check_markers_output, write_markers
     from posecam.io.media import VIDEO_SUFFIXES, expand_inputs, is_stream, open_media
     from posecam.viz.draw import draw_people
     from posecam.viz.sinks import PICTURE_SUFFIXES, VideoSink, WindowSink, check_window, write_image

@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass, field, replace
 import numpy as np
 
 from posecam.errors import InputError, warn
+from posecam.geometry import triangulate as triangulation
 from posecam.skeleton import MIN_CONFIDENCE
 
 # 35 mm film diagonal, used to turn 35 mm-equivalent focal lengths into pixels.
@@ -331,16 +332,12 @@ class Rig:
 
     def triangulate(self, uv: np.ndarray, conf: np.ndarray, min_conf: float = MIN_CONFIDENCE) -> np.ndarray:
         """(V, F, J, 2) keypoints and (V, F, J) confidences -> (F, J, 3) points (NaN: < 2 views)."""
-        from posecam.geometry.triangulate import triangulate
-
-        return triangulate(self.cameras, uv, conf, min_conf)
+        return triangulation.triangulate(self.cameras, uv, conf, min_conf)
 
     def reprojection_errors(self, points: np.ndarray, uv: np.ndarray, conf: np.ndarray,
                             min_conf: float = MIN_CONFIDENCE) -> np.ndarray:
         """(V, F, J) pixel distance of each keypoint to its projected point; NaN where unused."""
-        from posecam.geometry.triangulate import reprojection_errors
-
-        return reprojection_errors(self.cameras, points, uv, conf, min_conf)
+        return triangulation.reprojection_errors(self.cameras, points, uv, conf, min_conf)
 
     def params(self) -> np.ndarray:
         """(V, 9) every camera's `CameraCalibration.params`."""
