@@ -21,8 +21,8 @@ from posecam.errors import InputError, warn
 from posecam.estimate import OnFrame, PoseEstimator, shared_estimator
 from posecam.geometry.camera import Intrinsics, Rig
 from posecam.geometry.lift import solve_root_translation
-from posecam.io.calibration import read_calibration
-from posecam.io.intrinsics import IntrinsicsOptions, is_calibration, resolve_intrinsics
+from posecam.io.calibration import is_calibration, read_calibration
+from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
 from posecam.io.poses import read_poses
 from posecam.io.media import DEFAULT_FPS, FrameSelection, folder_holds, open_media
 from posecam.options import EstimatorOptions, PredictOptions
