@@ -19,8 +19,14 @@ FILM_DIAGONAL_MM = 43.2666
 # Default lens when nothing better is known: a 28 mm-equivalent focal length,
 # i.e. a 75 degree diagonal field of view, typical of phone and action cameras.
 DEFAULT_FOCAL_35MM = 28.0
-# Plausible horizontal fields of view in degrees: a long telephoto to a fisheye.
+# Plausible lenses, the one rule: a lens given (flags, a file) has a horizontal field of view in
+# FOV_RANGE degrees, a long telephoto to a fisheye; one estimated from the views (a rig posecam
+# calibrates) a focal length within FOCAL_WIDTHS image widths (fields of view of 136 to 5.7
+# degrees: no fisheye is estimated); two focal lengths of one camera (fy against fx), or one
+# estimated against the one assumed, differ by a factor within FOCAL_RATIOS.
 FOV_RANGE = (5.0, 170.0)
+FOCAL_WIDTHS = (0.2, 10.0)
+FOCAL_RATIOS = (0.25, 4.0)
 # Intrinsics.source values of a lens nobody measured: posecam's guess (the default lens, the
 # photo's EXIF) or its own estimate; any other source (flags, a file, a calibration) is given
 # sources of intrinsics posecam guessed or estimated; "people" is the metric stage's focal length
@@ -66,15 +72,16 @@ class Intrinsics:
 
     def check_image(self, width: int, height: int) -> "Intrinsics":
         """These intrinsics if they are plausible for a width x height image, else InputError:
-        a horizontal field of view within FOV_RANGE degrees, fy/fx within 1/4..4, and the
+        a horizontal field of view within FOV_RANGE degrees, fy/fx within FOCAL_RATIOS, and the
         principal point on the image."""
         fov = float(np.degrees(2 * np.arctan2(width / 2, self.fx)))
         if not FOV_RANGE[0] <= fov <= FOV_RANGE[1]:
             raise InputError(f"fx={self.fx:g} ({self.source}) gives a {width} px wide image a horizontal field "
                              f"of view of {fov:.3g} degrees, outside {FOV_RANGE[0]:g}..{FOV_RANGE[1]:g}; "
                              "is fx in pixels for this image size?")
-        if not 0.25 <= self.fy / self.fx <= 4:
-            raise InputError(f"fx={self.fx:g} and fy={self.fy:g} ({self.source}) differ by more than 4 times")
+        if not FOCAL_RATIOS[0] <= self.fy / self.fx <= FOCAL_RATIOS[1]:
+            raise InputError(f"fx={self.fx:g} and fy={self.fy:g} ({self.source}) differ by more than "
+                             f"{FOCAL_RATIOS[1]:g} times")
         if not (0 <= self.cx <= width and 0 <= self.cy <= height):
             raise InputError(f"principal point ({self.cx:g}, {self.cy:g}) from {self.source} lies outside the "
                              f"{width}x{height} image: are these intrinsics for another image size?")

@@ -25,7 +25,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from posecam.errors import FusionError
-from posecam.geometry.camera import CameraCalibration, Rig
+from posecam.geometry.camera import FOCAL_RATIOS, CameraCalibration, Rig
 from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
 from posecam.multiview.consensus import (ConsensusOptions, camera_points, estimate_rig, fuse_points,
                                         intrinsics_vectors)
@@ -33,7 +33,6 @@ from posecam.multiview.observations import Observations, PersonTracks, Take, Vie
 
 MIN_COMMON_FRAMES = 10          # a pair of tracks needs this many frames seen by both
 MAX_PAIR_ANGLE = 0.03           # rad (50 px at f = 1700): calibrated pair gate
-FOCAL_RANGE = (0.25, 4.0)       # focal / assumed focal a pair may imply
 MAX_SHARED = 2                  # frames two tracks of one view may share and still join
 PAIR_FRAMES = 300               # common frames (evenly spaced) that score a calibrated pair
 
@@ -176,7 +175,7 @@ def _hypothesis_cost(pairs: list[tuple[int, ViewTrack]], fused: list[tuple[np.nd
                            ConsensusOptions(min_conf=min_conf, max_iter=30, joint=False))
     except FusionError:
         return np.inf
-    if not FOCAL_RANGE[0] < fit.focal_scale[1] < FOCAL_RANGE[1]:
+    if not FOCAL_RATIOS[0] < fit.focal_scale[1] < FOCAL_RATIOS[1]:   # focal / assumed focal a pair may imply
         return np.inf
     a = ref_cam.normalise(obs.uv[0])
     b = fit.rig.cameras[1].normalise(obs.uv[1])

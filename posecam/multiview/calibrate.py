@@ -27,7 +27,7 @@ import cv2
 import numpy as np
 
 from posecam.errors import FusionError
-from posecam.geometry.camera import CameraCalibration, Rig
+from posecam.geometry.camera import FOCAL_WIDTHS, CameraCalibration, Rig
 from posecam.multiview.associate import Association
 from posecam.multiview.bundle import BundleOptions, CameraSpread, bundle_adjust
 from posecam.multiview.consensus import ConsensusOptions, estimate_rig, stretch_residuals
@@ -42,7 +42,6 @@ MAX_ERROR_PX = 40.0             # median bundle-adjustment reprojection error pe
 # common axis trades against focal length (a dolly zoom) and the fit settles anywhere
 MIN_RAY_ANGLE_DEG = 8.0
 MAX_BEHIND = 0.05               # fraction of the fused points that may lie behind a camera
-FOCAL_WIDTHS = (0.2, 10.0)      # plausible focal lengths, in image widths
 # one standard deviation from the adjustment's Jacobian (posecam.multiview.bundle.CameraSpread)
 # above which the data does not pin a camera: people too still, too few frames, or geometry that
 # tells little (0.4-0.8 deg and 1.4-2.4 % on Pose2Sim's takes: bench/bench_rig_limit.py)
