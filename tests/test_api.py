@@ -96,3 +96,25 @@ def test_the_commands_flags_take_their_defaults_from_the_options():
     assert defaults["floor"] is PredictOptions().metric.floor
     for name in ("model", "detector", "skeleton", "max_people", "min_presence", "device"):
         assert defaults[name] == getattr(EstimatorOptions(), name), name
+
+
+@pytest.mark.demo
+@pytest.mark.slow
+def test_fusing_the_videos_is_fusing_predicts_pose_files_of_them(tmp_path):
+    """The two-person take through the lab calibration, offsets given: fuse on the videos and fuse
+    on the JSON `posecam predict` writes of each (through the same camera) agree to the JSON's
+    rounding."""
+    take = Path(__file__).parent.parent / "examples" / "demo" / "multi"
+    calib, cams = str(take / "Calib.qca.txt"), ("cam01", "cam02", "cam03", "cam04")
+    fuse = ("--calibration", calib, "--offsets", "0,-1,4,0")
+    for cam in cams:
+        run = run_posecam("predict", str(take / f"{cam}.mp4"), "--end", "40", "--intrinsics", calib, "--camera", cam,
+                          "-o", str(tmp_path / f"{cam}.json"))
+        assert run.returncode == 0, run.stderr
+    runs = [run_posecam("fuse", *views, *fuse, "-o", str(tmp_path / out)) for views, out in
+            (([str(take / f"{c}.mp4") for c in cams] + ["--end", "40"], "videos.json"),
+             ([str(tmp_path / f"{c}.json") for c in cams], "files.json"))]
+    assert all(r.returncode == 0 for r in runs), [r.stderr for r in runs]
+    videos, files = (read_poses(tmp_path / out)[0] for out in ("videos.json", "files.json"))
+    assert sum(len(f.people) for f in videos.frames) >= 60
+    assert _farthest(videos, files) <= TOLERANCE_MM
