@@ -119,20 +119,3 @@ def test_fusing_the_videos_is_fusing_predicts_pose_files_of_them(tmp_path):
     assert sum(len(f.people) for f in videos.frames) >= 60
     assert _farthest(videos, files) <= TOLERANCE_MM
 
-
-def test_a_forked_worker_loads_its_own_models(estimator):
-    """A batch worker forked from a process holding estimators must not run their ONNX Runtime
-    sessions (thread pools do not survive a fork: the worker can hang): it starts with none."""
-    import multiprocessing
-
-    from posecam.estimate import shared_estimator
-
-    assert shared_estimator() is estimator
-    with multiprocessing.get_context("fork").Pool(1) as pool:
-        assert pool.apply(_shared_count) == 0
-
-
-def _shared_count() -> int:
-    from posecam import estimate
-
-    return len(estimate._shared)
