@@ -12,6 +12,7 @@ an interrupted run leaves only complete files and running it again does only wha
 from __future__ import annotations
 
 import atexit
+import gc
 import os
 import secrets
 import signal
@@ -200,7 +201,14 @@ def _run_in_processes(tasks: list[Task], work: Callable[[Task], str], jobs: int)
     tag = f"j{secrets.token_hex(4)}"
     finished = False
     try:
-        pending = {pool.submit(_guarded, work, t, tag) for t in tasks}
+        # the workers are forked at the first submit: what they inherit is never collected in them
+        # (an ONNX Runtime session of this process destroyed in a forked child waits forever on
+        # threads the child does not have)
+        gc.freeze()
+        try:
+            pending = {pool.submit(_guarded, work, t, tag) for t in tasks}
+        finally:
+            gc.unfreeze()
         while pending:
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             for future in done:

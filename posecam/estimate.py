@@ -17,7 +17,6 @@ to each input and are given with each call, and so does what the chain does with
 from __future__ import annotations
 
 import itertools
-import os
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
@@ -406,9 +405,6 @@ def _lens(intrinsics: IntrinsicsSource, width: int, height: int, image_path: Pat
 
 
 _shared: dict[str, PoseEstimator] = {}
-# A forked process (a batch worker) starts with none: the parent's ONNX Runtime sessions hold
-# thread pools that do not survive a fork, and a child running one can wait forever.
-os.register_at_fork(after_in_child=_shared.clear)
 
 
 def shared_estimator(options: EstimatorOptions | None = None) -> PoseEstimator:
