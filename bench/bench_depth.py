@@ -58,14 +58,14 @@ def lab_cameras(take: str):
 
 def predictions(take: str, cams, cache: Path):
     """Per camera, posecam's unsmoothed recording with the lab intrinsics (default options)."""
-    from posecam import PoseEstimator, read_poses, write_poses
+    from posecam import PoseEstimator, PredictOptions, read_poses, write_poses
 
     recs = []
     for cam in cams:
         path = cache / f"{take}_{cam.name}_lab.json"
         if not path.exists():
             video = REPO / "examples" / "demo" / take / f"{cam.name}.mp4"
-            write_poses(path, [PoseEstimator().predict_file(video, cam.intrinsics)])
+            write_poses(path, [PoseEstimator().predict_file(video, cam.intrinsics, PredictOptions(smooth=False, metric=None))])
         recs.append(read_poses(path)[0])
     return recs
 
@@ -361,7 +361,7 @@ def lens_bench(cache: Path) -> None:
 def speed(runs: int = 5) -> None:
     """`posecam predict`'s path (FileStream.poses) on the single take's cam01, with the metric stage
     and without it (the code before), alternated in one run; medians."""
-    from posecam import EstimatorOptions, IntrinsicsOptions, PoseEstimator
+    from posecam import EstimatorOptions, IntrinsicsOptions, PoseEstimator, PredictOptions
     from posecam.scale.metric import MetricOptions
 
     est = PoseEstimator(EstimatorOptions())
@@ -371,8 +371,8 @@ def speed(runs: int = 5) -> None:
     for r in range(runs):
         for label, metric in variants if r % 2 else variants[::-1]:
             t = time.perf_counter()
-            stream = est.stream_file(video, IntrinsicsOptions())
-            n = sum(1 for _ in stream.poses(True, metric=metric))
+            stream = est.stream_file(video, IntrinsicsOptions(), PredictOptions(metric=metric))
+            n = sum(1 for _ in stream.poses())
             times[label].append(n / (time.perf_counter() - t))
     print(f"\n== predict speed, {video.name} (100 frames, smoothing on), median of {runs}")
     for label, fps in times.items():
@@ -406,12 +406,12 @@ def speed_against(before: Path, runs: int = 5) -> None:
 
 
 def vtest_bench(cache: Path) -> None:
-    from posecam import EstimatorOptions, PoseEstimator, read_poses, write_poses
+    from posecam import EstimatorOptions, PoseEstimator, PredictOptions, read_poses, write_poses
     from posecam.scale.metric import MetricStage
 
     path = cache / "vtest_default.json"
     if not path.exists():
-        write_poses(path, [PoseEstimator(EstimatorOptions()).predict_file("/work/data/vtest.avi")])
+        write_poses(path, [PoseEstimator(EstimatorOptions()).predict_file("/work/data/vtest.avi", options=PredictOptions(smooth=False, metric=None))])
     rec = read_poses(path)[0]
     stage = MetricStage(rec)
     t = time.perf_counter()
@@ -437,7 +437,7 @@ def model_size_bench(cache: Path) -> None:
     """The pose model's one size (posecam.scale.metric.MODEL_STATURE): each vtest.avi track's median
     stature (tracks measured in MIN_TRACK_FRAMES frames and more), their median and spread, per
     model, against the value posecam uses; and the lab's 1.72 m adult, one track per view."""
-    from posecam import EstimatorOptions, PoseEstimator, read_poses, write_poses
+    from posecam import EstimatorOptions, PoseEstimator, PredictOptions, read_poses, write_poses
     from posecam.scale.metric import MODEL_STATURE
     from posecam.scale.stature import stature
 
@@ -445,7 +445,7 @@ def model_size_bench(cache: Path) -> None:
     for model, name in (("full", "vtest_default.json"), ("lite", "vtest_lite.json")):
         path = cache / name
         if not path.exists():
-            write_poses(path, [PoseEstimator(EstimatorOptions(model=model)).predict_file("/work/data/vtest.avi")])
+            write_poses(path, [PoseEstimator(EstimatorOptions(model=model)).predict_file("/work/data/vtest.avi", options=PredictOptions(smooth=False, metric=None))])
         rec = read_poses(path)[0]
         per: dict[int, list] = {}
         for f in rec.frames:

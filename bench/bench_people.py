@@ -143,7 +143,12 @@ def track(est, frames: list[np.ndarray], k, fps: float | None):
     has no `fps`: its searches were scheduled in frames)."""
     import inspect
 
-    given = {"fps": fps} if "fps" in inspect.signature(est.track).parameters else {}
+    params = inspect.signature(est.track).parameters
+    if "options" in params:   # the chain's options: the frames as their ids are confirmed, at their rate
+        from posecam import PredictOptions
+
+        return est.track(frames, k, PredictOptions(smooth=False, metric=None, fps=fps))
+    given = {"fps": fps} if "fps" in params else {}
     return est.track(frames, k, **given)
 
 

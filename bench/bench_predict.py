@@ -176,7 +176,7 @@ def accuracy(videos: dict[str, Path], calib_path: Path, model: str, detector: st
     import cv2
     import numpy as np
 
-    from posecam import EstimatorOptions, PoseEstimator
+    from posecam import EstimatorOptions, PoseEstimator, PredictOptions
     from posecam.io.calibration import read_qualisys
     from posecam.geometry.triangulate import reprojection_errors, triangulate
 
@@ -186,7 +186,7 @@ def accuracy(videos: dict[str, Path], calib_path: Path, model: str, detector: st
     uv, conf, roots = [], [], []
     estimator = PoseEstimator(EstimatorOptions(model=model, detector=detector, max_people=1))
     for cam in cams:
-        rec = estimator.predict_file(videos[cam.name], cam.intrinsics)
+        rec = estimator.predict_file(videos[cam.name], cam.intrinsics, PredictOptions(smooth=False, metric=None))
         start = OFFSETS[cam.name] - min(OFFSETS.values())
         frames = rec.frames[start:start + n]
         uv.append(_first_person(frames, "keypoints_2d", (17, 2)))

@@ -27,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_predict import CAMERAS, OFFSETS, _first_person  # noqa: E402
 
 from export.assets import archive_path  # noqa: E402
-from posecam import EstimatorOptions, PoseEstimator, read_poses, write_poses  # noqa: E402
+from posecam import EstimatorOptions, PoseEstimator, PredictOptions, read_poses, write_poses  # noqa: E402
 from posecam.analysis.filters import SmoothOptions, smooth_recording  # noqa: E402
 from posecam.geometry.triangulate import triangulate  # noqa: E402
 from posecam.io.calibration import read_qualisys  # noqa: E402
@@ -64,7 +64,7 @@ def predictions(take: str, max_people: int, model: str, cache: Path):
         path = cache / take / f"{cam.name}_{model}.json"
         if not path.exists():
             estimator = estimator or PoseEstimator(EstimatorOptions(model=model, max_people=max_people))
-            write_poses(path, [estimator.predict_file(videos[cam.name], cam.intrinsics)])
+            write_poses(path, [estimator.predict_file(videos[cam.name], cam.intrinsics, PredictOptions(smooth=False, metric=None))])
         recs.append(read_poses(path)[0])
     return cams, recs
 

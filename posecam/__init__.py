@@ -1,7 +1,7 @@
 """posecam: absolute 3D human poses in camera coordinates from images and videos.
 
     from posecam import PoseEstimator
-    rec = PoseEstimator().predict_file("clip.mp4")
+    rec = PoseEstimator().predict_file("clip.mp4")   # what `posecam predict clip.mp4 -o` writes
     rec.frames[0].people[0].keypoints_3d    # (17, 3) mm, camera at the origin
 
 The names below are imported when first used, so `import posecam` stays light. Importing
@@ -21,8 +21,10 @@ _API = {
     "Rig": "posecam.geometry.camera",
     "project": "posecam.geometry.camera",
     "back_project": "posecam.geometry.lift",
-    "EstimatorOptions": "posecam.estimate",
+    "EstimatorOptions": "posecam.options",
+    "PredictOptions": "posecam.options",
     "PoseEstimator": "posecam.estimate",
+    "load_views": "posecam.views",
     "FuseOptions": "posecam.multiview.fuse",
     "FusionResult": "posecam.multiview.fuse",
     "fuse_recordings": "posecam.multiview.fuse",

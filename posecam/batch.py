@@ -1,7 +1,7 @@
 """Many inputs, one task each: in this process, in local worker processes, or on a Ray cluster.
 
     tasks = plan_predictions(["a.mp4", "b.mp4"], "out/", ".json")   # finished outputs are skipped
-    for output in run_tasks(tasks, partial(predict_task, options=EstimatorOptions()), jobs=2):
+    for output in run_tasks(tasks, partial(predict_task, options=EstimatorOptions(), chain=PredictOptions()), jobs=2):
         print("wrote", output)
 
 A task is one input for `posecam predict` or one take (a folder holding one video, or pose
@@ -12,6 +12,7 @@ an interrupted run leaves only complete files and running it again does only wha
 from __future__ import annotations
 
 import atexit
+import gc
 import os
 import secrets
 import signal
@@ -25,14 +26,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from posecam.errors import InputError, OutputError, PosecamError, Terminated, last_signal, note_signal
-from posecam.estimate import EstimatorOptions, shared_estimator
+from posecam.estimate import shared_estimator
 from posecam.analysis.filters import smooth_recording
 from posecam.io.atomic import (OutputSet, StagedOutputs, check_output, deferred_commit, remove_run_staging,
                                tagged_staging)
 from posecam.io.intrinsics import IntrinsicsOptions
 from posecam.io.poses import PoseWriter, write_poses
 from posecam.io.media import VIDEO_SUFFIXES
-from posecam.scale.metric import MetricOptions
+from posecam.options import EstimatorOptions, PredictOptions
 
 if TYPE_CHECKING:
     from posecam.multiview.fuse import FuseOptions
@@ -88,33 +89,36 @@ def plan_fusions(takes: list[str], out_dir: str | os.PathLike, suffix: str) -> l
 
 
 def predict_task(task: Task, options: EstimatorOptions, intrinsics: IntrinsicsOptions | None = None,
-                 smooth: bool = True, metric: MetricOptions | None = None) -> str:
+                 chain: PredictOptions | None = None) -> str:
     """Predict one input into its output (.json or .csv) as `posecam predict -o` does: frame by
-    frame through `FileStream.poses` (people at their metric scale, videos smoothed as they
-    stream), in flat memory."""
-    stream = shared_estimator(options).stream_file(task.inputs[0], intrinsics)
+    frame through `FileStream.poses` (`chain`: what the chain does; the defaults, the
+    command's), in flat memory."""
+    stream = shared_estimator(options).stream_file(task.inputs[0], intrinsics, chain)
     with OutputSet([task.output], task.inputs) as staged, \
             open(staged.path(task.output), "w", encoding="utf-8", newline="") as handle:
         writer = PoseWriter(handle, Path(task.output).suffix.lower()[1:])
         writer.begin(stream.recording)
-        for frame in stream.poses(smooth, metric=metric):
+        for frame in stream.poses():
             writer.frame(frame)
         writer.close()
     return task.output
 
 
 def fuse_task(task: Task, options: FuseOptions, estimator: EstimatorOptions | None = None,
-              intrinsics: IntrinsicsOptions | None = None, calibration: str | None = None, smooth: bool = True) -> str:
-    """Fuse one take's views into its output, as `posecam fuse` does."""
+              intrinsics: IntrinsicsOptions | None = None, calibration: str | None = None,
+              chain: PredictOptions | None = None) -> str:
+    """Fuse one take's views into its output, as `posecam fuse` does (`chain`: what the
+    videos' chain does; its `smooth` smooths the fused poses too)."""
+    chain = chain or PredictOptions()
     from posecam.multiview.fuse import fuse_recordings   # scipy: only where fusion runs
     from posecam.views import load_views
     views = [p for p in task.inputs if Path(p).suffix.lower() != ".json"]
     recordings = load_views(list(task.inputs), intrinsics=intrinsics, calibration=calibration, rig=options.calibration,
                             fuse=options, estimator=shared_estimator(estimator or EstimatorOptions()) if views else None,
-                            smooth=smooth)
+                            chain=chain)
     fused = fuse_recordings(recordings, options).recording
     with OutputSet([task.output], task.inputs) as staged:
-        write_poses(staged.path(task.output), [smooth_recording(fused) if smooth else fused])
+        write_poses(staged.path(task.output), [smooth_recording(fused) if chain.smooth else fused])
     return task.output
 
 
@@ -197,7 +201,14 @@ def _run_in_processes(tasks: list[Task], work: Callable[[Task], str], jobs: int)
     tag = f"j{secrets.token_hex(4)}"
     finished = False
     try:
-        pending = {pool.submit(_guarded, work, t, tag) for t in tasks}
+        # the workers are forked at the first submit: what they inherit is never collected in them
+        # (an ONNX Runtime session of this process destroyed in a forked child waits forever on
+        # threads the child does not have)
+        gc.freeze()
+        try:
+            pending = {pool.submit(_guarded, work, t, tag) for t in tasks}
+        finally:
+            gc.unfreeze()
         while pending:
             done, pending = wait(pending, return_when=FIRST_COMPLETED)
             for future in done:

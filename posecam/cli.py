@@ -22,6 +22,7 @@ from posecam._version import __version__
 from posecam.commands.export import export_command
 from posecam.commands.fuse import fuse_command
 from posecam.commands.predict import predict_command
+from posecam.io.validate import MAX_PIXELS
 from posecam.errors import (WRITE_ERRNOS, OutputError, PosecamError, PosecamWarning, ReaderLeft, Terminated,
                             last_signal, on_signal, printable)
 
@@ -32,8 +33,7 @@ ENVIRONMENT = {
     "OPENCV_FFMPEG_LOGLEVEL": "-8",      # AV_LOG_QUIET: FFmpeg's messages off; read when a video is opened
     # OpenCV refuses to decode an image over this many pixels, whatever its format (posecam.io.media
     # reads the headers it knows first, for a clearer message); read once, when cv2 is loaded.
-    # Equal to posecam.io.media.MAX_PIXELS (268 Mpx), which is not imported here: it loads cv2.
-    "OPENCV_IO_MAX_IMAGE_PIXELS": str(1 << 28),
+    "OPENCV_IO_MAX_IMAGE_PIXELS": str(MAX_PIXELS),
     "ORT_DISABLE_TELEMETRY": "1",        # else onnxruntime leaves a session file (.ses) in the temporary folder
 }
 

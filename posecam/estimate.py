@@ -1,20 +1,22 @@
 """The Python API: `PoseEstimator` turns images and videos into camera-space poses.
 
-    from posecam import PoseEstimator
+    from posecam import PoseEstimator, PredictOptions
     est = PoseEstimator()                       # bundled BlazePose-full model
+    rec = est.predict_file("clip.mp4")          # image, video or folder -> Recording: what `posecam predict -o` writes
     frame = est.predict_image(rgb)              # one RGB image -> Frame; keeps no state
     frames = est.track(rgb_frames, k)           # the frames of one video -> Frames with stable ids
-    rec = est.predict_file("clip.mp4")          # image, video or folder -> Recording
     stream = est.stream_file("clip.mp4", IntrinsicsOptions(file="calib.toml", camera="cam01"))
-    for frame in stream.poses(smooth=True):     # the one prediction path: flat memory, any length
+    for frame in stream.poses():                # the one prediction path: flat memory, any length
         ...
 
 The estimator holds the models (load it once, use it for every input); the intrinsics belong
-to each input and are given with each call.
+to each input and are given with each call, and so does what the chain does with it
+(`PredictOptions`: metric scale, smoothing, part of a video; its defaults are the command's).
 """
 
 from __future__ import annotations
 
+import itertools
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator, Mapping
 from dataclasses import dataclass, field, replace
@@ -24,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from posecam.analysis.doubts import DoubtStage
-from posecam.errors import InputError, ModelError
+from posecam.errors import InputError, ModelError, warn
 from posecam.analysis.filters import StreamingSmoother
 from posecam.scale.metric import MetricOptions, MetricStage
 from posecam.geometry.boxes import boxes_overlap
@@ -36,45 +38,14 @@ from posecam.inference.pose_model import PoseCandidate, make_lifter, make_pose_m
 from posecam.inference.roi import Roi, past_border
 from posecam.inference.session import load_model
 from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
-from posecam.io.media import FrameSelection, Media, open_media
+from posecam.io.media import DEFAULT_FPS, Media, open_media
+from posecam.options import EstimatorOptions, PredictOptions
 from posecam.results import Dropped, Frame, Person, Recording
 from posecam.skeleton import BLAZEPOSE33, BLAZEPOSE_LANDMARKS, H36M_JOINTS, SKELETONS, blazepose_to_h36m, skeleton_of
 from posecam.tracking import ConfirmedIds, Track, Tracker, TrackerOptions, foreign_joints, number_people, oks
 from posecam.tracking.second_look import due, second_look
 
 MIN_PERSON_PX = 40    # the detector searches for people at least this tall (image pixels)
-# The rate frames are tracked at when they come with none and no times (`PoseEstimator.track`
-# without `fps`; a file's frames always have one: their own, or posecam.io.media.DEFAULT_FPS, the
-# time base of a folder of frames). The tracker times its searches for people and its memory of
-# them in seconds: a rate assumed too low searches more often than needed and forgets sooner, one
-# too high searches too seldom (vtest.avi's first 150 frames, 10 fps, tracked as 30 fps: 540
-# person-frames, not 695). So a slow video's rate, the one the tracker was tuned at.
-UNTIMED_FPS = 10.0
-
-
-@dataclass
-class EstimatorOptions:
-    model: str = "full"                 # lite | full | heavy | path to a posecam .onnx
-    detector: str = "movenet"           # movenet | blazepose | path to a posecam detector .onnx
-    detector_size: int | None = None    # detector input's long side (px); None: the model's default
-    skeleton: str = "17"                # "17" (Human3.6M-style) or "33" (all BlazePose landmarks)
-    max_people: int = 20               # most people kept per image or video (the search does not depend on it)
-    min_detection_score: float | None = None  # detector score a person needs to be looked at (None: the detector's default)
-    min_presence: float = 0.5           # drop a person whose pose model presence falls below
-    redetect_every: int = 15            # frames between detector runs while nobody may be missing
-    appearance: bool = True             # re-identify people by their looks (the bundled embedder); False: ids from motion alone
-    second_look: bool = False           # look again with NanoDet where someone followed is lost (no gain measured yet: off)
-    threads: int | None = None
-    device: str = "cpu"                 # "cpu" or "cuda" (onnxruntime-gpu's CUDA provider)
-
-    def __post_init__(self) -> None:
-        if self.skeleton not in SKELETONS:
-            raise InputError(f"skeleton must be one of {', '.join(SKELETONS)}, got {self.skeleton!r}")
-        if self.max_people < 1 or self.redetect_every < 1:
-            raise InputError("max_people and redetect_every must be at least 1")
-        for name in ("min_detection_score", "min_presence"):
-            if getattr(self, name) is not None and not 0.0 <= getattr(self, name) <= 1.0:
-                raise InputError(f"{name} must lie in [0, 1], got {getattr(self, name)}")
 
 
 # A tap: called for each frame as it leaves a stage of the chain, with its RGB image and the
@@ -118,23 +89,26 @@ class _Images:
 
 @dataclass
 class FileStream:
-    """An opened input: its Recording's header (no frames), the media, and its frames, each
-    with its RGB image, as their ids are confirmed (`frames`), or finished (`poses`)."""
+    """An opened input: its Recording's header (no frames), the media, what the chain does with
+    it (`options`), and its frames, each with its RGB image, as their ids are confirmed
+    (`frames`), or finished (`poses`)."""
 
     recording: Recording
     media: Media
     frames: Iterator[tuple[Frame, np.ndarray]]
-    notes: list[str] = field(default_factory=list)   # what `poses(metric=...)` warns of (no floor, the lens)
+    options: PredictOptions = field(default_factory=PredictOptions)
+    notes: list[str] = field(default_factory=list)   # what the metric stage warned of (no floor, the lens)
 
-    def poses(self, smooth: bool = False, metric: MetricOptions | None = None,
-              taps: Mapping[str, OnFrame | None] | None = None) -> Iterator[Frame]:
-        """The input's frames through the rest of the chain: each frame's people have their
-        doubts marked (posecam.analysis.doubts; a video's frames come JUMP_WINDOW s late), then, with
-        `metric`, each track's metric scale (posecam.scale.metric: `recording.intrinsics` is the lens the frames were solved with
-        when the first comes out, `recording.floor` the ground plane at the end, and `notes`
-        holds the warnings), then, with `smooth` and a video or a sequence, the streaming
-        smoother (a few seconds late; the whole video's smoothing). `taps`: stage name (TAPS)
-        -> what sees each frame as it leaves that stage. Nothing is kept."""
+    def poses(self, taps: Mapping[str, OnFrame | None] | None = None) -> Iterator[Frame]:
+        """The input's frames through the rest of the chain (`options`): each frame's people
+        have their doubts marked (posecam.analysis.doubts; a video's frames come JUMP_WINDOW s
+        late), then, with `options.metric`, each track's metric scale (posecam.scale.metric:
+        `recording.intrinsics` is the lens the frames were solved with when the first comes out,
+        `recording.floor` the ground plane at the end; what it warns of is in `notes` and is
+        warned, as posecam.errors.warn does, once the last frame is out), then, with
+        `options.smooth` and a video or a sequence, the streaming smoother (a few seconds late;
+        the whole video's smoothing). `taps`: stage name (TAPS) -> what sees each frame as it
+        leaves that stage. Nothing is kept."""
         taps = {stage: tap for stage, tap in (taps or {}).items() if tap}
         if set(taps) - set(TAPS):
             raise ValueError(f"taps are at the stages {', '.join(TAPS)}, not {', '.join(sorted(set(taps) - set(TAPS)))}")
@@ -142,14 +116,16 @@ class FileStream:
         images = _Images(self.media) if written else None
         frames: Iterator[Frame] = (frame for frame, _ in _tapped(self._doubted(), taps.get("confirm"), self.media,
                                                                  images))
-        if metric:
-            frames = self._scaled(frames, metric)
-        if smooth and self.media.kind not in ("image", "stream"):
+        if self.options.metric:
+            frames = self._scaled(frames, self.options.metric)
+        if self.options.smooth and self.media.kind not in ("image", "stream"):
             frames = _smoothed(frames, StreamingSmoother(self.recording))
         for frame in frames:
             if written:
                 written(frame, images.pop(frame), self.media)
             yield frame
+        for note in self.notes:
+            warn(f"{self.recording.source}: {note}" if self.recording.source else note)
 
     def _doubted(self) -> Iterator[tuple[Frame, np.ndarray]]:
         """The doubts stage: each frame with its people's doubts marked (held back while a
@@ -330,13 +306,13 @@ class PoseEstimator:
         return c, None if c.score >= min_presence or agrees else "presence"
 
     def _tracker(self, video: bool = True, fps: float | None = None) -> Tracker:
-        """A tracker for one input at `fps` frames a second (None: UNTIMED_FPS); the looks are
+        """A tracker for one input at `fps` frames a second (None: DEFAULT_FPS); the looks are
         only for a video's frames (one image has no one to recognise), and in one image every
         person found is confirmed at once."""
         o, d = self.options, self.detector
         return Tracker(TrackerOptions(o.max_people, o.redetect_every, high_score=d.start_score, low_score=d.min_score,
                                       **({} if video else {"confirm_hits": 1, "confirm_frames": 1})),
-                       self.embedder if video else None, fps=fps or UNTIMED_FPS)
+                       self.embedder if video else None, fps=fps or DEFAULT_FPS)
 
     def _confirmed(self, decoded: Iterable[tuple[int, float, np.ndarray]], k: Intrinsics | None,
                    fps: float | None = None, still: bool = False) -> Iterator[tuple[Frame, np.ndarray]]:
@@ -344,7 +320,7 @@ class PoseEstimator:
         and tracked, lifted into camera space through `k` (None: the default lens of the first
         frame's size), their ids confirmed (a frame comes out at most `confirm_frames` frames
         late); each frame with its image, in order. `fps`: the frames' rate (None:
-        UNTIMED_FPS); `still`: one image, whose people are all confirmed at once."""
+        DEFAULT_FPS); `still`: one image, whose people are all confirmed at once."""
         tracker = self._tracker(video=not still, fps=fps)
         confirmed: ConfirmedIds[tuple[Frame, np.ndarray]] = ConfirmedIds(tracker)
         for index, time, rgb in decoded:
@@ -363,48 +339,79 @@ class PoseEstimator:
         h, w = image_rgb.shape[:2]   # given intrinsics are checked as the CLI checks them
         return k.check_image(w, h) if k else Intrinsics.default(w, h)
 
-    def predict_image(self, image_rgb: np.ndarray, intrinsics: Intrinsics | None = None) -> Frame:
-        """Poses of every person in one RGB uint8 image; nothing is kept between calls."""
-        return next(self._confirmed([(0, 0.0, image_rgb)], intrinsics, still=True))[0]
+    def _stream(self, media: Media, decoded: Iterable[tuple[int, float, np.ndarray]], k: Intrinsics,
+                options: PredictOptions, source: str = "") -> FileStream:
+        """The chain on one opened input: its Recording's header and its frames."""
+        rec = Recording(source, media.width, media.height, k, self.joints, model=self.model_name,
+                        fps=media.sample_fps)
+        return FileStream(rec, media, self._confirmed(decoded, k, media.sample_fps, still=media.kind == "image"),
+                          options)
 
-    def track(self, frames_rgb: Iterable[np.ndarray], intrinsics: Intrinsics | None = None,
-              fps: float | None = None) -> Iterator[Frame]:
-        """Poses for the frames of one video (`fps` frames a second; None: UNTIMED_FPS, 10: give
-        the video's own rate, which times the tracker's searches), people followed with stable
-        ids: the chain's frames as they leave the "confirm" stage (at most `confirm_frames`
-        frames late). The tracks live in this generator: each call starts a
-        new video."""
-        decoded = ((index, 0.0, rgb) for index, rgb in enumerate(frames_rgb))
-        yield from (frame for frame, _ in self._confirmed(decoded, intrinsics, fps))
+    def predict_image(self, image_rgb: np.ndarray, intrinsics: IntrinsicsSource = None,
+                      options: PredictOptions | None = None) -> Frame:
+        """Poses of every person in one RGB uint8 image, as `predict_file` gives a photo's
+        (doubts, metric scale); nothing is kept between calls. `intrinsics` as `stream_file`'s
+        (no EXIF: an array has none)."""
+        _check_image(image_rgb)
+        h, w = image_rgb.shape[:2]
+        media = Media("", "image", w, h, None, 1, image=image_rgb)
+        k = _lens(intrinsics, w, h)
+        return next(self._stream(media, [(0, 0.0, image_rgb)], k, options or PredictOptions()).poses())
+
+    def track(self, frames_rgb: Iterable[np.ndarray], intrinsics: IntrinsicsSource = None,
+              options: PredictOptions | None = None) -> Iterator[Frame]:
+        """Poses for the frames of one video, people followed with stable ids, as `predict_file`
+        gives a folder of these frames: frame i at time i / `options.fps` (None: DEFAULT_FPS, a
+        folder's time base; give the video's own rate, which times the tracker's searches and
+        the smoothing), through the whole chain (with the defaults, a frame comes out a few
+        seconds late; `PredictOptions(smooth=False, metric=None)`: as soon as its ids are
+        confirmed). The tracks live in this generator: each call starts a new video."""
+        options = options or PredictOptions()
+        if options.frames is not None:
+            raise InputError("PredictOptions.frames picks frames of a file; track takes the frames it is given")
+        fps = options.fps or DEFAULT_FPS
+        frames = iter(frames_rgb)
+        first = next(frames, None)
+        if first is None:
+            return
+        _check_image(first)
+        h, w = first.shape[:2]
+        media = Media("", "sequence", w, h, fps, 0)   # frames held by the caller: no file to read again
+        decoded = ((index, index / fps, rgb) for index, rgb in enumerate(itertools.chain([first], frames)))
+        yield from self._stream(media, decoded, _lens(intrinsics, w, h), options).poses()
 
     def stream_file(self, path: str | Path, intrinsics: IntrinsicsSource = None,
-                    frames: FrameSelection | None = None) -> FileStream:
+                    options: PredictOptions | None = None) -> FileStream:
         """Open an image, a video or a folder of images: its Recording (no frames yet), and its
-        frames, predicted one at a time as they are read (people tracked in a video).
+        frames, predicted one at a time as they are read (people tracked in a video) and taken
+        through the chain as `options` says (`FileStream.poses`).
         `intrinsics`: this input's camera (`Intrinsics`), or how to find it (`IntrinsicsOptions`:
         flags, a file, a calibration's camera); None: the photo's EXIF, else the default lens.
-        `frames`: part of a video or sequence (source indices and times kept; the Recording's
-        fps is the rate of the frames kept)."""
-        media = open_media(path, frames)
-        if isinstance(intrinsics, Intrinsics):
-            k = intrinsics.check_image(media.width, media.height)
-        else:
-            k = resolve_intrinsics(intrinsics or IntrinsicsOptions(), media.width, media.height,
-                                   image_path=media.path if media.kind == "image" else None)
-        rec = Recording(str(path), media.width, media.height, k, self.joints, model=self.model_name,
-                        fps=media.sample_fps)
-        return FileStream(rec, media, self._confirmed(media.frames(), k, media.sample_fps, still=media.kind == "image"))
+        `options.frames`: part of a video or sequence (source indices and times kept; the
+        Recording's fps is the rate of the frames kept)."""
+        options = options or PredictOptions()
+        media = open_media(path, options.frames)
+        k = _lens(intrinsics, media.width, media.height, media.path if media.kind == "image" else None)
+        return self._stream(media, media.frames(), k, options, str(path))
 
-    def predict_file(self, path: str | Path, intrinsics: IntrinsicsSource = None, on_frame: OnFrame | None = None,
-                     smooth: bool = False, frames: FrameSelection | None = None,
-                     metric: MetricOptions | None = None) -> Recording:
+    def predict_file(self, path: str | Path, intrinsics: IntrinsicsSource = None,
+                     options: PredictOptions | None = None, on_frame: OnFrame | None = None) -> Recording:
         """Poses for every frame of an image, a video or a folder of images, held in the
-        Recording (`stream_file(...).poses()` for long videos): the chain, each frame decoded
-        once and handed to `on_frame` (overlays, progress bars) with its result as it leaves
-        the chain (as the Recording holds it)."""
-        stream = self.stream_file(path, intrinsics, frames)
-        stream.recording.frames = list(stream.poses(smooth, metric, {"written": on_frame}))
+        Recording (`stream_file(...).poses()` for long videos): what `posecam predict -o`
+        writes with the same options, each frame decoded once and handed to `on_frame`
+        (overlays, progress bars) with its result as it leaves the chain (as the Recording
+        holds it)."""
+        stream = self.stream_file(path, intrinsics, options)
+        stream.recording.frames = list(stream.poses({"written": on_frame}))
         return stream.recording
+
+
+def _lens(intrinsics: IntrinsicsSource, width: int, height: int, image_path: Path | None = None) -> Intrinsics:
+    """An input's lens: given (checked against its size), or resolved from options (None: the
+    photo's EXIF, else the default lens)."""
+    if isinstance(intrinsics, Intrinsics):
+        return intrinsics.check_image(width, height)
+    return resolve_intrinsics(intrinsics or IntrinsicsOptions(), width, height, image_path=image_path)
 
 
 _shared: dict[str, PoseEstimator] = {}

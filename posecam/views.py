@@ -18,14 +18,14 @@ from pathlib import Path
 import numpy as np
 
 from posecam.errors import InputError, warn
-from posecam.estimate import EstimatorOptions, OnFrame, PoseEstimator, shared_estimator
+from posecam.estimate import OnFrame, PoseEstimator, shared_estimator
 from posecam.geometry.camera import Intrinsics, Rig
 from posecam.geometry.lift import solve_root_translation
-from posecam.io.calibration import read_calibration
-from posecam.io.intrinsics import IntrinsicsOptions, is_calibration, resolve_intrinsics
+from posecam.io.calibration import is_calibration, read_calibration
+from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
 from posecam.io.poses import read_poses
 from posecam.io.media import DEFAULT_FPS, FrameSelection, folder_holds, open_media
-from posecam.scale.metric import MetricOptions
+from posecam.options import EstimatorOptions, PredictOptions
 from posecam.multiview.fuse import FuseOptions, check_lengths
 from posecam.results import Person, Recording
 
@@ -65,15 +65,17 @@ def view_intrinsics(videos: list[str], intrinsics: IntrinsicsOptions | None = No
 def load_views(inputs: list[str], options: EstimatorOptions | None = None, intrinsics: IntrinsicsOptions | None = None,
                calibration: str | None = None, rig: Rig | None = None, fuse: FuseOptions | None = None,
                on_frame: OnFrame | None = None, estimator: PoseEstimator | None = None,
-               frames: FrameSelection | None = None, smooth: bool = True) -> list[Recording]:
+               chain: PredictOptions | None = None) -> list[Recording]:
     """One recording per view (a pose JSON file may hold several). Every input is opened, and
     the views' lengths compared from their headers (InputError past what `fuse`'s offsets allow;
-    fusing them says they differ: FusionResult.warnings), before anything is predicted. The videos are predicted
-    by `estimator` (default: one built from `options`) as `posecam predict` predicts them,
-    its default metric scale then, with `smooth`, smoothed: fusing them is fusing the pose
-    files `posecam predict [--no-smooth] -o` writes of them. `on_frame(frame, rgb, media)` sees
-    every frame as its ids are confirmed (progress bars). `frames`: the part of every view to
-    fuse (a pose file's frames are picked by their source index)."""
+    fusing them says they differ: FusionResult.warnings), before anything is predicted. The
+    videos are predicted by `estimator` (default: one built from `options`) through the chain
+    `chain` (PredictOptions; the defaults, the command's), as `posecam predict` predicts them:
+    fusing them is fusing the pose files `posecam predict -o` writes of them. `on_frame(frame,
+    rgb, media)` sees every frame as its ids are confirmed (progress bars). `chain.frames`: the
+    part of every view to fuse (a pose file's frames are picked by their source index)."""
+    chain = chain or PredictOptions()
+    frames = chain.frames
     videos = [p for p in inputs if Path(p).suffix.lower() != ".json"]
     media = {p: open_media(p, frames) for p in videos}
     poses = {p: [select_frames(r, frames) for r in read_poses(p)] for p in inputs if p not in media}
@@ -100,7 +102,7 @@ def load_views(inputs: list[str], options: EstimatorOptions | None = None, intri
         estimator = shared_estimator(options)
     recordings = []
     for path in inputs:
-        recordings += [_predicted(estimator, path, ks[path], on_frame, frames, smooth)] if path in media else poses[path]
+        recordings += [_predicted(estimator, path, ks[path], on_frame, chain)] if path in media else poses[path]
     return recordings
 
 
@@ -164,11 +166,9 @@ def _on_keypoints(xyz: np.ndarray, uv: np.ndarray, conf: np.ndarray, k: Intrinsi
 
 
 def _predicted(estimator: PoseEstimator, path: str, intrinsics: IntrinsicsOptions, on_frame: OnFrame | None,
-               frames: FrameSelection | None, smooth: bool) -> Recording:
-    stream = estimator.stream_file(path, intrinsics, frames)
-    stream.recording.frames = list(stream.poses(smooth, MetricOptions(), {"confirm": on_frame}))
-    for note in stream.notes:
-        warn(f"{path}: {note}")
+               chain: PredictOptions) -> Recording:
+    stream = estimator.stream_file(path, intrinsics, chain)
+    stream.recording.frames = list(stream.poses({"confirm": on_frame}))
     return stream.recording
 
 

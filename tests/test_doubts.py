@@ -18,6 +18,7 @@ from posecam.analysis.doubts import DoubtStage, finite_medians
 from posecam.geometry.camera import project
 from posecam.io.poses import read_poses
 from posecam.multiview.observations import tracks_of
+from posecam.options import PredictOptions
 from posecam.results import Frame
 
 DATA = Path(__file__).parent / "data"
@@ -26,6 +27,7 @@ CLIP = DATA / "two_people_cam03_30f.mp4"
 # it lies on his legs, spans him and the child behind him, or keeps a leg and little else (the
 # checks catch some of them, and no other).
 OFF_BY_EYE = {8, 10, 11, 12, 13, 17, 18, 19, 20, 25, 29}
+RAW = PredictOptions(smooth=False, metric=None)   # the poses as the pose model sized them
 
 
 def _doubted(rec) -> dict[tuple[int, int], tuple[str, ...]]:
@@ -49,7 +51,7 @@ def test_a_body_cut_by_the_border_and_seen_from_behind_is_off_body(estimator):
 
 
 def test_a_skeleton_spanning_two_people_is_doubted_and_the_others_are_not(estimator):
-    rec = estimator.predict_file(CLIP, smooth=False)
+    rec = estimator.predict_file(CLIP, options=RAW)
     depth = {pid: np.median([p.root[2] for f in rec.frames for p in f.people if p.id == pid])
              for pid in {p.id for f in rec.frames for p in f.people}}
     adult, child = sorted(depth, key=depth.get)       # the child stands behind the adult
@@ -60,7 +62,7 @@ def test_a_skeleton_spanning_two_people_is_doubted_and_the_others_are_not(estima
 
 
 def test_sound_clips_have_no_doubts(estimator):
-    assert _doubted(estimator.predict_file(DATA / "balance_cam01_30f.mp4", smooth=False)) == {}
+    assert _doubted(estimator.predict_file(DATA / "balance_cam01_30f.mp4", options=RAW)) == {}
     assert _doubted(_checked(read_poses(DATA / "vtest_000-100.json")[0])) == {}
 
 

@@ -57,7 +57,10 @@ def test_bad_options_are_refused(kwargs):
 
 @pytest.fixture(scope="module")
 def clip(estimator):
-    return the_subject(estimator.predict_file(DATA / "balance_cam01_30f.mp4"))
+    from posecam import PredictOptions
+
+    return the_subject(estimator.predict_file(DATA / "balance_cam01_30f.mp4",   # the poses before smoothing
+                                              options=PredictOptions(smooth=False, metric=None)))
 
 
 def test_smoothing_follows_each_track_on_a_real_clip(clip):

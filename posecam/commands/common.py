@@ -16,11 +16,12 @@ import click
 from posecam.errors import InputError, OutputError, ReaderLeft, on_signal, printable
 from posecam.inference.contract import DETECTORS, POSE_MODELS
 from posecam.io.validate import MAX_PEOPLE, MAX_PIXEL
+from posecam.options import EstimatorOptions, PredictOptions
+from posecam.scale.metric import MetricOptions
 
 if TYPE_CHECKING:
     from rich.progress import Progress
 
-    from posecam.estimate import EstimatorOptions
     from posecam.io.intrinsics import IntrinsicsOptions
     from posecam.io.media import FrameSelection, Media
     from posecam.results import Frame
@@ -49,26 +50,33 @@ class Bounded(click.ParamType):
         return number
 
 
+# the EstimatorOptions the commands' flags set (the others keep their defaults)
+ESTIMATOR_FLAGS = ("device", "model", "skeleton", "detector", "max_people", "min_detection_score", "min_presence",
+                   "threads")
+
+
 def estimator_options(f: Callable) -> Callable:
-    """The model and detection flags of `predict` and `fuse` (its video inputs), read by `make_estimator_options`."""
+    """The model and detection flags of `predict` and `fuse` (its video inputs), read by
+    `make_estimator_options`; their defaults are EstimatorOptions'."""
+    o = EstimatorOptions
     for opt in reversed([
-        click.option("--device", type=click.Choice(["cpu", "cuda"]), default="cpu", show_default=True,
+        click.option("--device", type=click.Choice(["cpu", "cuda"]), default=o.device, show_default=True,
                      help="Run the pose model on the CPU or on an NVIDIA GPU (needs onnxruntime-gpu)."),
-        click.option("--model", default="full", show_default=True,
+        click.option("--model", default=o.model, show_default=True,
                      help=f"{', '.join(POSE_MODELS)} or a posecam .onnx file."),
-        click.option("--skeleton", type=click.Choice(["17", "33"]), default="17", show_default=True,
+        click.option("--skeleton", type=click.Choice(["17", "33"]), default=o.skeleton, show_default=True,
                      help="17 Human3.6M-style joints (root: pelvis) or all 33 BlazePose landmarks (root: mid_hip, "
                           "the hips' midpoint)."),
-        click.option("--detector", type=click.Choice(list(DETECTORS)), default="movenet", show_default=True,
+        click.option("--detector", type=click.Choice(list(DETECTORS)), default=o.detector, show_default=True,
                      help="Person detector: movenet (MoveNet MultiPose: whole bodies, up to 6 per run) or blazepose "
                           "(BlazePose's: heads of near, frontal people)."),
-        click.option("--max-people", type=click.IntRange(1, MAX_PEOPLE), default=20, show_default=True,
+        click.option("--max-people", type=click.IntRange(1, MAX_PEOPLE), default=o.max_people, show_default=True,
                      help="Most people kept per image or video; the search for people is the same whatever it "
                           "is (the people over it are counted in the summary and listed in the JSON's \"dropped\")."),
         click.option("--min-detection-score", type=Bounded(0, 1),
                      show_default="the detector's own: movenet 0.25, blazepose 0.5",
                      help="Person detector score, 0 to 1, below which a person is not looked at."),
-        click.option("--min-presence", type=Bounded(0, 1), default=0.5, show_default=True,
+        click.option("--min-presence", type=Bounded(0, 1), default=o.min_presence, show_default=True,
                      help="Pose model presence, 0 to 1, below which a person is dropped."),
         click.option("--threads", type=click.IntRange(1, 256), show_default="CPU cores, at most 8",
                      help="CPU threads for onnxruntime."),
@@ -79,10 +87,27 @@ def estimator_options(f: Callable) -> Callable:
 
 def make_estimator_options(kwargs: dict) -> EstimatorOptions:
     """The EstimatorOptions of the `estimator_options` flags, taken out of a command's kwargs."""
-    from posecam.estimate import EstimatorOptions
+    return EstimatorOptions(**{n: kwargs.pop(n) for n in ESTIMATOR_FLAGS})
 
-    names = ("device", "model", "skeleton", "detector", "max_people", "min_detection_score", "min_presence", "threads")
-    return EstimatorOptions(**{n: kwargs.pop(n) for n in names})
+
+def smooth_option(what: str) -> Callable:
+    """--smooth/--no-smooth (PredictOptions.smooth's default), `what` saying what it smooths."""
+    return click.option("--smooth/--no-smooth", default=PredictOptions.smooth, show_default=True, help=what)
+
+
+def floor_option(f: Callable) -> Callable:
+    """--floor/--no-floor (MetricOptions.floor's default)."""
+    return click.option("--floor/--no-floor", default=MetricOptions.floor, show_default=True,
+                        help="Fit the ground plane under everyone's feet (static camera) and put each person on it.")(f)
+
+
+def make_predict_options(smooth: bool, frames: FrameSelection | None, heights: tuple[str, ...],
+                         floor: bool) -> PredictOptions:
+    """The PredictOptions of a command's flags (--smooth, --start/--end/--stride, --height, --floor)."""
+    from posecam.scale.heights import Heights
+
+    return PredictOptions(smooth=smooth, metric=MetricOptions(heights=Heights.parse(heights), floor=floor),
+                          frames=frames)
 
 
 def intrinsics_options(per_camera: bool = False) -> Callable:

@@ -9,10 +9,11 @@ from typing import TYPE_CHECKING
 
 import click
 
-from posecam.commands.common import (angle_options, check_angles, check_output, estimator_options, frame_options,
-                                     frame_progress, intrinsics_options, make_estimator_options, make_frame_selection,
-                                     make_intrinsics_options, many_options, progress_bar, height_option,
-                                     refuse_alone, refuse_typed, report_written, stdout_report, shown, warn)
+from posecam.commands.common import (ESTIMATOR_FLAGS, angle_options, check_angles, check_output, estimator_options,
+                                     frame_options, frame_progress, intrinsics_options, make_estimator_options,
+                                     make_frame_selection, make_intrinsics_options, many_options, progress_bar,
+                                     height_option, refuse_alone, refuse_typed, report_written, smooth_option,
+                                     stdout_report, shown, warn)
 from posecam.errors import InputError
 
 if TYPE_CHECKING:
@@ -105,9 +106,6 @@ def print_report(result: FusionResult, console, verbose: bool = False) -> None:
 
 
 MAX_OFFSET = 1000   # frames: --max-offset and each of --offsets
-# the model and detection options: they predict the videos and image folders, not the pose files
-ESTIMATOR_FLAGS = ("device", "model", "skeleton", "detector", "max_people", "min_detection_score", "min_presence",
-                   "threads")
 
 
 def parse_offsets(text: str) -> list[float]:
@@ -132,8 +130,8 @@ def parse_offsets(text: str) -> list[float]:
                    "FILE.c3d (needs posecam[c3d]): one file per person (FILE_id<ID>.trc when several).")
 @click.option("--viz3d", type=click.Path(), help="FILE.html: a self-contained 3D view of the fused poses and the cameras; "
                                                  "FILE.mp4: that view drawn frame by frame.")
-@click.option("--smooth/--no-smooth", default=True, show_default=True,
-              help="Smooth each fused person's joints over time (zero-phase 6 Hz Butterworth).")
+@smooth_option("Smooth each fused person's joints over time (zero-phase 6 Hz Butterworth), and the videos' "
+               "poses before they are fused.")
 @click.option("--trc-y-up", is_flag=True, help="TRC/C3D: Y-up axes as OpenSim expects (a calibration's Z-up world "
                                                "as Pose2Sim turns it; a camera frame turned 180 degrees about x).")
 @click.option("--calibration", type=click.Path(),
@@ -164,8 +162,8 @@ def parse_offsets(text: str) -> list[float]:
 @many_options("take")
 @intrinsics_options(per_camera=True)
 def fuse_command(inputs, output, calibration, save_calibration, method, sync, offsets, max_offset, viz,
-                 free_intrinsics=False, viz3d=None, smooth=True, trc_y_up=False, out_dir=None, out_format="json",
-                 jobs=1, ray_address=None, heights=(), angles=False, plot=None, **flags) -> None:
+                 free_intrinsics, viz3d, smooth, trc_y_up, out_dir, out_format, jobs, ray_address, heights, angles,
+                 plot, **flags) -> None:
     """Fuse several cameras' views of one scene.
 
     INPUTS are 2 or more videos, image folders or `posecam predict` JSON files, one per
@@ -182,13 +180,14 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     from posecam.io.calibration import read_calibration, write_toml
     from posecam.analysis.filters import smooth_recording
     from posecam.io.poses import POSE_SUFFIXES, write_poses
-    from posecam.io.trc import MARKER_SUFFIXES, check_markers_output, write_markers
+    from posecam.io.markers import MARKER_SUFFIXES, check_markers_output, write_markers
     from posecam.io.media import VIDEO_SUFFIXES
     from posecam.viz.sinks import PICTURE_SUFFIXES
     from posecam.scale.heights import Heights
     from posecam.multiview.fuse import FuseOptions, finds_offsets, fuse_recordings
     from posecam.viz.render3d import VIEW3D_SUFFIXES, write_3d_view
     from posecam.analysis.angles import angle_names
+    from posecam.options import PredictOptions
     from posecam.views import check_views, load_views
 
     err = Console(stderr=True, highlight=False)
@@ -240,10 +239,10 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
         from posecam.commands.many import fuse_many
 
         return fuse_many(list(inputs), opts, estimator, intrinsics, calibration, out_dir, f".{out_format}", jobs,
-                         ray_address, smooth)
+                         ray_address, PredictOptions(smooth=smooth))
     with progress_bar() as progress:
         recordings = load_views(list(inputs), estimator, intrinsics, calibration, rig, opts,
-                                on_frame=frame_progress(progress), frames=selection, smooth=smooth)
+                                on_frame=frame_progress(progress), chain=PredictOptions(smooth=smooth, frames=selection))
     if free_intrinsics and not any(r.intrinsics is not None and r.intrinsics.given for r in recordings):
         warn("--free-intrinsics changes nothing here: no view's lens was given, every focal length is estimated")
     with err.status("fusing") as status:

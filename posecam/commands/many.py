@@ -38,25 +38,26 @@ def _check_batch(out_dir: str | None, jobs: int, ray_address: str | None) -> Non
 
 
 def predict_many(inputs: list[str], options, intrinsics, out_dir: str | None, suffix: str, jobs: int,
-                 ray_address: str | None, smooth: bool, metric=None, unreadable: int = 0) -> None:
-    """Predict every input into DIR/<input name><suffix> (`unreadable`: photos left out, for the summary)."""
+                 ray_address: str | None, chain, unreadable: int = 0) -> None:
+    """Predict every input into DIR/<input name><suffix> through the chain `chain` (PredictOptions;
+    `unreadable`: photos left out, for the summary)."""
     from posecam.batch import plan_predictions, predict_task, threads_per_worker
 
     _check_batch(out_dir, jobs, ray_address)
     tasks = plan_predictions(inputs, out_dir, suffix)
     options = threads_per_worker(options, jobs) if jobs > 1 else options
-    _run(tasks, len(inputs), partial(predict_task, options=options, intrinsics=intrinsics, smooth=smooth, metric=metric), out_dir,
+    _run(tasks, len(inputs), partial(predict_task, options=options, intrinsics=intrinsics, chain=chain), out_dir,
          jobs, ray_address, "inputs", unreadable)
 
 
 def fuse_many(takes: list[str], options, estimator, intrinsics, calibration: str | None,
-              out_dir: str | None, suffix: str, jobs: int, ray_address: str | None, smooth: bool) -> None:
-    """Fuse every take folder into DIR/<take name><suffix>."""
+              out_dir: str | None, suffix: str, jobs: int, ray_address: str | None, chain) -> None:
+    """Fuse every take folder into DIR/<take name><suffix>, its videos through the chain `chain` (PredictOptions)."""
     from posecam.batch import fuse_task, plan_fusions, threads_per_worker
 
     _check_batch(out_dir, jobs, ray_address)
     tasks = plan_fusions(takes, out_dir, suffix)
     estimator = threads_per_worker(estimator, jobs) if jobs > 1 else estimator
     work = partial(fuse_task, options=options, estimator=estimator, intrinsics=intrinsics, calibration=calibration,
-                   smooth=smooth)
+                   chain=chain)
     _run(tasks, len(takes), work, out_dir, jobs, ray_address, "takes")

@@ -8,10 +8,11 @@ from pathlib import Path
 
 import click
 
-from posecam.commands.common import (angle_options, check_angles, check_output, estimator_options, frame_options,
-                                     height_option, intrinsics_options, make_estimator_options, make_frame_selection,
-                                     make_intrinsics_options, many_options, progress_bar, refuse_alone,
-                                     report_written, stdout_report, shown, stop_on_interrupt, warn, warn_alone)
+from posecam.commands.common import (angle_options, check_angles, check_output, estimator_options, floor_option,
+                                     frame_options, height_option, intrinsics_options, make_estimator_options,
+                                     make_frame_selection, make_intrinsics_options, make_predict_options, many_options,
+                                     progress_bar, refuse_alone, report_written, smooth_option, stdout_report, shown,
+                                     stop_on_interrupt, warn, warn_alone)
 from posecam.errors import InputError, OutputError
 
 
@@ -123,26 +124,26 @@ def explain_empty(sm: InputSummary, min_detection_score: float, min_presence: fl
             f"{min_detection_score:g}")
 
 
-def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=None, draw=None, smooth: bool = True,
-                   keep: bool = False, emitted=None, metric=None, frames=None, stop=None) -> tuple[list, list[InputSummary]]:
-    """Predict each input through the chain (`FileStream.poses`): a progress bar moves as each
-    frame's ids are confirmed; each frame is scaled (`metric`, MetricOptions), smoothed
-    (videos), drawn (`draw(frame, rgb, media)`) as it is written, handed to `emitted(frame,
-    recording)` (angles, plots), written (`writer`, a PoseWriter) and counted. The recordings
-    hold their frames only with `keep` (markers and the 3D view need them); `frames`: the
-    FrameSelection of each video or sequence; `stop` (an Event): a live source ends when it is set,
-    and its pose file is flushed frame by frame."""
+def predict_inputs(estimator, inputs: list[str], intrinsics, progress, options, writer=None, draw=None,
+                   keep: bool = False, emitted=None, stop=None) -> tuple[list, list[InputSummary]]:
+    """Predict each input through the chain (`FileStream.poses`, as `options`, PredictOptions,
+    says): a progress bar moves as each frame's ids are confirmed; each frame is drawn
+    (`draw(frame, rgb, media)`) as it is written, handed to `emitted(frame, recording)`
+    (angles, plots), written (`writer`, a PoseWriter) and counted. The recordings hold their
+    frames only with `keep` (markers and the 3D view need them); `stop` (an Event): a live
+    source ends when it is set, and its pose file is flushed frame by frame. The chain's
+    warnings are posecam.errors.warn's, as an API caller gets them."""
     from posecam.commands.common import frame_progress
 
     taps = {"confirm": frame_progress(progress), "written": draw}
     recordings, summaries = [], []
     for path in inputs:
-        stream = estimator.stream_file(path, intrinsics, frames)
+        stream = estimator.stream_file(path, intrinsics, options)
         stream.media.stop = stop
         summary = InputSummary(stream.recording)
         if writer:
             writer.begin(stream.recording)
-        for frame in stream.poses(smooth, metric, taps):
+        for frame in stream.poses(taps):
             if emitted:
                 emitted(frame, stream.recording)
             summary.add(frame)
@@ -152,8 +153,6 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, writer=No
                     writer.out.flush()
             if keep:
                 stream.recording.frames.append(frame)
-        for note in stream.notes:
-            warn(f"{path}: {note}")
         empty = explain_empty(summary, estimator.min_detection_score, estimator.options.min_presence)
         if empty:
             warn(empty)
@@ -194,22 +193,18 @@ def _picture_paths(inputs: list[str], folder: str) -> dict[str, str]:
                                            "OpenCV with a GUI); q or Esc in the window stops a live source.")
 @angle_options
 @frame_options
-@click.option("--smooth/--no-smooth", default=True, show_default=True,
-              help="Smooth each person's joints over time (zero-phase 6 Hz Butterworth) in videos and frame "
-                   "sequences; --viz draws the unsmoothed poses.")
+@smooth_option("Smooth each person's joints over time (zero-phase 6 Hz Butterworth) in videos and frame "
+               "sequences; --viz draws the unsmoothed poses.")
 @click.option("--trc-y-up", is_flag=True, help="TRC/C3D: Y-up axes as OpenSim expects (camera turned 180 degrees about x).")
 @click.option("--strict", is_flag=True, help="Stop at a folder's first unreadable photo (exit 2) instead of leaving it out "
                                              "with a warning and counting it in the summary.")
-@click.option("--floor/--no-floor", default=True, show_default=True,
-              help="Fit the ground plane under everyone's feet (static camera) and put each person on it.")
+@floor_option
 @height_option
 @estimator_options
 @many_options("input")
 @intrinsics_options()
-def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1, ray_address=None, viz3d=None,
-                    smooth=True, trc_y_up=False, angles=False, plot=None, show=False, heights=(), floor=True,
-                    strict=False,
-                    **flags) -> None:
+def predict_command(inputs, output, viz, out_dir, out_format, jobs, ray_address, viz3d, smooth, trc_y_up, angles,
+                    plot, show, heights, floor, strict, **flags) -> None:
     """3D poses (mm) of every person in INPUTS.
 
     INPUTS are images, videos or folders of images, or one live source: a camera index (0) or a
@@ -218,11 +213,9 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
     z forward, the camera at the origin.
     """
     from posecam.estimate import shared_estimator
-    from posecam.scale.heights import Heights
     from posecam.io.atomic import OutputSet
-    from posecam.scale.metric import MetricOptions
     from posecam.io.poses import POSE_SUFFIXES, PoseWriter
-    from posecam.io.trc import MARKER_SUFFIXES, check_markers_output, write_markers
+    from posecam.io.markers import MARKER_SUFFIXES, check_markers_output, write_markers
     from posecam.io.media import VIDEO_SUFFIXES, expand_inputs, is_stream, open_media
     from posecam.viz.draw import draw_people
     from posecam.viz.sinks import PICTURE_SUFFIXES, VideoSink, WindowSink, check_window, write_image
@@ -248,8 +241,8 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
         if value and len(inputs) > 1:
             raise InputError(f"{flag} holds one input; pass a single input (or write .json)")
     opts, intrinsics = make_estimator_options(flags), make_intrinsics_options(flags)
-    metric = MetricOptions(heights=Heights.parse(heights), floor=floor)
     selection = make_frame_selection(flags)
+    chain = make_predict_options(smooth, selection, heights, floor)
     if out_dir or jobs > 1 or ray_address is not None:
         if output or viz or viz3d or plot or angles or show:
             raise InputError("--out-dir writes one file per input; it does not go with -o, --viz, --viz3d, --angles, "
@@ -258,7 +251,7 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
 
         if selection:
             raise InputError("--start, --end and --stride pick frames of one run's inputs; they do not go with --out-dir")
-        return predict_many(list(inputs), opts, intrinsics, out_dir, f".{out_format}", jobs, ray_address, smooth, metric,
+        return predict_many(list(inputs), opts, intrinsics, out_dir, f".{out_format}", jobs, ray_address, chain,
                             len(unreadable))
     if show:
         check_window()
@@ -305,9 +298,9 @@ def predict_command(inputs, output, viz, out_dir=None, out_format="json", jobs=1
                 target = pictures[str(media.path)] if viz_folder else viz
                 sink.write(picture) if sink else write_image(staged.path(target), picture)
 
-        recordings, summaries = predict_inputs(estimator, inputs, intrinsics, progress, writer,
-                                               draw if viz or show else None, smooth, keep,
-                                               emitted if angles or plot else None, metric, selection, stop)
+        recordings, summaries = predict_inputs(estimator, inputs, intrinsics, progress, chain, writer,
+                                               draw if viz or show else None, keep,
+                                               emitted if angles or plot else None, stop)
         if writer:
             writer.close()
         written = write_markers(markers, recordings[0], trc_y_up, staged) if markers else [output]

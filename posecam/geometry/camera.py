@@ -8,10 +8,10 @@ from __future__ import annotations
 import re
 from dataclasses import asdict, dataclass, field, replace
 
-import cv2
 import numpy as np
 
 from posecam.errors import InputError, warn
+from posecam.geometry import triangulate as triangulation
 from posecam.skeleton import MIN_CONFIDENCE
 
 # 35 mm film diagonal, used to turn 35 mm-equivalent focal lengths into pixels.
@@ -19,8 +19,14 @@ FILM_DIAGONAL_MM = 43.2666
 # Default lens when nothing better is known: a 28 mm-equivalent focal length,
 # i.e. a 75 degree diagonal field of view, typical of phone and action cameras.
 DEFAULT_FOCAL_35MM = 28.0
-# Plausible horizontal fields of view in degrees: a long telephoto to a fisheye.
+# Plausible lenses, the one rule: a lens given (flags, a file) has a horizontal field of view in
+# FOV_RANGE degrees, a long telephoto to a fisheye; one estimated from the views (a rig posecam
+# calibrates) a focal length within FOCAL_WIDTHS image widths (fields of view of 136 to 5.7
+# degrees: no fisheye is estimated); two focal lengths of one camera (fy against fx), or one
+# estimated against the one assumed, differ by a factor within FOCAL_RATIOS.
 FOV_RANGE = (5.0, 170.0)
+FOCAL_WIDTHS = (0.2, 10.0)
+FOCAL_RATIOS = (0.25, 4.0)
 # Intrinsics.source values of a lens nobody measured: posecam's guess (the default lens, the
 # photo's EXIF) or its own estimate; any other source (flags, a file, a calibration) is given
 # sources of intrinsics posecam guessed or estimated; "people" is the metric stage's focal length
@@ -66,15 +72,16 @@ class Intrinsics:
 
     def check_image(self, width: int, height: int) -> "Intrinsics":
         """These intrinsics if they are plausible for a width x height image, else InputError:
-        a horizontal field of view within FOV_RANGE degrees, fy/fx within 1/4..4, and the
+        a horizontal field of view within FOV_RANGE degrees, fy/fx within FOCAL_RATIOS, and the
         principal point on the image."""
         fov = float(np.degrees(2 * np.arctan2(width / 2, self.fx)))
         if not FOV_RANGE[0] <= fov <= FOV_RANGE[1]:
             raise InputError(f"fx={self.fx:g} ({self.source}) gives a {width} px wide image a horizontal field "
                              f"of view of {fov:.3g} degrees, outside {FOV_RANGE[0]:g}..{FOV_RANGE[1]:g}; "
                              "is fx in pixels for this image size?")
-        if not 0.25 <= self.fy / self.fx <= 4:
-            raise InputError(f"fx={self.fx:g} and fy={self.fy:g} ({self.source}) differ by more than 4 times")
+        if not FOCAL_RATIOS[0] <= self.fy / self.fx <= FOCAL_RATIOS[1]:
+            raise InputError(f"fx={self.fx:g} and fy={self.fy:g} ({self.source}) differ by more than "
+                             f"{FOCAL_RATIOS[1]:g} times")
         if not (0 <= self.cx <= width and 0 <= self.cy <= height):
             raise InputError(f"principal point ({self.cx:g}, {self.cy:g}) from {self.source} lies outside the "
                              f"{width}x{height} image: are these intrinsics for another image size?")
@@ -146,6 +153,8 @@ def undistort_pixels(uv: np.ndarray, k: Intrinsics, normalised: bool = False) ->
     finite = np.isfinite(flat).all(axis=-1)[:, 0]
     out = np.full(flat.shape, np.nan)
     if finite.any():
+        import cv2   # loaded where a lens has distortion: `import posecam.scale` and the CLI's start stay light
+
         criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
         out[finite] = cv2.undistortPointsIter(np.ascontiguousarray(flat[finite]), k.matrix,
                                               np.array(k.distortion, dtype=np.float64), None,
@@ -219,12 +228,16 @@ class CameraCalibration:
     def params(self) -> np.ndarray:
         """(9,) the camera as a vector for optimisers: Rodrigues rotation (3), translation (3),
         focal length f = sqrt(fx fy), cx, cy. `with_params` is the inverse."""
+        import cv2
+
         rvec = cv2.Rodrigues(np.asarray(self.rotation, dtype=np.float64))[0].ravel()
         k = self.intrinsics
         return np.r_[rvec, self.translation, np.sqrt(k.fx * k.fy), k.cx, k.cy]
 
     def with_params(self, x: np.ndarray, source: str | None = None) -> "CameraCalibration":
         """A copy with the parameters of `params` (the aspect fy / fx and the distortion kept)."""
+        import cv2
+
         k = self.intrinsics
         aspect = np.sqrt(k.fy / k.fx)
         f, cx, cy = float(x[6]), float(x[7]), float(x[8])
@@ -326,16 +339,12 @@ class Rig:
 
     def triangulate(self, uv: np.ndarray, conf: np.ndarray, min_conf: float = MIN_CONFIDENCE) -> np.ndarray:
         """(V, F, J, 2) keypoints and (V, F, J) confidences -> (F, J, 3) points (NaN: < 2 views)."""
-        from posecam.geometry.triangulate import triangulate
-
-        return triangulate(self.cameras, uv, conf, min_conf)
+        return triangulation.triangulate(self.cameras, uv, conf, min_conf)
 
     def reprojection_errors(self, points: np.ndarray, uv: np.ndarray, conf: np.ndarray,
                             min_conf: float = MIN_CONFIDENCE) -> np.ndarray:
         """(V, F, J) pixel distance of each keypoint to its projected point; NaN where unused."""
-        from posecam.geometry.triangulate import reprojection_errors
-
-        return reprojection_errors(self.cameras, points, uv, conf, min_conf)
+        return triangulation.reprojection_errors(self.cameras, points, uv, conf, min_conf)
 
     def params(self) -> np.ndarray:
         """(V, 9) every camera's `CameraCalibration.params`."""

@@ -39,11 +39,6 @@ class Floor:
         return {"normal": [round(float(v), 5) for v in self.normal], "distance": round(float(self.distance), 1),
                 "spread": round(float(self.spread), 1), "contacts": int(self.contacts), "tracks": int(self.tracks)}
 
-    @classmethod
-    def from_dict(cls, d: dict) -> Floor:
-        return cls(np.asarray(d["normal"], float), float(d["distance"]), float(d.get("spread", np.nan)),
-                   int(d.get("contacts", 0)), int(d.get("tracks", 0)))
-
 
 @dataclass(frozen=True)
 class FloorFit:

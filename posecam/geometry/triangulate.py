@@ -6,10 +6,14 @@ missing keypoint. Points come back in the rig's frame of reference, mm.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from posecam.geometry.camera import CameraCalibration
 from posecam.skeleton import MIN_CONFIDENCE
+
+if TYPE_CHECKING:   # the cameras' type only: posecam.geometry.camera's Rig triangulates through this module
+    from posecam.geometry.camera import CameraCalibration
 
 
 def observation_weights(uv: np.ndarray, conf: np.ndarray, min_conf: float = MIN_CONFIDENCE) -> np.ndarray:

@@ -22,6 +22,7 @@ import numpy as np
 from posecam.geometry.camera import CameraCalibration, Intrinsics, Rig, natural_key
 from posecam.errors import InputError
 from posecam.io.atomic import write_text
+from posecam.io.media import check_input
 from posecam.io.validate import MAX_MM, MAX_PIXEL, MAX_SIDE, Field, read_small
 
 
@@ -75,20 +76,44 @@ def read_toml(path: str | os.PathLike) -> list[CameraCalibration]:
     return cams
 
 
-def read_calibration(path: str | os.PathLike) -> Rig:
-    """The rig of a calibration file: anipose/Pose2Sim TOML, or Qualisys .qca.txt (XML),
-    told apart by content (a leading '<' is XML), not only by suffix."""
-    path = Path(path)
+def is_filestorage(data: bytes) -> bool:
+    """True for an OpenCV FileStorage file: YAML (`%YAML`) or XML with <opencv_storage>."""
+    head = data[:4096].lstrip()
+    return head.startswith(b"%YAML") or (head.startswith(b"<") and b"<opencv_storage>" in head)
+
+
+def calibration_format(path: str | os.PathLike, what: str = "calibration file") -> str | None:
+    """What a file is, the one rule every reader follows: "qualisys" for XML that is not
+    OpenCV's FileStorage (whatever its name) or a .qca.txt / .qca name, "toml" for a .toml name
+    (anipose/Pose2Sim), None for anything else (one camera's intrinsics: JSON, OpenCV
+    FileStorage YAML/XML, a ROS camera_info YAML)."""
+    path = check_input(path, what)   # a pipe or a device would block the read
+    if path.is_dir():
+        raise InputError(f"{what} {path} is a folder")
     try:
         with open(path, "rb") as f:
-            head = f.read(512).lstrip()
-    except FileNotFoundError:
-        raise InputError(f"calibration file {path} does not exist") from None
+            head = f.read(4096).lstrip()
     except OSError as exc:
-        raise InputError(f"cannot read calibration file {path} ({exc.strerror})") from None
-    if head.startswith(b"<") or path.name.lower().endswith((".qca.txt", ".qca", ".xml")):
-        return Rig(read_qualisys(path), None)
-    return Rig(read_toml(path), None)
+        raise InputError(f"cannot read {what} {path} ({exc.strerror})") from None
+    if head.startswith(b"<"):
+        return None if is_filestorage(head) else "qualisys"
+    name = path.name.lower()
+    if name.endswith((".qca.txt", ".qca")):
+        return "qualisys"
+    return "toml" if name.endswith(".toml") else None
+
+
+def is_calibration(path: str | os.PathLike, what: str = "intrinsics file") -> bool:
+    """True for a calibration of cameras (anipose/Pose2Sim TOML, Qualisys), False for one
+    camera's intrinsics file (`calibration_format`)."""
+    return calibration_format(path, what) is not None
+
+
+def read_calibration(path: str | os.PathLike) -> Rig:
+    """The rig of a calibration file: Qualisys where `calibration_format` says so, else
+    anipose/Pose2Sim TOML."""
+    qualisys = calibration_format(path) == "qualisys"
+    return Rig(read_qualisys(path) if qualisys else read_toml(path), None)
 
 
 def _toml_key(name: str) -> str:

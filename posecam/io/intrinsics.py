@@ -15,6 +15,7 @@ from pathlib import Path
 
 from posecam.geometry.camera import CameraCalibration, Intrinsics, distortion_tuple
 from posecam.errors import InputError
+from posecam.io.calibration import is_calibration, is_filestorage, read_calibration
 from posecam.io.exif import focal_length_35mm
 from posecam.io.validate import MAX_PIXEL, Field, read_small, shown_value
 from posecam.io.media import check_input
@@ -116,12 +117,6 @@ def _no_constant(name: str) -> None:
     raise ValueError(f"{name} is not a number")
 
 
-def is_filestorage(data: bytes) -> bool:
-    """True for an OpenCV FileStorage file: YAML (`%YAML`) or XML with <opencv_storage>."""
-    head = data[:4096].lstrip()
-    return head.startswith(b"%YAML") or (head.startswith(b"<") and b"<opencv_storage>" in head)
-
-
 _CAMERA_INFO = re.compile(rb"^camera_matrix[ \t]*:", re.MULTILINE)
 _PARSE_ERROR = re.compile(r"in function '\((\d+)\): (.*)'$")
 
@@ -214,8 +209,6 @@ def _fitted(k: Intrinsics, size: tuple[int, int] | None, width: int, height: int
 
 
 def _from_toml(path: Path, camera: str | None, width: int, height: int) -> Intrinsics:
-    from posecam.io.calibration import read_calibration
-
     rig = read_calibration(path)
     if camera is None:
         if len(rig.cameras) != 1:
@@ -226,12 +219,6 @@ def _from_toml(path: Path, camera: str | None, width: int, height: int) -> Intri
     cam = rig.camera_for(camera, width, height)
     k = cam.intrinsics
     return Intrinsics(k.fx, k.fy, k.cx, k.cy, f"file:{path.name}#{camera}", distortion_tuple(cam.distortion))
-
-
-def is_calibration(path: str | Path) -> bool:
-    """True for a calibration of cameras (anipose/Pose2Sim TOML, Qualisys .qca.txt), False for
-    an intrinsics JSON."""
-    return Path(path).suffix.lower() == ".toml" or Path(path).name.lower().endswith(".qca.txt")
 
 
 def resolve_intrinsics(opts: IntrinsicsOptions, width: int, height: int, image_path: str | Path | None = None) -> Intrinsics:
@@ -253,8 +240,6 @@ def _resolve(opts: IntrinsicsOptions, width: int, height: int, image_path: str |
         if is_calibration(path):
             return _from_toml(path, opts.camera, width, height)
         data = read_small(path, "intrinsics")
-        if path.suffix.lower() == ".xml" and not is_filestorage(data):   # not OpenCV's: a Qualisys calibration
-            return _from_toml(path, opts.camera, width, height)
         if opts.camera is not None:
             raise InputError(f"--camera picks a camera inside a calibration (TOML, .qca.txt); {path} holds one "
                              "camera's intrinsics: leave --camera out")

@@ -47,6 +47,7 @@ import cv2
 import numpy as np
 
 from posecam.errors import InputError, warn
+from posecam.io.validate import MAX_PIXELS
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp")   # read as still images
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv")   # videos posecam writes, and looks for in a take folder
@@ -72,7 +73,6 @@ def exact_times(indices, times, fps: float | None) -> np.ndarray:
         if np.all(np.abs(exact - t) <= TIME_ROUNDING * (1 + 1e-6)):
             return exact
     return t
-MAX_PIXELS = 1 << 28        # 268 Mpx: larger images are refused before decoding
 _NUMBERED = re.compile(r"^(.*?)(\d+)$")
 STREAM_SCHEMES = ("rtsp://", "rtsps://", "rtmp://", "http://", "https://", "udp://", "tcp://", "srt://")
 STREAM_TIMEOUT_MS = 10_000

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from posecam.errors import InputError
-from posecam.io.atomic import OutputSet, atomic_path, check_output
+from posecam.io.atomic import OutputSet, atomic_path
 from posecam.io.media import DEFAULT_FPS, exact_times
 from posecam.results import Recording
 
@@ -105,25 +105,3 @@ def write_trc(path: str | os.PathLike, rec: Recording, y_up: bool = False,
     paths = trc_paths(path, ids)
     write_files([(p, trc_text(rec, pid, p.name, y_up).encode()) for pid, p in zip(ids, paths)], outputs)
     return paths
-
-
-MARKER_SUFFIXES = (".trc", ".c3d")   # marker files, one per person: TRC, or C3D (posecam[c3d])
-
-
-def check_markers_output(path: str | os.PathLike, inputs: list[str | os.PathLike | None] = ()) -> None:
-    """Refuse, before any work, a TRC/C3D target that cannot be written (or a missing c3d package)."""
-    check_output(path, inputs)
-    if Path(path).suffix.lower() == ".c3d":
-        from posecam.io.c3d import writer_module
-
-        writer_module()
-
-
-def write_markers(path: str | os.PathLike, rec: Recording, y_up: bool = False,
-                  outputs: OutputSet | None = None) -> list[Path]:
-    """TRC or C3D files by the suffix of `path` (.trc, .c3d), one per person."""
-    if Path(path).suffix.lower() == ".c3d":
-        from posecam.io.c3d import write_c3d
-
-        return write_c3d(path, rec, y_up, outputs)
-    return write_trc(path, rec, y_up, outputs)

@@ -20,6 +20,7 @@ import numpy as np
 from posecam.errors import InputError, PosecamError
 
 MAX_SIDE = 65535              # pixels: an image's width or height
+MAX_PIXELS = 1 << 28          # 268 Mpx: larger images and video frames are refused before decoding
 MAX_PIXEL = 1e6               # |u|, |v|, cx, cy, focal lengths in pixels
 MAX_MM = 1e7                  # |coordinate| in mm (10 km): a pose or a camera position
 MAX_INDEX = 2**31 - 1         # frame numbers, person ids

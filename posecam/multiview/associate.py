@@ -25,9 +25,9 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from posecam.errors import FusionError
-from posecam.geometry.camera import CameraCalibration, Rig
+from posecam.geometry.camera import FOCAL_RATIOS, CameraCalibration, Rig
 from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
-from posecam.multiview.consensus import (FOCAL_RANGE, MAX_PAIR_ANGLE, ConsensusOptions, camera_points, estimate_rig,
+from posecam.multiview.consensus import (MAX_PAIR_ANGLE, ConsensusOptions, camera_points, estimate_rig,
                                         fuse_points, intrinsics_vectors)
 from posecam.multiview.observations import Observations, PersonTracks, Take, ViewTrack, shift
 
@@ -174,7 +174,7 @@ def _hypothesis_cost(pairs: list[tuple[int, ViewTrack]], fused: list[tuple[np.nd
                            ConsensusOptions(min_conf=min_conf, max_iter=30, joint=False))
     except FusionError:
         return np.inf
-    if not FOCAL_RANGE[0] < fit.focal_scale[1] < FOCAL_RANGE[1]:
+    if not FOCAL_RATIOS[0] < fit.focal_scale[1] < FOCAL_RATIOS[1]:   # focal / assumed focal a pair may imply
         return np.inf
     a = ref_cam.normalise(obs.uv[0])
     b = fit.rig.cameras[1].normalise(obs.uv[1])

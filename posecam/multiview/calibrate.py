@@ -27,10 +27,10 @@ import cv2
 import numpy as np
 
 from posecam.errors import FusionError
-from posecam.geometry.camera import CameraCalibration, Rig
+from posecam.geometry.camera import FOCAL_WIDTHS, CameraCalibration, Rig
 from posecam.multiview.associate import Association
 from posecam.multiview.bundle import BundleOptions, CameraSpread, bundle_adjust
-from posecam.multiview.consensus import FOCAL_WIDTHS, ConsensusOptions, estimate_rig, stretch_residuals
+from posecam.multiview.consensus import ConsensusOptions, estimate_rig, stretch_residuals
 from posecam.multiview.observations import Observations, Take, TimedKeypoints
 from posecam.multiview.motion_sync import MIN_MOTION
 from posecam.multiview.same_scene import MIN_SAME_MOTION, motion_agreement

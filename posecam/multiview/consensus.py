@@ -38,12 +38,10 @@ from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.multiview.observations import Observations
 
 # ---- the rules the stages share (one place: the association, the calibration's gate and fusion) ----
-# a focal length the people imply: plausible between FOCAL_WIDTHS image widths (the calibration's
-# gate); within FOCAL_RANGE times the one the monocular poses assumed for a pair of tracks (the
-# association: wider is another person or no geometry); a consensus's factor above MIN_FOCAL_SCALE
-# (else the poses give no focal length at all)
-FOCAL_WIDTHS = (0.2, 10.0)
-FOCAL_RANGE = (0.25, 4.0)
+# a focal length the people imply: plausible by posecam.geometry.camera's rule (FOCAL_WIDTHS image
+# widths: the calibration's gate; within FOCAL_RATIOS times the one the monocular poses assumed for
+# a pair of tracks: the association, wider is another person or no geometry); a consensus's factor
+# above MIN_FOCAL_SCALE (else the poses give no focal length at all)
 MIN_FOCAL_SCALE = 0.05
 # the same person across views: a pair of tracks through a calibration reprojects within
 # MAX_PAIR_ANGLE (rad, the median over their frames: 50 px at f = 1700); once associated, a view's
