@@ -1,6 +1,6 @@
 """Benchmark posecam's monocular metric depth (posecam.scale.metric) on both Pose2Sim takes and vtest.avi.
 
-    python bench/bench_depth.py [--cache .cache/bench_depth] [--before DIR]
+    python bench/bench_depth.py [--cache .cache/bench_depth] [--before DIR] [--vtest vtest.avi]
 
 Each camera of both takes (4 portrait cameras, 100 frames, 60 fps) is predicted once with the
 default pipeline and the lab's intrinsics (cached as posecam JSON, unsmoothed), then:
@@ -350,6 +350,8 @@ def lens_bench(cache: Path) -> None:
                 print(line + f"{fit.focal:.0f} +- {fit.sd:.0f} px ({100 * (fit.focal / lab - 1):+.1f} %)")
             else:
                 print(line + f"refused: {fit.reason}")
+    if not (cache / "vtest_default.json").exists():   # vtest.avi's part skipped (no --vtest)
+        return
     rec = read_poses(cache / "vtest_default.json")[0]
     fit, k = lens_of(rec)
     print(f"  vtest.avi: PETS 2009's calibration fx {VTEST_FX:.0f} px (fy {VTEST_FY:.0f}), default lens {k.fx:.0f} px "
@@ -405,13 +407,13 @@ def speed_against(before: Path, runs: int = 5) -> None:
     print(f"  after / before: {np.median(times['after']) / np.median(times['before']):.3f}")
 
 
-def vtest_bench(cache: Path) -> None:
+def vtest_bench(cache: Path, vtest: Path) -> None:
     from posecam import EstimatorOptions, PoseEstimator, PredictOptions, read_poses, write_poses
     from posecam.scale.metric import MetricStage
 
     path = cache / "vtest_default.json"
     if not path.exists():
-        write_poses(path, [PoseEstimator(EstimatorOptions()).predict_file("/work/data/vtest.avi", options=PredictOptions(smooth=False, metric=None))])
+        write_poses(path, [PoseEstimator(EstimatorOptions()).predict_file(vtest, options=PredictOptions(smooth=False, metric=None))])
     rec = read_poses(path)[0]
     stage = MetricStage(rec)
     t = time.perf_counter()
@@ -433,7 +435,7 @@ def vtest_bench(cache: Path) -> None:
               f"5-95 % {np.percentile(hs, 5):.2f}-{np.percentile(hs, 95):.2f}, n={len(hs)}")
 
 
-def model_size_bench(cache: Path) -> None:
+def model_size_bench(cache: Path, vtest: Path) -> None:
     """The pose model's one size (posecam.scale.metric.MODEL_STATURE): each vtest.avi track's median
     stature (tracks measured in MIN_TRACK_FRAMES frames and more), their median and spread, per
     model, against the value posecam uses; and the lab's 1.72 m adult, one track per view."""
@@ -445,7 +447,7 @@ def model_size_bench(cache: Path) -> None:
     for model, name in (("full", "vtest_default.json"), ("lite", "vtest_lite.json")):
         path = cache / name
         if not path.exists():
-            write_poses(path, [PoseEstimator(EstimatorOptions(model=model)).predict_file("/work/data/vtest.avi", options=PredictOptions(smooth=False, metric=None))])
+            write_poses(path, [PoseEstimator(EstimatorOptions(model=model)).predict_file(vtest, options=PredictOptions(smooth=False, metric=None))])
         rec = read_poses(path)[0]
         per: dict[int, list] = {}
         for f in rec.frames:
@@ -474,12 +476,15 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, default=REPO / ".cache" / "bench_depth")
     ap.add_argument("--before", type=Path, help="a checkout of the posecam to time predict against "
                                                 "(git archive COMMIT posecam | tar -x -C DIR)")
+    ap.add_argument("--vtest", type=Path, help="OpenCV's vtest.avi (apt-get download opencv-doc); "
+                                               "without it its part is skipped")
     a = ap.parse_args()
     a.cache.mkdir(parents=True, exist_ok=True)
     for take in ("single", "multi"):
         take_bench(take, a.cache)
-    vtest_bench(a.cache)
-    model_size_bench(a.cache)
+    if a.vtest:
+        vtest_bench(a.cache, a.vtest)
+        model_size_bench(a.cache, a.vtest)
     lens_bench(a.cache)
     speed()
     if a.before:

@@ -128,7 +128,7 @@ def test_non_square_pixels_put_the_person_on_the_keypoints_rays(tmp_path):
     fy is 1.3 fx and whose principal point is off the centre, the root translation places the
     metric pose so that, over the joints weighted by their confidence (as the least-squares
     solve weighs them, 33 landmarks all written), the horizontal and vertical offsets of each
-    joint off the arms from the ray of its own 2D keypoint cancel: sum w z (x / z - (u - cx) / fx) = 0 and
+    trunk and leg joint from the ray of its own 2D keypoint cancel: sum w z (x / z - (u - cx) / fx) = 0 and
     sum w z (y / z - (v - cy) / fy) = 0, worked out here from the file's numbers (the pinhole
     model). fx in the place of fy leaves a mean vertical offset of 19 px (and the person
     280 mm nearer)."""
@@ -143,10 +143,9 @@ def test_non_square_pixels_put_the_person_on_the_keypoints_rays(tmp_path):
     (person,) = inp["frames"][0]["people"]
     xyz, uv, w = (np.array(person[n]) for n in ("keypoints_3d", "keypoints_2d", "confidence"))
     assert len(xyz) == 33 and (xyz[:, 2] > 0).all() and (w > 0.5).sum() >= 20
-    # the metric stage places the pose on the joints off the arms (posecam.scale.metric.ARM_PARTS)
+    # the metric stage places the pose on the trunk and legs (posecam.scale.metric.CORE)
     names = json.loads(out.read_text())["joints"]
-    w = w * np.array([not any(p in n and "foot" not in n for p in ("elbow", "wrist", "pinky", "thumb", "_index"))
-                      for n in names])
+    w = w * np.isin(names, [f"{s}_{j}" for s in ("left", "right") for j in ("shoulder", "hip", "knee", "ankle")])
     off = (xyz[:, :2] / xyz[:, 2:] - np.stack([(uv[:, 0] - cx) / fx, (uv[:, 1] - cy) / fy], axis=1)) * [fx, fy]
     mean_off = (w * xyz[:, 2]) @ off / (w * xyz[:, 2]).sum()              # px, horizontal and vertical
     assert np.abs(mean_off).max() < 0.5, mean_off

@@ -35,7 +35,7 @@ from posecam.results import Frame, Person, Recording
 from posecam.scale.heights import FLOOR_STATURE_M, Heights
 from posecam.scale.lens import LensFit, focal_from_people
 from posecam.scale.stature import ANKLE_OF_STATURE, down_and_ankles, segments, stature
-from posecam.skeleton import MIN_CONFIDENCE
+from posecam.skeleton import MIN_CONFIDENCE, skeleton_of
 
 SAMPLES = 512                   # per track: the most frames kept for its statistics
 ADULT_CLUSTER = 0.85            # tracks at least this fraction of the tallest are the adult-sized ones
@@ -58,9 +58,10 @@ MODEL_STATURE = {"blazepose-full": 1.678, "blazepose-lite": 1.647}
 LENS_DISAGREES = 2.0            # standard uncertainties between the default lens and the people's for a warning
 # The joints that move the most with the pose (the arms: elbows, wrists, hands) also move the
 # root's depth most when the pose model misplaces them in depth: jumping jacks on the spot swing
-# the root's depth with the arms. Each frame's root is placed again on the other joints (head,
-# torso, legs), where at least CORE_JOINTS of them are confident.
-ARM_PARTS = ("elbow", "wrist", "pinky", "thumb", "_index")
+# the root's depth with the arms. Each frame's root is placed again on the trunk and legs (the
+# CORE roles: the same landmarks in every skeleton, so both skeletons keep one root), where at
+# least CORE_JOINTS of them are confident.
+CORE = tuple(f"{side}_{joint}" for side in ("r", "l") for joint in ("shoulder", "hip", "knee", "ankle"))
 CORE_JOINTS = 6
 
 
@@ -158,8 +159,10 @@ class MetricStage:
         self._frames_seen = 0
         self._measurable = segments(rec.joints) is not None
         self._model_mm = 1000.0 * MODEL_STATURE[rec.model] if rec.model in MODEL_STATURE else None
-        self._core = np.array([not any(part in j and "foot" not in j for part in ARM_PARTS)
-                               for j in rec.joints], float)
+        self._core = np.zeros(len(rec.joints))
+        if self._measurable:   # posecam's skeletons
+            skeleton = skeleton_of(rec.joints)
+            self._core[[i for role in CORE for i in skeleton.role(role)]] = 1.0
 
     def push(self, frame: Frame) -> list[Frame]:
         self._since_fit += 1
