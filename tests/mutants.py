@@ -134,9 +134,9 @@ MUTANTS = (
            'for n in ("fx", "fy", "cx", "cy")),', 'for n in ("fx", "fx", "cx", "cy")),',
            ("tests/test_pose_files.py::test_json_has_the_documented_keys_and_round_trips",)),
     # ---- metric scale ------------------------------------------------------------------------
-    Mutant("metric: people scaled about their root, not the camera", "posecam/scale/metric.py",
-           "p, keypoints_3d=p.keypoints_3d * s,", "p, keypoints_3d=(p.keypoints_3d - p.root) * s + p.root,",
-           (f"{METRIC}::test_the_floor_puts_people_of_different_sizes_at_their_depths",)),
+    Mutant("metric: the root placed again on every joint, the arms too", "posecam/scale/metric.py",
+           "self._core[[i for role in CORE for i in skeleton.role(role)]] = 1.0", "self._core[:] = 1.0",
+           (f"{METRIC}::test_the_roots_depth_does_not_follow_arms_misplaced_in_depth",)),
     Mutant("metric: frames not brought to their track's height", "posecam/scale/metric.py",
            "s = ts.scale * (ts.stature / h if np.isfinite(h) else 1.0)", "s = ts.scale",
            (f"{METRIC}::test_each_track_keeps_one_size_across_frames",)),
