@@ -210,8 +210,11 @@ def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations
                 errors = rig.reprojection_errors(points, obs.uv, obs.conf, min_conf)
                 med = np.array([np.nanmedian(e) if np.isfinite(e).any() else np.nan for e in errors])
         except (FusionError, np.linalg.LinAlgError) as exc:         # singular: geometry that tells nothing
-            if len(views) == 2:
+            if len(views) == 2 and isinstance(exc, FusionError):
                 raise
+            if len(views) == 2:
+                raise FusionError(f"the cameras cannot be estimated from the poses ({exc}: geometry that "
+                                  "tells nothing)") from None
             weakest = min((v for v in views if v != reference), key=lambda v: usable[v])
             warnings.append(f"camera {assumed[weakest].name} dropped: the estimation failed with it ({exc})")
             views.remove(weakest)
