@@ -87,6 +87,51 @@ class _Images:
         raise RuntimeError(f"frame {frame.index} is not in its input the second time it is read")
 
 
+# what left out a person seen (Dropped.stage), as the warnings and the command's summary say it
+DROP_REASONS = {"max_people": "over --max-people", "presence": "pose model presence below --min-presence",
+                "neighbour": "pose on a neighbour", "duplicate": "pose of a person already followed",
+                "unconfirmed": "track not confirmed (a false start)"}
+
+
+def dropped_text(counts: dict[str, int]) -> str:
+    """"12 over --max-people, 3 pose on a neighbour": the people dropped per stage."""
+    return ", ".join(f"{n} {DROP_REASONS.get(stage, stage)}" for stage, n in sorted(counts.items()))
+
+
+@dataclass
+class Found:
+    """Who an input's frames held as they left the chain: the poses kept, the people seen but
+    dropped per stage (Dropped.stage) and the highest presence of those the pose model dropped,
+    for `nobody`, against the estimator's thresholds."""
+
+    min_detection_score: float
+    min_presence: float
+    kept: int = 0
+    dropped: dict[str, int] = field(default_factory=dict)
+    best_dropped: float = 0.0
+
+    def add(self, frame: Frame) -> None:
+        self.kept += len(frame.people)
+        for d in frame.dropped:
+            self.dropped[d.stage] = self.dropped.get(d.stage, 0) + 1
+            if d.stage == "presence":
+                self.best_dropped = max(self.best_dropped, d.score)
+
+    def nobody(self, source: str = "") -> str | None:
+        """Which stage left the input `source` without anyone, as a warning line; None when
+        someone was kept."""
+        if self.kept:
+            return None
+        where = f" in {source}" if source else ""
+        if self.dropped.get("presence"):
+            return (f"no person kept{where}: the detector found {self.dropped['presence']} but the pose model's "
+                    f"presence was below --min-presence {self.min_presence:g} (highest {self.best_dropped:.2f})")
+        if self.dropped:
+            return f"no person kept{where}: {dropped_text(self.dropped)}"
+        return (f"no person found{where}: the detector found nobody above --min-detection-score "
+                f"{self.min_detection_score:g}")
+
+
 @dataclass
 class FileStream:
     """An opened input: its Recording's header (no frames), the media, what the chain does with
@@ -98,6 +143,7 @@ class FileStream:
     frames: Iterator[tuple[Frame, np.ndarray]]
     options: PredictOptions = field(default_factory=PredictOptions)
     notes: list[str] = field(default_factory=list)   # what the metric stage warned of (no floor, the lens)
+    found: Found = field(default_factory=lambda: Found(0.0, 0.0))   # who the frames that came out held
 
     def poses(self, taps: Mapping[str, OnFrame | None] | None = None) -> Iterator[Frame]:
         """The input's frames through the rest of the chain (`options`): each frame's people
@@ -108,7 +154,8 @@ class FileStream:
         warned, as posecam.errors.warn does, once the last frame is out), then, with
         `options.smooth` and a video or a sequence, the streaming smoother (a few seconds late;
         the whole video's smoothing). `taps`: stage name (TAPS) -> what sees each frame as it
-        leaves that stage. Nothing is kept."""
+        leaves that stage. Who the frames held is counted in `found`; when the last is out and
+        nobody was kept, `Found.nobody` says why, as a warning. Nothing else is kept."""
         taps = {stage: tap for stage, tap in (taps or {}).items() if tap}
         if set(taps) - set(TAPS):
             raise ValueError(f"taps are at the stages {', '.join(TAPS)}, not {', '.join(sorted(set(taps) - set(TAPS)))}")
@@ -121,11 +168,15 @@ class FileStream:
         if self.options.smooth and self.media.kind not in ("image", "stream"):
             frames = _smoothed(frames, StreamingSmoother(self.recording))
         for frame in frames:
+            self.found.add(frame)
             if written:
                 written(frame, images.pop(frame), self.media)
             yield frame
         for note in self.notes:
             warn(f"{self.recording.source}: {note}" if self.recording.source else note)
+        nobody = self.found.nobody(self.recording.source)
+        if nobody:
+            warn(nobody)
 
     def _doubted(self) -> Iterator[tuple[Frame, np.ndarray]]:
         """The doubts stage: each frame with its people's doubts marked (held back while a
@@ -345,18 +396,19 @@ class PoseEstimator:
         rec = Recording(source, media.width, media.height, k, self.joints, model=self.model_name,
                         fps=media.sample_fps)
         return FileStream(rec, media, self._confirmed(decoded, k, media.sample_fps, still=media.kind == "image"),
-                          options)
+                          options, found=Found(self.min_detection_score, self.options.min_presence))
 
     def predict_image(self, image_rgb: np.ndarray, intrinsics: IntrinsicsSource = None,
                       options: PredictOptions | None = None) -> Frame:
         """Poses of every person in one RGB uint8 image, as `predict_file` gives a photo's
-        (doubts, metric scale); nothing is kept between calls. `intrinsics` as `stream_file`'s
-        (no EXIF: an array has none)."""
+        (doubts, metric scale, its warnings); nothing is kept between calls. `intrinsics` as
+        `stream_file`'s (no EXIF: an array has none)."""
         _check_image(image_rgb)
         h, w = image_rgb.shape[:2]
         media = Media("", "image", w, h, None, 1, image=image_rgb)
         k = _lens(intrinsics, w, h)
-        return next(self._stream(media, [(0, 0.0, image_rgb)], k, options or PredictOptions()).poses())
+        (frame,) = self._stream(media, [(0, 0.0, image_rgb)], k, options or PredictOptions()).poses()
+        return frame
 
     def track(self, frames_rgb: Iterable[np.ndarray], intrinsics: IntrinsicsSource = None,
               options: PredictOptions | None = None) -> Iterator[Frame]:

@@ -227,6 +227,9 @@ MUTANTS = (
     Mutant("sync: a resample's bones correlated as poses, not motion", "posecam/multiview/coarse_sync.py",
            "centred = h - sb[..., :, None] * sa[..., None, :] / each[..., None]", "centred = h",
            ("tests/test_sync.py::test_bones_seen_by_two_turned_cameras_correlate_at_their_lag_only",)),
+    Mutant("same scene: views whose people move unlike the reference's kept", "posecam/multiview/same_scene.py",
+           "MIN_SAME_MOTION = 0.38", "MIN_SAME_MOTION = -1.0",
+           ("tests/test_camera_gate.py::test_a_view_of_another_time_is_not_fused",)),
     Mutant("sync: the views' agreement read at the opposite offset", "posecam/multiview/same_scene.py",
            "out[v] = (motion_correlation(shared[0], shared[1], offsets[v]), shared[2])",
            "out[v] = (motion_correlation(shared[0], shared[1], -offsets[v]), shared[2])",
@@ -247,11 +250,17 @@ MUTANTS = (
            "if v != reference and not boot <= MAX_BOOT_ROTATION_DEG:", "if False:",
            ("tests/test_spreads.py::test_a_camera_whose_spread_says_it_is_not_pinned_is_kept_marked_and_warned_about",
             "tests/test_spreads.py::test_fewer_than_two_cameras_left_is_a_refusal")),
+    Mutant("calibration gate: a camera's reprojection error not compared", "posecam/multiview/calibrate.py",
+           "elif not np.isfinite(errors[i]) or errors[i] > MAX_ERROR_PX:", "elif not np.isfinite(errors[i]):",
+           ("tests/test_camera_gate.py::test_a_camera_that_tilted_as_it_filmed_is_dropped_for_its_reprojection_error",)),
     # ---- left and right -------------------------------------------------------------------------
     Mutant("left/right: the 3D pose not swapped back with the keypoints", "posecam/multiview/left_right.py",
            "uv[v, f], xyz[v, f], conf[v, f] = uv[v, f][:, flip], xyz[v, f][:, flip], conf[v, f][:, flip]",
            "uv[v, f], conf[v, f] = uv[v, f][:, flip], conf[v, f][:, flip]",
            (f"{FUSION}::test_a_swap_undone_exchanges_the_monocular_pose_with_the_keypoints",)),
+    Mutant("left/right: a swap taken for any gain", "posecam/multiview/left_right.py",
+           "act = ratios[best, frames] < SWAP_RATIO", "act = ratios[best, frames] < 1.0",
+           (f"{FUSION}::test_a_view_labelled_right_is_not_swapped_for_a_gain_its_noise_gives",)),
     # ---- re-identification ----------------------------------------------------------------------
     Mutant("re-identification: the looks' gate switched off", "posecam/tracking/reid.py",
            "    return unambiguous_pairs(cost, o.reid_distance, o.reid_margin)",
@@ -292,7 +301,7 @@ MUTANTS = (
 # The test files of each stage's modules, by the start of the mutated file's path: a mutant runs
 # all of them (first match wins).
 MULTIVIEW = (CONSENSUS, FUSION, "tests/test_sync.py", "tests/test_association.py", "tests/test_spreads.py",
-             "tests/test_views.py", "tests/test_fuse_cmd.py")
+             "tests/test_camera_gate.py", "tests/test_views.py", "tests/test_fuse_cmd.py")
 STAGES = (
     ("posecam/geometry/lift.py", (CAMERA, "tests/test_predict.py")),
     ("posecam/geometry/camera.py", (CAMERA, CALIB)),

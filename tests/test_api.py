@@ -119,3 +119,22 @@ def test_fusing_the_videos_is_fusing_predicts_pose_files_of_them(tmp_path):
     assert sum(len(f.people) for f in videos.frames) >= 60
     assert _farthest(videos, files) <= TOLERANCE_MM
 
+
+
+def test_an_input_without_anyone_is_a_warning_to_an_api_caller_too(estimator, tmp_path):
+    """A photo with nobody in it (fruits.jpg): predict_image, predict_file and a stream each warn
+    why, once, with the line the command prints; a photo with people warns nothing of the kind."""
+    photo = DATA / "fruits.jpg"
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        frame = estimator.predict_image(read_image(photo))
+        rec = estimator.predict_file(photo)
+        list(estimator.stream_file(photo).poses())
+        estimator.predict_file(DATA / "messi5.jpg")
+    lines = [str(w.message) for w in caught if issubclass(w.category, PosecamWarning) and "no person" in str(w.message)]
+    assert frame.people == [] and rec.frames[0].people == []
+    assert lines == ["no person found: the detector found nobody above --min-detection-score "
+                     f"{estimator.min_detection_score:g}"] + [f"no person found in {photo}: the detector found nobody "
+                                                              f"above --min-detection-score {estimator.min_detection_score:g}"] * 2
+    run = run_posecam("predict", photo, "-o", tmp_path / "f.json")
+    assert [line for line in run.stderr.splitlines() if "no person" in line] == [f"posecam: warning: {lines[1]}"], run.stderr

@@ -46,6 +46,19 @@ def test_left_right_swaps_are_found_and_undone():
     assert _mpjpe(result, cams, world) <= _mpjpe(clean, cams, world) + 1.0
 
 
+def test_a_view_labelled_right_is_not_swapped_for_a_gain_its_noise_gives():
+    """At 15 px of keypoint noise (per axis; BlazePose's keypoints on Pose2Sim's two-person take
+    reproject through the lab rig at 9-23 px, median per camera) left and right exchanged fit the
+    other views' triangulation a little better by chance in some frames: a person every view
+    labels right is not swapped in any (a swap taken for any gain: 11 of the 600 view-frames)."""
+    from posecam.multiview.left_right import fix_people
+
+    cams = make_rig()
+    recs = monocular_views(cams, skeleton_motion(150), pixel_noise=15.0, seed=4)
+    _, swaps = fix_people(Rig(cams), [_observations(recs)], recs[0].joints)
+    assert swaps.tolist() == [0, 0, 0, 0]
+
+
 def _two_crossing(n):
     return np.stack([skeleton_motion(n, seed=0, centre=(-1300.0, -300.0), walk=(650.0, 0.0)),
                      skeleton_motion(n, seed=1, centre=(1300.0, 300.0), walk=(-650.0, 0.0))])

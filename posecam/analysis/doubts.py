@@ -30,7 +30,7 @@ import numpy as np
 from posecam.geometry.camera import Intrinsics, project
 from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.results import Frame, Person, Recording
-from posecam.skeleton import Skeleton, skeleton_of
+from posecam.skeleton import SIDES, Skeleton, skeleton_of
 
 OFF_BODY = 0.11         # 75th percentile of the 2D/3D disagreement, over the person's 2D extent
 ROOT_JUMP = 0.12        # the root's distance from its running median, over its distance from the camera
@@ -44,11 +44,14 @@ DOUBTS = ("off_body", "root_jump", "bones")   # every doubt, in the order they a
 Item = TypeVar("Item")
 
 
+LIMBS = (("shoulder", "elbow"), ("elbow", "wrist"), ("hip", "knee"), ("knee", "ankle"))   # each side's
+
+
 def limb_indices(skeleton: Skeleton) -> np.ndarray:
-    """(L, 2) joint indices of the limbs: shoulder-elbow, elbow-wrist, hip-knee, knee-ankle."""
-    ends = {"shoulder": "elbow", "elbow": "wrist", "hip": "knee", "knee": "ankle"}
-    limbs = [(a, b) for a, b in skeleton.bones if ends.get(a.split("_")[-1]) == b.split("_")[-1]]
-    return np.array([(skeleton.index(a), skeleton.index(b)) for a, b in limbs], dtype=int).reshape(-1, 2)
+    """(L, 2) joint indices of the limbs, LIMBS on each side, by the joints' roles
+    (posecam.skeleton.Skeleton.roles): the same limbs whatever the skeleton's names."""
+    return np.array([(skeleton.role(f"{side}_{a}")[0], skeleton.role(f"{side}_{b}")[0])
+                     for side in SIDES for a, b in LIMBS], dtype=int)
 
 
 def off_body(p: Person, k: Intrinsics) -> float:

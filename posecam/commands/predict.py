@@ -17,23 +17,19 @@ from posecam.errors import InputError, OutputError
 
 
 class InputSummary:
-    """Running totals of one input's people, kept as the frames stream past (memory stays flat)."""
+    """Running totals of one input's people, kept as the frames stream past (memory stays flat);
+    those dropped are its stream's (FileStream.found)."""
 
-    def __init__(self, rec) -> None:
+    def __init__(self, rec, found) -> None:
         self.rec = rec
+        self.found = found                     # posecam.estimate.Found: the people dropped, per stage
         self.frames = 0
         self.people: dict[int, list] = {}      # id -> [frames, sum of root (3,), sum of mean confidence, height]
-        self.dropped: dict[str, int] = {}      # people seen but dropped, per stage ...
-        self.best_dropped = 0.0                # ... and the highest presence among those the pose model dropped
         self.doubtful = 0                      # poses written with doubts (posecam.analysis.doubts) ...
         self.doubts: dict[str, int] = {}       # ... and how often each doubt was raised
 
     def add(self, frame) -> None:
         self.frames += 1
-        for d in frame.dropped:
-            self.dropped[d.stage] = self.dropped.get(d.stage, 0) + 1
-            if d.stage == "presence":
-                self.best_dropped = max(self.best_dropped, d.score)
         for p in frame.people:
             self.doubtful += bool(p.doubts)
             for d in p.doubts:
@@ -50,6 +46,8 @@ def print_summary(summaries: list[InputSummary], console, unreadable: int = 0) -
     """Each person's mean root position, 80 columns wide: one input is named in the title,
     several in a first column (a long name folds rather than lose a letter)."""
     from rich.table import Table
+
+    from posecam.estimate import dropped_text
 
     root = summaries[0].rec.root_joint if summaries else "root"
     several = len(summaries) > 1
@@ -84,17 +82,12 @@ def print_summary(summaries: list[InputSummary], console, unreadable: int = 0) -
         console.print(f"left out: {unreadable} unreadable photo{'s' if unreadable > 1 else ''} (see the warnings; "
                       "--strict stops at the first)")
     for sm in summaries:
-        if sm.dropped:
+        if sm.found.dropped:
             console.print(f"dropped in {shown(Path(sm.rec.source).name)} (person-frames, listed in the JSON's \"dropped\"): "
-                          f"{dropped_text(sm.dropped)}")
+                          f"{dropped_text(sm.found.dropped)}")
         if sm.doubtful:
             console.print(f"{sm.doubtful} pose{'s' if sm.doubtful > 1 else ''} doubtful in {shown(Path(sm.rec.source).name)} "
                           f"(kept, listed in the JSON's \"doubts\"): {doubts_text(sm.doubts)}")
-
-
-DROP_REASONS = {"max_people": "over --max-people", "presence": "pose model presence below --min-presence",
-                "neighbour": "pose on a neighbour", "duplicate": "pose of a person already followed",
-                "unconfirmed": "track not confirmed (a false start)"}
 
 
 DOUBT_REASONS = {"off_body": "off the body (2D and 3D joints disagree)", "root_jump": "with a root jump",
@@ -106,24 +99,6 @@ def doubts_text(counts: dict[str, int]) -> str:
     return ", ".join(f"{n} {DOUBT_REASONS.get(d, d)}" for d, n in sorted(counts.items()))
 
 
-def dropped_text(counts: dict[str, int]) -> str:
-    """"12 over --max-people, 3 pose on a neighbour": the dropped people per stage."""
-    return ", ".join(f"{n} {DROP_REASONS.get(stage, stage)}" for stage, n in sorted(counts.items()))
-
-
-def explain_empty(sm: InputSummary, min_detection_score: float, min_presence: float) -> str | None:
-    """Which stage left an input without anyone, as a warning; None when someone was found."""
-    if sm.people:
-        return None
-    if sm.dropped.get("presence"):
-        return (f"no person kept in {sm.rec.source}: the detector found {sm.dropped['presence']} but the pose model's "
-                f"presence was below --min-presence {min_presence:g} (highest {sm.best_dropped:.2f})")
-    if sm.dropped:
-        return f"no person kept in {sm.rec.source}: {dropped_text(sm.dropped)}"
-    return (f"no person found in {sm.rec.source}: the detector found nobody above --min-detection-score "
-            f"{min_detection_score:g}")
-
-
 def predict_inputs(estimator, inputs: list[str], intrinsics, progress, options, writer=None, draw=None,
                    keep: bool = False, emitted=None, stop=None) -> tuple[list, list[InputSummary]]:
     """Predict each input through the chain (`FileStream.poses`, as `options`, PredictOptions,
@@ -132,7 +107,8 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, options, 
     (angles, plots), written (`writer`, a PoseWriter) and counted. The recordings hold their
     frames only with `keep` (markers and the 3D view need them); `stop` (an Event): a live
     source ends when it is set, and its pose file is flushed frame by frame. The chain's
-    warnings are posecam.errors.warn's, as an API caller gets them."""
+    warnings are posecam.errors.warn's, as an API caller gets them (an input without anyone
+    kept among them: posecam.estimate.Found.nobody)."""
     from posecam.commands.common import frame_progress
 
     taps = {"confirm": frame_progress(progress), "written": draw}
@@ -140,7 +116,7 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, options, 
     for path in inputs:
         stream = estimator.stream_file(path, intrinsics, options)
         stream.media.stop = stop
-        summary = InputSummary(stream.recording)
+        summary = InputSummary(stream.recording, stream.found)
         if writer:
             writer.begin(stream.recording)
         for frame in stream.poses(taps):
@@ -153,9 +129,6 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, options, 
                     writer.out.flush()
             if keep:
                 stream.recording.frames.append(frame)
-        empty = explain_empty(summary, estimator.min_detection_score, estimator.options.min_presence)
-        if empty:
-            warn(empty)
         recordings.append(stream.recording)
         summaries.append(summary)
     return recordings, summaries
