@@ -272,8 +272,9 @@ def cameras_from_people(take: Take, association: Association, sync: SyncResult, 
         kept = [u for u in est.views if u != v]
         if len(kept) < 2:
             raise FusionError(line.replace(" dropped:", " cannot be fused:"))
+        gone = [w for w in est.warnings if " dropped:" in w]       # the cameras left out before, still out
         est = estimate(kept)
-        est.warnings = [line] + est.warnings
+        est.warnings = list(dict.fromkeys(gone + [line] + est.warnings))
 
 
 def cameras_without_swaps(take: Take, cameras: KeptCameras, people: list[Observations], swaps: np.ndarray,
