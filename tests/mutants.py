@@ -191,6 +191,17 @@ MUTANTS = (
     Mutant("bundle: the reference camera free", "posecam/multiview/bundle.py",
            "others = [i for i in range(n_v) if i != ref]", "others = list(range(n_v))",
            (f"{CONSENSUS}::test_bundle_adjustment_recovers_a_perturbed_rig_and_its_metric_scale",)),
+    Mutant("bundle's solver: the soft-L1 loss not weighing the residuals", "posecam/multiview/schur_lm.py",
+           "sw = (1 + (r / f_scale) ** 2) ** -0.25", "sw = np.ones_like(r)",
+           ("tests/test_schur_lm.py::test_the_solver_reaches_scipys_minimum",)),
+    Mutant("bundle's solver: the points' blocks added to the cameras', not eliminated",
+           "posecam/multiview/schur_lm.py", "s = a_f + lam * np.diag(d_cam) - e.transpose",
+           "s = a_f + lam * np.diag(d_cam) + e.transpose",
+           ("tests/test_schur_lm.py::test_the_solver_reaches_scipys_minimum",)),
+    Mutant("bundle's solver: a slot at its bound pushed past it", "posecam/multiview/schur_lm.py",
+           "held = ((x[:n_cam] <= lower) & (g_c > 0)) | ((x[:n_cam] >= upper) & (g_c < 0))",
+           "held = np.zeros(n_cam, bool)",
+           ("tests/test_schur_lm.py::test_a_slot_held_at_its_bound_and_the_rest_at_their_best",)),
     Mutant("bundle: log focal length's derivative not times f", "posecam/multiview/bundle.py",
            "cam[:, :, LOG_F] = f * pc[:, :2]", "cam[:, :, LOG_F] = pc[:, :2]",
            (f"{CONSENSUS}::test_bundle_adjustment_derivatives_are_the_residuals_own",)),
@@ -300,8 +311,8 @@ MUTANTS = (
 
 # The test files of each stage's modules, by the start of the mutated file's path: a mutant runs
 # all of them (first match wins).
-MULTIVIEW = (CONSENSUS, FUSION, "tests/test_sync.py", "tests/test_association.py", "tests/test_spreads.py",
-             "tests/test_camera_gate.py", "tests/test_views.py", "tests/test_fuse_cmd.py")
+MULTIVIEW = (CONSENSUS, FUSION, "tests/test_schur_lm.py", "tests/test_sync.py", "tests/test_association.py",
+             "tests/test_spreads.py", "tests/test_camera_gate.py", "tests/test_views.py", "tests/test_fuse_cmd.py")
 STAGES = (
     ("posecam/geometry/lift.py", (CAMERA, "tests/test_predict.py")),
     ("posecam/geometry/camera.py", (CAMERA, CALIB)),

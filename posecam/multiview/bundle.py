@@ -7,8 +7,9 @@ camera's focal length (its aspect fy / fx kept) but those whose intrinsics are k
 every camera's rotation (Rodrigues) and translation but the reference's, and one 3D point per
 frame and joint seen by two views or more. Residuals: reprojection errors in units of `pixel_sigma`, weighted by confidence
 (joints below 0.5 are left out) under a robust soft-L1 loss, plus, when the principal point is
-free, a weak prior that keeps it near the image centre. Reprojection alone cannot tell the
-rig's scale; it comes back from the metric monocular poses: after the fit the rig and the
+free, a weak prior that keeps it near the image centre. Solved by Levenberg-Marquardt with the
+points eliminated (posecam.multiview.schur_lm), but for two cameras with a lens to estimate
+(`_inexact`: their minimum is a valley). Reprojection alone cannot tell the rig's scale; it comes back from the metric monocular poses: after the fit the rig and the
 points are scaled so that the fused bones are as long as the monocular skeletons' bones.
 
 What limits the rig is the keypoints' bias, not their noise. Started FROM the lab rig of
@@ -58,6 +59,7 @@ from scipy.sparse import csr_matrix, vstack
 from posecam.errors import FusionError
 from posecam.geometry.camera import Rig
 from posecam.multiview.observations import TimedKeypoints, catmull_rom, held
+from posecam.multiview.schur_lm import Prior, Solution, solve
 from posecam.skeleton import skeleton_of
 from posecam.geometry.triangulate import observation_weights, triangulate
 
@@ -327,6 +329,29 @@ def camera_covariance(problem: _Problem, x: np.ndarray, loss_weights: np.ndarray
     return out
 
 
+def _inexact(problem: _Problem, x0: np.ndarray, f_scale: float, lower: np.ndarray, upper: np.ndarray,
+             opts: BundleOptions, prior: Prior | None) -> Solution:
+    """The objective of posecam.multiview.schur_lm.solve (the prior under the loss too) by
+    scipy's trust-region solver with inexact (LSMR) steps over every unknown, for two cameras
+    with a lens to estimate. Their keypoints cannot tell a lens from a distance (a dolly zoom):
+    the exact minimum slides along that valley (Pose2Sim's pairs to f = 400 px, a quarter of the
+    lab's, at 1 % lower cost; one fused 70 deg off), and these steps stay near the consensus
+    start, where the monocular depths put the people (docs/benchmarks.md, fourth round)."""
+    fun, jac = problem.residuals, problem.jacobian
+    if prior is not None:
+        def fun(x):
+            return np.concatenate([problem.residuals(x), prior.fun(x)])
+
+        def jac(x):
+            extra = csr_matrix(np.pad(prior.jac, ((0, 0), (0, len(x) - problem.n_cam))))
+            return vstack([problem.jacobian(x), extra]).tocsr()
+    n_m = problem.n_points
+    bounds = (np.r_[lower, np.full(3 * n_m, -np.inf)], np.r_[upper, np.full(3 * n_m, np.inf)])
+    fit = least_squares(fun, x0, jac=jac, bounds=bounds, loss="soft_l1", f_scale=f_scale, x_scale="jac",
+                        method="trf", tr_solver="lsmr", max_nfev=opts.max_nfev, ftol=opts.ftol)
+    return Solution(fit.x, fit.status > 0, fit.nfev)
+
+
 def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarray | None,
                   joints: tuple[str, ...], options: BundleOptions | None = None,
                   timed: TimedKeypoints | None = None, offsets: np.ndarray | None = None) -> BundleResult:
@@ -380,30 +405,32 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
                        np.sqrt(w[obs_v, obs_f, obs_j]) / opts.pixel_sigma, n_m, _axes(rig), samples,
                        timed.base if refine else None)
     x0 = np.concatenate([p0[free], points[used].ravel()])
-    bounds = (-np.inf, np.inf)
+    lower, upper = np.full(p0.shape, -np.inf), np.full(p0.shape, np.inf)
     if refine:                                                            # the offsets within the samples
-        lo, hi = np.full(p0.shape, -np.inf), np.full(p0.shape, np.inf)
-        lo[:, OFFSET], hi[:, OFFSET] = timed.bounds()
-        bounds = (np.r_[lo[free], np.full(3 * n_m, -np.inf)], np.r_[hi[free], np.full(3 * n_m, np.inf)])
-    fun, jac = problem.residuals, problem.jacobian
+        lower[:, OFFSET], upper[:, OFFSET] = timed.bounds()
+    prior = None
     if not opts.fix_principal_point:                                      # weak prior: near the centre
         size = np.array([c.size for c in cams], dtype=float)
-        prior_cols = problem.slots()[:, CENTRE].ravel()
-        prior_w = 1.0 / (opts.centre_sigma * size).ravel()
+        centre_free = free[:, CENTRE]
+        prior_w = 1.0 / (opts.centre_sigma * size[centre_free])
+        prior_jac = np.zeros((len(prior_w), problem.n_cam))
+        prior_jac[np.arange(len(prior_w)), problem.slots()[:, CENTRE][centre_free]] = prior_w
 
-        def fun(x):
+        def centre_prior(x):
             p, _ = problem.unpack(x)
-            return np.concatenate([problem.residuals(x), (p[:, CENTRE] - size / 2).ravel() * prior_w])
+            return (p[:, CENTRE][centre_free] - size[centre_free] / 2) * prior_w
 
-        def jac(x):
-            prior = csr_matrix((prior_w, (np.arange(2 * n_v), prior_cols)), shape=(2 * n_v, len(x)))
-            return vstack([problem.jacobian(x), prior]).tocsr()
-
+        prior = Prior(centre_prior, prior_jac)
+    # two cameras with a lens to estimate leave a valley open (a dolly zoom: `_inexact`); any
+    # other rig takes the exact solver (posecam.multiview.schur_lm)
+    exact = n_v > 2 or not lens_free.any()
     converged, x = True, x0
     for f_scale in F_SCALES:
-        fit = least_squares(fun, x, jac=jac, bounds=bounds, loss="soft_l1", f_scale=f_scale, x_scale="jac",
-                            method="trf", tr_solver="lsmr", max_nfev=opts.max_nfev, ftol=opts.ftol)
-        converged, x = converged and fit.status > 0, fit.x
+        if exact:
+            fit = solve(problem, x, f_scale, lower[free], upper[free], opts.max_nfev, opts.ftol, prior)
+        else:
+            fit = _inexact(problem, x, f_scale, lower[free], upper[free], opts, prior)
+        converged, x = converged and fit.converged, fit.x
     p, pts = problem.unpack(fit.x)
     loss_w = 1.0 / np.sqrt(1.0 + (problem.residuals(fit.x) / F_SCALES[-1]) ** 2)     # soft_l1's weights
     cov = camera_covariance(problem, fit.x, loss_w, obs_v * n_j + obs_j)
