@@ -405,7 +405,8 @@ def worker(take: str, cache: Path, offsets: list[float], out: Path) -> None:
     """Run every config on the cached pose JSON and write what `Truth.score` needs."""
     from posecam import read_poses
     from posecam.io.calibration import read_calibration
-    from posecam.multiview.fuse import FuseOptions, fuse_recordings
+    from posecam.multiview.fuse import fuse_recordings
+    from posecam.multiview.options import FuseOptions
 
     recs = [read_poses(cache / take / f"{n}.json")[0] for n in NAMES]
     lab = read_calibration(ROOT / TAKES[take][0] / "Calib.qca.txt")
@@ -420,7 +421,7 @@ def worker(take: str, cache: Path, offsets: list[float], out: Path) -> None:
 
             kw["heights"] = Heights.parse([TAKES[take][cfg["heights"]]])
         if cfg.get("refine") is not None:
-            from posecam.multiview.bundle import BundleOptions
+            from posecam.multiview.options import BundleOptions
 
             if "refine_offsets" not in {f.name for f in fields(BundleOptions)}:
                 continue
@@ -463,8 +464,9 @@ def long_worker(cache: Path, loops: int, out: Path) -> None:
 
     from posecam import read_poses
     from posecam.io.calibration import read_calibration
-    from posecam.multiview.bundle import BundleOptions
-    from posecam.multiview.fuse import FuseOptions, fuse_recordings
+    from posecam.multiview.options import BundleOptions
+    from posecam.multiview.fuse import fuse_recordings
+    from posecam.multiview.options import FuseOptions
     from posecam.results import Frame
 
     recs = [read_poses(cache / "single" / f"{n}.json")[0] for n in NAMES]
@@ -648,7 +650,7 @@ def new_user_options(**kw):
     """FuseOptions as `posecam fuse` builds them with no option typed: `--sync auto` unless a
     calibration or offsets are given, no `--max-offset` (the command's rule, written out here
     so that a --before checkout is measured the same way)."""
-    from posecam.multiview.fuse import FuseOptions
+    from posecam.multiview.options import FuseOptions
 
     has = {f.name for f in fields(FuseOptions)}
     base = {"sync": kw.get("calibration") is None and kw.get("offsets") is None, "max_offset": None}

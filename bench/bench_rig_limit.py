@@ -216,7 +216,8 @@ def adjust_from_lab(truth: bf.Truth, uv: np.ndarray, conf: np.ndarray, joints: t
 
 
 def at_lab(label: str, truth: bf.Truth, joints: tuple) -> dict:
-    from posecam.multiview.bundle import LEFT_OUT, left_out
+    from posecam.multiview.bundle import left_out
+    from posecam.multiview.options import LEFT_OUT
 
     uv, conf, res, _ = lab_residuals(truth)
     bias, noise, count = bias_noise(res)
@@ -263,7 +264,8 @@ def from_scratch(label: str, truth: bf.Truth, folder: Path) -> None:
     """`fuse_recordings` without a calibration on the set's pose JSON, `--sync auto` and at the
     truth offsets (this checkout)."""
     from posecam import read_poses
-    from posecam.multiview.fuse import FuseOptions, fuse_recordings
+    from posecam.multiview.fuse import fuse_recordings
+    from posecam.multiview.options import FuseOptions
 
     recs = [read_poses(folder / f"{n}.json")[0] for n in bf.NAMES]
     for how, opts in (("--sync auto", FuseOptions(sync=True)),
@@ -286,7 +288,8 @@ def spreads(truth: bf.Truth, folder: Path, n_boot: int, seed: int = 0) -> None:
     from posecam import read_poses
     from posecam.multiview.associate import associate_people
     from posecam.multiview.calibrate import bootstrap_spreads, estimate_cameras
-    from posecam.multiview.fuse import FuseOptions, check_take
+    from posecam.multiview.fuse import check_take
+    from posecam.multiview.options import FuseOptions
     from posecam.multiview.left_right import fix_people
     from posecam.multiview.observations import Observations
     from posecam.multiview.sync import synchronise
@@ -294,17 +297,17 @@ def spreads(truth: bf.Truth, folder: Path, n_boot: int, seed: int = 0) -> None:
     recs = [read_poses(folder / f"{n}.json")[0] for n in bf.NAMES]
     opts = FuseOptions(sync=True)
     take = check_take(recs, opts)
-    association = associate_people(take, None, [0] * 4, opts.min_conf)
-    sync = synchronise(take, association.people, None, [0] * 4, opts.max_offset, opts.min_conf)
+    association = associate_people(take, None, [0] * 4, opts)
+    sync = synchronise(take, association.people, None, [0] * 4, opts)
     every = list(range(4))
     people = take.observations(association.people, sync.offsets, every)
     t0 = time.perf_counter()
-    est = estimate_cameras(take.assumed, people, take.joints, take.reference, opts.min_conf)
+    est = estimate_cameras(take.assumed, people, take.joints, take.reference, opts)
     t_once = time.perf_counter() - t0
     people, _ = fix_people(est.rig, [p.take(est.views) for p in people], take.joints)
-    est = estimate_cameras([take.assumed[v] for v in est.views], people, take.joints, take.reference, opts.min_conf)
+    est = estimate_cameras([take.assumed[v] for v in est.views], people, take.joints, take.reference, opts)
     t0 = time.perf_counter()
-    reported = bootstrap_spreads(est, people, take.joints, opts.min_conf).spreads
+    reported = bootstrap_spreads(est, people, take.joints, opts).spreads
     t_reported = time.perf_counter() - t0
 
     def errors(rig) -> dict:
@@ -328,7 +331,7 @@ def spreads(truth: bf.Truth, folder: Path, n_boot: int, seed: int = 0) -> None:
             w_block = np.repeat(rng.multinomial(blocks, np.full(blocks, 1 / blocks)), BLOCK)[:n_f].astype(float)
             boot.append(Observations(p.uv, p.xyz, p.conf * w_block[None, :, None] * w_joint[None, None], p.score))
         try:
-            fit = estimate_cameras(est.rig.cameras, boot, take.joints, take.reference, opts.min_conf)
+            fit = estimate_cameras(est.rig.cameras, boot, take.joints, take.reference, opts)
         except Exception as exc:  # a replicate the gate refuses is a figure too
             print(f"      replicate failed: {type(exc).__name__}: {exc}")
             continue
@@ -451,7 +454,8 @@ def rig_errors(recs: list, cams: list, **options) -> tuple[float, float, float, 
     """`fuse_recordings` without a calibration, offsets 0: the relative rotation error against
     the lab's (median and worst over the pairs of kept cameras, deg), the worst focal length error
     (%) and the cameras kept; NaNs if it refuses."""
-    from posecam.multiview.fuse import FuseOptions, fuse_recordings
+    from posecam.multiview.fuse import fuse_recordings
+    from posecam.multiview.options import FuseOptions
     from synth_rig import relative_rotation_error_deg
 
     try:
@@ -524,7 +528,8 @@ def essential(truth: bf.Truth, folder: Path) -> None:
     from posecam.multiview.bundle import bundle_adjust
     from posecam.multiview.calibrate import _bone_lengths, _consensus
     from posecam.multiview.consensus import stretch_residuals
-    from posecam.multiview.fuse import FuseOptions, check_take, known_lenses
+    from posecam.multiview.fuse import check_take
+    from posecam.multiview.options import FuseOptions
     from posecam.multiview.observations import Observations
 
     recs = [read_poses(folder / f"{n}.json")[0] for n in bf.NAMES]
@@ -537,8 +542,9 @@ def essential(truth: bf.Truth, folder: Path) -> None:
     for a, b in itertools.combinations(range(4), 2):
         opts = FuseOptions(offsets=[0.0, truth.combination[b] - truth.combination[a]])
         take = check_take([recs[a], recs[b]], opts)
-        opts = replace(opts, bundle_options=replace(opts.bundle_options, fixed_intrinsics=known_lenses(take, opts)))
-        people = take.observations(associate_people(take, None, opts.offsets, 0.5).people, opts.offsets, [0, 1])
+        opts = opts.for_take(take)
+        people = take.observations(associate_people(take, None, opts.offsets, replace(opts, min_conf=0.5)).people,
+                                   opts.offsets, [0, 1])
         obs = Observations.side_by_side(people)
         seen = (obs.conf >= 0.5).all(axis=0) & np.isfinite(obs.uv).all(axis=(0, -1))
         na, nb = (take.assumed[v].normalise(obs.uv[v][seen]) for v in (0, 1))

@@ -117,7 +117,8 @@ def root_error(cam, rec, world_root: np.ndarray, n: int) -> float:
 def fused_figures(cams, recs, reference) -> None:
     """The same figures for the views fused through the lab calibration (world frame)."""
     from posecam.geometry.camera import Rig
-    from posecam.multiview.fuse import FuseOptions, fuse_recordings
+    from posecam.multiview.fuse import fuse_recordings
+    from posecam.multiview.options import FuseOptions
 
     fused = fuse_recordings(recs, FuseOptions(calibration=Rig(cams), offsets=[OFFSETS[c.name] for c in cams])).recording
     start = -min(OFFSETS.values())          # fused frame i is cam01's frame i; the reference starts here

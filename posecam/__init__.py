@@ -25,7 +25,7 @@ _API = {
     "PredictOptions": "posecam.options",
     "PoseEstimator": "posecam.estimate",
     "load_views": "posecam.views",
-    "FuseOptions": "posecam.multiview.fuse",
+    "FuseOptions": "posecam.multiview.options",
     "FusionResult": "posecam.multiview.fuse",
     "fuse_recordings": "posecam.multiview.fuse",
     "IntrinsicsOptions": "posecam.io.intrinsics",

@@ -36,7 +36,7 @@ from posecam.io.media import VIDEO_SUFFIXES
 from posecam.options import EstimatorOptions, PredictOptions
 
 if TYPE_CHECKING:
-    from posecam.multiview.fuse import FuseOptions
+    from posecam.multiview.options import FuseOptions
 
 RAY_HINT = "--ray needs Ray: pip install 'ray>=2.9' (or pip install -e '.[ray]' in a checkout)"
 TAKE_SUFFIXES = (*VIDEO_SUFFIXES, ".json")   # a take folder's views: videos, pose files

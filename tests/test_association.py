@@ -4,7 +4,8 @@ import numpy as np
 
 from posecam.geometry.camera import Rig
 from posecam.multiview.associate import associate_people
-from posecam.multiview.fuse import FuseOptions, check_take
+from posecam.multiview.fuse import check_take
+from posecam.multiview.options import FuseOptions
 from synth_rig import make_rig, monocular_views, skeleton_motion
 
 
@@ -26,12 +27,12 @@ def test_people_each_camera_alone_sees_are_not_one_person_through_a_calibration(
     cams = [make_rig()[i] for i in (0, 2)]
     both = monocular_views(cams, _two_walking(60), seed=11)
     take = check_take(both, FuseOptions(calibration=Rig(cams)))
-    assert _who(associate_people(take, Rig(cams), [0.0, 0.0]).people) == [((0, 0), (1, 0)), ((0, 1), (1, 1))]
+    assert _who(associate_people(take, Rig(cams), [0.0, 0.0], FuseOptions()).people) == [((0, 0), (1, 0)), ((0, 1), (1, 1))]
     visible = np.ones((2, 2, 60), bool)
     visible[1, 0], visible[0, 1] = False, False          # camera 0 sees person 0 only, camera 1 person 1
     apart = monocular_views(cams, _two_walking(60), seed=11, visible=visible)
     take = check_take(apart, FuseOptions(calibration=Rig(cams)))
-    assert _who(associate_people(take, Rig(cams), [0.0, 0.0]).people) == [((0, 0),), ((1, 1),)]
+    assert _who(associate_people(take, Rig(cams), [0.0, 0.0], FuseOptions()).people) == [((0, 0),), ((1, 1),)]
 
 
 def test_two_people_are_told_apart_without_a_calibration():
@@ -43,6 +44,6 @@ def test_two_people_are_told_apart_without_a_calibration():
     visible[1, 2, 20:32] = False
     recs = monocular_views(cams, _two_walking(50), seed=12, visible=visible, id_switch={(0, 1): 25})
     take = check_take(recs, FuseOptions(sync=False))
-    people = associate_people(take, None, [0.0, 0.0, 0.0]).people
+    people = associate_people(take, None, [0.0, 0.0, 0.0], FuseOptions()).people
     assert _who(people) == [((0, 0), (1, 0), (2, 0)), ((0, 1), (1, 1), (2, 1))]
     assert sorted(len(p.tracks) for p in people) == [3, 4]

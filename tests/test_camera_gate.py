@@ -8,7 +8,8 @@ from pathlib import Path
 
 from posecam.io.poses import read_poses
 from posecam.multiview.calibrate import MAX_ERROR_PX
-from posecam.multiview.fuse import FuseOptions, fuse_recordings
+from posecam.multiview.fuse import fuse_recordings
+from posecam.multiview.options import FuseOptions
 from posecam.multiview.same_scene import MIN_SAME_MOTION
 
 TAKE = Path(__file__).parent / "data" / "two_people_50f"

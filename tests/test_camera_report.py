@@ -10,7 +10,8 @@ import numpy as np
 
 from posecam.geometry.camera import Rig
 from posecam.io.poses import read_poses, write_poses
-from posecam.multiview.fuse import FuseOptions, fuse_recordings
+from posecam.multiview.fuse import fuse_recordings
+from posecam.multiview.options import FuseOptions
 from posecam.skeleton import MIN_CONFIDENCE
 from synth_rig import make_rig, monocular_views, skeleton_motion
 

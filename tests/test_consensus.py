@@ -6,9 +6,9 @@ import pytest
 from posecam.errors import FusionError
 from posecam.geometry.camera import CameraCalibration, Intrinsics
 from posecam.multiview.associate import associate_people
-from posecam.multiview.bundle import BundleOptions
 from posecam.multiview.calibrate import cameras_from_people
-from posecam.multiview.fuse import FuseOptions, check_take, fuse_recordings
+from posecam.multiview.fuse import check_take, fuse_recordings
+from posecam.multiview.options import BundleOptions, FuseOptions
 from posecam.multiview.sync import SyncResult
 from synth_rig import make_rig, monocular_views, relative_rotation_error_deg, skeleton_motion
 
@@ -155,11 +155,12 @@ def test_bundle_adjustment_refines_fractional_offsets_started_a_frame_off():
     recs = _fractional(cams, true)
     take = check_take(recs, FuseOptions(sync=False))
     start = true + np.array([0.0, 0.9, -0.8, 0.7])
-    association = associate_people(take, None, start.tolist())
+    association = associate_people(take, None, start.tolist(), FuseOptions())
     rotation = {}
     for refine, at in ((False, start), (True, start), ("true", true)):
         sync = SyncResult(at.tolist(), [1.0] * 4, [])
-        kept = cameras_from_people(take, association, sync, 0.5, bundle_options=BundleOptions(refine_offsets=refine is True))
+        opts = FuseOptions(min_conf=0.5, bundle_options=BundleOptions(refine_offsets=refine is True))
+        kept = cameras_from_people(take, association, sync, opts)
         rotation[refine] = max(relative_rotation_error_deg(cams[0].rotation, c.rotation, np.eye(3), e.rotation)
                                for c, e in zip(cams[1:], kept.rig.cameras[1:]))
         if refine is True:
@@ -358,7 +359,7 @@ def test_a_person_fused_from_two_views_keeps_the_better_axis_of_each():
                        np.full(xyz.shape[:2], 0.9))
     rig = Rig(cams)
     assumed = [c.intrinsics for c in cams]
-    fused = fuse_person(rig, assumed, obs, "average", 0.5)
+    fused = fuse_person(rig, assumed, obs, FuseOptions(min_conf=0.5))
     error = np.linalg.norm(fused.points - world, axis=-1)
     moved = np.linalg.norm(camera_space(rig, assumed, obs, rig.triangulate(obs.uv, obs.conf))[0] - world, axis=-1)
     assert fused.used.all() and 40 < np.median(moved) < 60 and np.median(error) < 10, (np.median(error), np.median(moved))

@@ -70,7 +70,7 @@ def test_the_bystander_cam01_alone_sees_is_one_view_and_out_of_its_error(views):
     import numpy as np
 
     from posecam.io.calibration import read_calibration
-    from posecam.multiview.fuse import FuseOptions
+    from posecam.multiview.options import FuseOptions
 
     result = fuse_recordings(views, FuseOptions(calibration=read_calibration(TAKE / "Calib.qca.txt"),
                                                 offsets=[0, -1, 4, 0]))

@@ -219,7 +219,8 @@ def test_camera_table_fits_80_columns_with_nothing_cut(tmp_path):
     from rich.console import Console
 
     from posecam.commands.fuse import print_report
-    from posecam.multiview.fuse import FuseOptions, fuse_recordings
+    from posecam.multiview.fuse import fuse_recordings
+    from posecam.multiview.options import FuseOptions
 
     cams = make_rig()
     for cam, name in zip(cams, NAMES):

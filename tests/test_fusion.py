@@ -2,7 +2,8 @@
 
 import numpy as np
 
-from posecam.multiview.fuse import FuseOptions, fuse_recordings
+from posecam.multiview.fuse import fuse_recordings
+from posecam.multiview.options import FuseOptions
 from posecam.geometry.camera import Rig
 from posecam.multiview.left_right import unswap
 from posecam.skeleton import skeleton_of

@@ -7,10 +7,11 @@ import pytest
 
 from posecam.errors import FusionError
 from posecam.geometry.camera import Rig
-from posecam.multiview.bundle import BundleOptions, CameraSpread
+from posecam.multiview.bundle import CameraSpread
 from posecam.multiview.calibrate import (MAX_PINNED_FOCAL_PCT, MAX_PINNED_ROTATION_DEG, KeptCameras, pinned,
                                           widened, without_loose_cameras)
-from posecam.multiview.fuse import FuseOptions, fuse_recordings
+from posecam.multiview.fuse import fuse_recordings
+from posecam.multiview.options import BundleOptions, FuseOptions
 from posecam.multiview.observations import Observations
 from posecam.multiview.report import CameraReport
 from synth_rig import CameraSpec, make_rig, monocular_views, relative_rotation_error_deg, skeleton_motion

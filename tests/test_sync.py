@@ -4,7 +4,8 @@
 import numpy as np
 
 from posecam.multiview.associate import associate_people
-from posecam.multiview.fuse import FuseOptions, check_take, fuse_recordings
+from posecam.multiview.fuse import check_take, fuse_recordings
+from posecam.multiview.options import FuseOptions
 from posecam.multiview.coarse_sync import _bone_products, _resampled_products, bone_correlation, bone_directions, coarse_offsets
 from posecam.multiview.motion_sync import Resamples, motion_correlations, shifted_pair
 from posecam.multiview.same_scene import motion_agreement
@@ -47,7 +48,7 @@ def test_coarse_offsets_of_views_cut_at_different_frames():
     recs = monocular_views(cams[:3], skeleton_motion(160), seed=6)
     recs = [recs[0], _cut(recs[1], 12), _cut(recs[2], 9, -9)]
     take = check_take(recs, FuseOptions(sync=True))
-    assert coarse_offsets(take, None, 0.3) == [0.0, -12.0, -9.0]
+    assert coarse_offsets(take, FuseOptions(min_conf=0.3)) == [0.0, -12.0, -9.0]
 
 
 def test_motion_agreement_is_read_at_each_views_offset():
@@ -56,7 +57,7 @@ def test_motion_agreement_is_read_at_each_views_offset():
     cams = make_rig()
     recs = monocular_views(cams[:2], skeleton_motion(150), offsets=[0, 5], seed=7)
     take = check_take(recs, FuseOptions(sync=True, offsets=[0.0, 5.0]))
-    people = associate_people(take, None, [0.0, 5.0]).people
+    people = associate_people(take, None, [0.0, 5.0], FuseOptions()).people
     assert [p.views for p in people] == [[0, 1]]
     right = motion_agreement(take, people, [0.0, 5.0], 0.3)[1]
     assert right[0] > 0.8 and right[1] > 45.0, right

@@ -12,7 +12,8 @@ from posecam.geometry.camera import CameraCalibration, Intrinsics
 from posecam.io.calibration import write_toml
 from posecam.io.intrinsics import IntrinsicsOptions
 from posecam.io.poses import read_poses, write_poses
-from posecam.multiview.fuse import FuseOptions, check_lengths
+from posecam.multiview.fuse import check_lengths
+from posecam.multiview.options import FuseOptions
 from posecam.views import load_views, view_intrinsics
 
 VIEWS = [str(DATA / "messi5.jpg"), str(EXAMPLES / "balance.jpg")]   # 548x342 and 1080x1920

@@ -184,7 +184,8 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     from posecam.io.media import VIDEO_SUFFIXES
     from posecam.viz.sinks import PICTURE_SUFFIXES
     from posecam.scale.heights import Heights
-    from posecam.multiview.fuse import FuseOptions, finds_offsets, fuse_recordings
+    from posecam.multiview.fuse import fuse_recordings
+    from posecam.multiview.options import FuseOptions, finds_offsets
     from posecam.viz.render3d import VIEW3D_SUFFIXES, write_3d_view
     from posecam.analysis.angles import angle_names
     from posecam.options import PredictOptions
@@ -201,7 +202,8 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     check_output(viz, (*PICTURE_SUFFIXES, *VIDEO_SUFFIXES), "--viz")
     if offsets and sync == "auto":
         raise InputError("give either --offsets or --sync auto")
-    auto = finds_offsets(None if sync is None else sync == "auto", bool(calibration), bool(offsets))
+    asked = None if sync is None else sync == "auto"
+    auto = finds_offsets(asked, bool(calibration), bool(offsets))
     refuse_alone("max_offset", "--sync auto", auto)
     refuse_alone("trc_y_up", "-o FILE.trc or FILE.c3d", bool(markers))
     refuse_alone("free_intrinsics", "cameras to estimate (no --calibration)", not calibration)
@@ -233,7 +235,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
                        [*inputs, calibration, intrinsics.file, estimator.model],
                        per_person=markers)  # every output checked before the work
     rig = read_calibration(calibration) if calibration else None
-    opts = FuseOptions(calibration=rig, method=method, offsets=offset_list, sync=auto,
+    opts = FuseOptions(calibration=rig, method=method, offsets=offset_list, sync=asked,
                        max_offset=max_offset, heights=Heights.parse(heights), free_intrinsics=free_intrinsics)
     if many:
         from posecam.commands.many import fuse_many

@@ -30,6 +30,7 @@ from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
 from posecam.multiview.consensus import (MAX_PAIR_ANGLE, ConsensusOptions, camera_points, estimate_rig,
                                         fuse_points, intrinsics_vectors)
 from posecam.multiview.observations import Observations, PersonTracks, Take, ViewTrack, shift
+from posecam.multiview.options import FuseOptions
 
 MIN_COMMON_FRAMES = 10          # a pair of tracks needs this many frames seen by both
 MAX_SHARED = 2                  # frames two tracks of one view may share and still join
@@ -42,10 +43,11 @@ class Association:
     links: list[tuple[float, ViewTrack, ViewTrack]] = field(default_factory=list)   # kept pair costs
 
 
-def associate_people(take: Take, rig: Rig | None, offsets: list[float], min_conf: float = MIN_CONFIDENCE) -> Association:
+def associate_people(take: Take, rig: Rig | None, offsets: list[float], opts: FuseOptions) -> Association:
     """Who is who across the take's views at these offsets: through `rig` (its cameras the
     take's views, in order) by `associate` with `pair_cost_calibrated`; without one by
     `associate_by_consensus`."""
+    min_conf = opts.min_conf
     if rig is None:
         return associate_by_consensus(take.tracks, take.assumed, take.lengths, offsets, take.reference, min_conf)
     n = take.lengths[take.reference]

@@ -59,6 +59,7 @@ from scipy.sparse import csr_matrix, vstack
 from posecam.errors import FusionError
 from posecam.geometry.camera import Rig
 from posecam.multiview.observations import TimedKeypoints, catmull_rom, held
+from posecam.multiview.options import BundleOptions
 from posecam.multiview.schur_lm import Prior, Solution, solve
 from posecam.skeleton import skeleton_of
 from posecam.geometry.triangulate import observation_weights, triangulate
@@ -67,9 +68,6 @@ from posecam.geometry.triangulate import observation_weights, triangulate
 # soft-L1 loss: residuals (in pixel_sigma) beyond this scale count less; graduated, each scale to
 # convergence from the last (1 alone takes twice the evaluations: 238 against 112, single take)
 F_SCALES = (2.0, 1.0)
-# joint roles (posecam.skeleton.Skeleton.roles) kept out of the adjustment: not one 3D point from
-# every side (module docstring)
-LEFT_OUT = ("mid_hip", "r_hip", "l_hip")
 # a refined offset's spread: its Jacobian's in quadrature with this many times the camera's median
 # reprojection error over its keypoints' median speed (`offset_floor`). Fitted on the single take's
 # --rigs sweep (offsets against the lab's within 2 sd: 29 of 39 at 1.0, 35 at 1.25, 37 at 1.5; the
@@ -80,32 +78,6 @@ OFFSET_FLOOR = 1.5
 # translation, focal length f = sqrt(fx fy), optimised as log f, principal point) and its time offset
 ROTATION, TRANSLATION, LOG_F, CENTRE, OFFSET = slice(0, 3), slice(3, 6), 6, slice(7, 9), 9
 SLOTS = 10
-
-
-@dataclass
-class BundleOptions:
-    pixel_sigma: float = 3.0          # px: reprojection residuals are divided by this
-    # A person moving in a small volume pins the principal point down poorly: it trades against
-    # rotation (30 px ~ 1 deg at f = 1700). On the Pose2Sim demo a free one drifts by 100-200 px
-    # and doubles the rotation error, so by default it stays at the image centre.
-    fix_principal_point: bool = True
-    centre_sigma: float = 0.1         # principal point prior, in image widths / heights
-    max_frames: int = 150             # frames used (chosen for coverage), to bound the problem's size
-    max_nfev: int = 200
-    # relative cost change that ends the adjustment: 1e-6 ends it in half the time of scipy's 1e-8
-    # with the same rig on both Pose2Sim takes (rotation within 0.04 deg, focal 0.3 %)
-    ftol: float = 1e-6
-    max_error_px: float = 60.0        # median reprojection error above this: did not converge
-    left_out: tuple[str, ...] = LEFT_OUT   # joint roles the adjustment does not use (`left_out`)
-    # with timed keypoints (`bundle_adjust`), each camera's time offset is one more unknown, within
-    # this many frames of where it starts, on keypoints low-passed at offset_lowpass_hz; None:
-    # where fusion finds the offsets itself (posecam.multiview.fuse)
-    refine_offsets: bool | None = None
-    offset_window: int = 4
-    offset_lowpass_hz: float = 6.0
-    # names of the cameras whose intrinsics are known (given, not guessed): focal length and
-    # principal point held, only where the camera stands is estimated
-    fixed_intrinsics: frozenset[str] = frozenset()
 
 
 @dataclass

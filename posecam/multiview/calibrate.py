@@ -29,10 +29,11 @@ import numpy as np
 from posecam.errors import FusionError
 from posecam.geometry.camera import FOCAL_WIDTHS, CameraCalibration, Rig
 from posecam.multiview.associate import Association
-from posecam.multiview.bundle import BundleOptions, CameraSpread, bundle_adjust
+from posecam.multiview.bundle import CameraSpread, bundle_adjust
 from posecam.multiview.consensus import ConsensusOptions, estimate_rig, stretch_residuals
 from posecam.multiview.observations import Observations, Take, TimedKeypoints
 from posecam.multiview.motion_sync import MIN_MOTION
+from posecam.multiview.options import FuseOptions
 from posecam.multiview.same_scene import MIN_SAME_MOTION, motion_agreement
 from posecam.multiview.sync import SyncResult
 from posecam.skeleton import skeleton_of
@@ -170,12 +171,14 @@ def _usable_frames(people: list[Observations], n_views: int, min_conf: float) ->
 
 
 def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations], joints: tuple[str, ...], reference: int,
-                     min_conf: float, bundle: bool = True, bundle_options: BundleOptions | None = None,
-                     timed: TimedKeypoints | None = None, offsets: list[float] | None = None) -> KeptCameras:
+                     opts: FuseOptions, timed: TimedKeypoints | None = None,
+                     offsets: list[float] | None = None) -> KeptCameras:
     """Cameras of the views that the people allow; FusionError when fewer than two are left.
+    With FuseOptions.bundle, refined by the bundle adjustment (FuseOptions.bundle_options).
     With `timed` keypoints of the people (side by side) at the views' `offsets`, the bundle
     adjustment refines the offsets too (posecam.multiview.bundle) and KeptCameras has them.
     The cameras named in BundleOptions.fixed_intrinsics keep their intrinsics throughout."""
+    min_conf, bundle_options = opts.min_conf, opts.bundle_options
     views = list(range(len(assumed)))
     warnings, notes = [], []            # cameras dropped and why; what else the estimation met
     people = [p for p in people if ((p.conf.max(axis=-1) > 0).sum(axis=0) >= 2).any()]   # seen twice
@@ -191,10 +194,9 @@ def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations
                               + (": " + "; ".join(warnings) if warnings else ""))
         obs = Observations.side_by_side([p.take(views) for p in people])
         try:
-            rig = _consensus(assumed, people, views, reference, min_conf,
-                             (bundle_options or BundleOptions()).fixed_intrinsics)
+            rig = _consensus(assumed, people, views, reference, min_conf, bundle_options.fixed_intrinsics)
             refined = None
-            if bundle:
+            if opts.bundle:
                 start = None if timed is None else np.asarray(offsets, float)[views]
                 uv, conf = (obs.uv, obs.conf) if timed is None else timed.take(views).at(start)
                 fit = bundle_adjust(rig, uv, conf, _bone_lengths(obs, joints, min_conf), joints, bundle_options,
@@ -234,25 +236,23 @@ def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations
         views.pop(worst)
 
 
-def cameras_from_people(take: Take, association: Association, sync: SyncResult, min_conf: float,
-                        bundle: bool = True, bundle_options: BundleOptions | None = None) -> KeptCameras:
+def cameras_from_people(take: Take, association: Association, sync: SyncResult, opts: FuseOptions) -> KeptCameras:
     """The stage without a calibration: `estimate_cameras` on every associated person at the
     offsets, in the views whose offset is pinned (not SyncResult.unpinned; with
     BundleOptions.refine_offsets, the bundle adjustment refines the offsets from where they
     are: KeptCameras.offsets), then, while a kept view's people do not move as the reference's (`motion_agreement`
     below MIN_SAME_MOTION where they move enough to tell), that view dropped and the cameras
     estimated again without it."""
-    ref = take.reference
+    ref, min_conf, bundle = take.reference, opts.min_conf, opts.bundle_options
     every = list(range(len(take.names)))
-    opts = bundle_options or BundleOptions()
     timed = None
-    if bundle and opts.refine_offsets:
-        timed = take.timed(association.people, sync.offsets, opts.offset_window, opts.offset_lowpass_hz, min_conf)
+    if opts.bundle and bundle.refine_offsets:
+        timed = take.timed(association.people, sync.offsets, bundle.offset_window, bundle.offset_lowpass_hz, min_conf)
 
     def estimate(kept: list[int]) -> KeptCameras:
         est = estimate_cameras([take.assumed[u] for u in kept],
                                [p.take(kept) for p in take.observations(association.people, sync.offsets, every)],
-                               take.joints, kept.index(ref), min_conf, bundle, bundle_options,
+                               take.joints, kept.index(ref), opts,
                                None if timed is None else timed.take(kept),
                                None if timed is None else [sync.offsets[u] for u in kept])
         est.views = [kept[i] for i in est.views]
@@ -278,20 +278,18 @@ def cameras_from_people(take: Take, association: Association, sync: SyncResult, 
 
 
 def cameras_without_swaps(take: Take, cameras: KeptCameras, people: list[Observations], swaps: np.ndarray,
-                          min_conf: float, bundle: bool = True, bundle_options: BundleOptions | None = None
-                          ) -> tuple[KeptCameras, list[Observations], np.ndarray]:
+                          opts: FuseOptions) -> tuple[KeptCameras, list[Observations], np.ndarray]:
     """The estimated cameras again, from the people with their left/right swaps undone
     (posecam.multiview.left_right), and the people and swaps (V,) of the views kept; the new
     cameras' warnings only."""
     views = cameras.views
-    again = estimate_cameras([take.assumed[v] for v in views], people, take.joints, views.index(take.reference),
-                             min_conf, bundle, bundle_options)
+    again = estimate_cameras([take.assumed[v] for v in views], people, take.joints, views.index(take.reference), opts)
     kept = KeptCameras(again.rig, [views[i] for i in again.views], again.warnings, again.spreads)
     return kept, [p.take(again.views) for p in people], swaps[again.views]
 
 
-def bootstrap_spreads(cameras: KeptCameras, people: list[Observations], joints: tuple[str, ...], min_conf: float,
-                      bundle_options: BundleOptions | None = None, seed: int = 0) -> KeptCameras:
+def bootstrap_spreads(cameras: KeptCameras, people: list[Observations], joints: tuple[str, ...], opts: FuseOptions,
+                      seed: int = 0) -> KeptCameras:
     """The estimated cameras with the spreads a bootstrap gives (one standard deviation of each
     camera's rotation, focal length and centre, at the rig's scale): the bundle adjustment again
     from the rig, BOOT_REPLICATES times, each on the people (their views the cameras') with
@@ -306,7 +304,7 @@ def bootstrap_spreads(cameras: KeptCameras, people: list[Observations], joints: 
         return cameras
     rig = cameras.rig
     obs = Observations.side_by_side(people)
-    opts = replace(bundle_options or BundleOptions(), max_frames=BOOT_FRAMES, ftol=BOOT_FTOL)
+    boot = replace(opts.bundle_options, max_frames=BOOT_FRAMES, ftol=BOOT_FTOL)
     rng = np.random.default_rng(seed)
     n_j, n_f = len(joints), obs.conf.shape[1]
     blocks = -(-n_f // BOOT_BLOCK)
@@ -319,7 +317,7 @@ def bootstrap_spreads(cameras: KeptCameras, people: list[Observations], joints: 
         per_block = np.repeat(rng.multinomial(blocks, np.full(blocks, 1 / blocks)), BOOT_BLOCK)[:n_f]
         try:
             fit = bundle_adjust(rig, obs.uv, obs.conf * per_block[None, :, None] * per_joint[None, None], None,
-                                joints, opts)
+                                joints, boot)
         except FusionError:                              # a replicate left with too few joints
             continue
         c = np.stack([cam.centre for cam in fit.rig.cameras])
@@ -333,7 +331,7 @@ def bootstrap_spreads(cameras: KeptCameras, people: list[Observations], joints: 
         rot, focal, centre = np.array(rot), np.array(focal), np.array(centre)      # (B, V, 3), (B, V), (B, V, 3)
         spreads = [CameraSpread(float(np.degrees(_largest_sd(rot[:, v]))), float(100 * np.std(focal[:, v], ddof=1)),
                                 float(_largest_sd(centre[:, v]))) for v in range(len(rig.cameras))]
-    return replace(cameras, spreads=widened(rig, obs, spreads, min_conf, opts.fixed_intrinsics))
+    return replace(cameras, spreads=widened(rig, obs, spreads, opts.min_conf, boot.fixed_intrinsics))
 
 
 def bias_floor(rig: Rig, obs: Observations, min_conf: float) -> tuple[np.ndarray, np.ndarray]:

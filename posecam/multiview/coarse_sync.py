@@ -14,6 +14,7 @@ import numpy as np
 from posecam.io.media import DEFAULT_FPS
 from posecam.multiview.motion_sync import LOWPASS_HZ, Resamples, shifted_pair
 from posecam.multiview.observations import Take, ViewTrack, lowpass
+from posecam.multiview.options import FuseOptions
 from posecam.skeleton import skeleton_of
 
 COARSE_SHARE = 0.5              # the coarse search's lags leave each pair of views at least this
@@ -194,19 +195,19 @@ def coarse_offset(ref: list[ViewTrack], other: list[ViewTrack], joints: tuple[st
     return found[0] if found else None
 
 
-def coarse_offsets(take: Take, max_offset: int | None, min_conf: float) -> list[float]:
+def coarse_offsets(take: Take, opts: FuseOptions) -> list[float]:
     """Every view's whole-frame offset against the reference (`coarse_offset`, on the longest
     COARSE_TRACKS tracks of each) over every lag that leaves the two views COARSE_SHARE of the
-    shorter one's frames; 0 where nothing is shared or the lag exceeds max_offset (None: no
-    limit). Who is who need not be known: it runs on the views' tracks, before the association."""
-    fps = take.fps or DEFAULT_FPS
+    shorter one's frames; 0 where nothing is shared or the lag exceeds FuseOptions.max_offset
+    (None: no limit). Who is who need not be known: it runs on the views' tracks, before the association."""
+    fps, max_offset = take.fps or DEFAULT_FPS, opts.max_offset
     ref = take.reference
     out = [0.0] * len(take.names)
     for v in range(len(take.names)):
         if v == ref or not take.tracks[v] or not take.tracks[ref]:
             continue
         found = coarse_offset(take.tracks[ref][:COARSE_TRACKS], take.tracks[v][:COARSE_TRACKS], take.joints, fps,
-                              min_conf, int(COARSE_SHARE * min(take.lengths[ref], take.lengths[v])))
+                              opts.min_conf, int(COARSE_SHARE * min(take.lengths[ref], take.lengths[v])))
         if found is not None and (max_offset is None or abs(found.offset) <= max_offset):
             out[v] = float(found.offset)
     return out

@@ -31,41 +31,20 @@ from threadpoolctl import threadpool_limits
 
 from posecam.errors import FusionError, InputError
 from posecam.geometry.camera import Rig
-from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.scale.heights import Heights
 from posecam.scale.stature import stature
 from posecam.multiview.associate import Association, associate_people
-from posecam.multiview.bundle import BundleOptions
 from posecam.multiview.calibrate import (KeptCameras, bootstrap_spreads, cameras_from_people, cameras_without_swaps,
                                           without_loose_cameras)
 from posecam.multiview.fuse_people import FusedPerson, fuse_person
 from posecam.multiview.left_right import fix_people
 from posecam.multiview.observations import Observations, Take
+from posecam.multiview.options import FuseOptions
 from posecam.multiview.report import CameraReport, camera_reports
 from posecam.multiview.coarse_sync import coarse_offsets
 from posecam.multiview.sync import RIG_MAX_OFFSET, SyncResult, synchronise
 from posecam.results import Frame, Person, Recording
 from posecam.skeleton import skeleton_of
-
-
-@dataclass
-class FuseOptions:
-    calibration: Rig | None = None         # known cameras; None: estimate them
-    method: str = "average"                # "average" (monocular poses) or "triangulate" (2D)
-    offsets: list[float] | None = None     # per view, see posecam.multiview.sync; None: zeros or auto
-    # estimate the offsets; None (the default, `posecam fuse`'s): when neither a calibration nor
-    # offsets are given (cameras started by hand)
-    sync: bool | None = None
-    # frames either way the offsets may reach; None: without a calibration, any that leaves the views
-    # half the shorter one's frames (posecam.multiview.coarse_sync.coarse_offsets); with one, 10
-    max_offset: int | None = None
-    bundle: bool = True                    # refine an estimated rig by bundle adjustment
-    min_conf: float = MIN_CONFIDENCE
-    bundle_options: BundleOptions = field(default_factory=BundleOptions)
-    heights: Heights = field(default_factory=Heights)   # known heights: the metric scale of an estimated rig
-    # estimate the intrinsics of the views whose poses were made with given ones (flags, a file, a
-    # calibration: Intrinsics.given) too; by default those are held and only the cameras' poses estimated
-    free_intrinsics: bool = False
 
 
 @dataclass
@@ -77,12 +56,6 @@ class FusionResult:
     views: list[int] = field(default_factory=list)      # input index of each kept camera
     warnings: list[str] = field(default_factory=list)
     scale_source: str = "the calibration"   # what fixes the metric scale (see `metric_scale`)
-
-
-def finds_offsets(sync: bool | None, calibrated: bool, offsets_given: bool) -> bool:
-    """FuseOptions.sync resolved: None (the default) finds the offsets unless a calibration or
-    offsets are given."""
-    return sync if sync is not None else not (calibrated or offsets_given)
 
 
 def view_names(recordings: list[Recording]) -> list[str]:
@@ -105,7 +78,7 @@ def check_lengths(names: list[str], lengths: list[int], opts: FuseOptions) -> st
     (REFERENCE); a warning line says they differ. Views taken as started together (no offsets, no search
     without a calibration) may differ by at most the search of a calibrated sync (`max_offset`):
     InputError past what they allow."""
-    sync = finds_offsets(opts.sync, opts.calibration is not None, opts.offsets is not None)
+    sync = opts.finds_offsets
     if not lengths or max(lengths) == min(lengths) or (sync and opts.calibration is None):
         return None
     shown = ", ".join(f"{n} {k}" for n, k in zip(names, lengths))
@@ -131,8 +104,6 @@ def check_take(recordings: list[Recording], opts: FuseOptions) -> Take:
     views' lengths differ, `check_lengths`), or InputError / FusionError saying why they are not."""
     if len(recordings) < 2:
         raise InputError(f"fusion needs two views or more, got {len(recordings)}")
-    if opts.method not in ("average", "triangulate"):
-        raise InputError(f"method must be average or triangulate, got {opts.method!r}")
     if len({r.joints for r in recordings}) != 1:
         raise InputError("the views were predicted with different skeletons; predict them with the same --skeleton")
     if opts.offsets is not None and len(opts.offsets) != len(recordings):
@@ -250,20 +221,13 @@ def to_metric(cameras: KeptCameras, people: list[Observations], take: Take,
     return replace(cameras, rig=rig, spreads=spreads), source, warnings
 
 
-def known_lenses(take: Take, opts: FuseOptions) -> frozenset[str]:
-    """Names of the views whose intrinsics are held while the rig is estimated: those given
-    (Intrinsics.given), unless FuseOptions.free_intrinsics, and any BundleOptions.fixed_intrinsics."""
-    given = () if opts.free_intrinsics else (n for n, c in zip(take.names, take.assumed) if c.intrinsics.given)
-    return opts.bundle_options.fixed_intrinsics | frozenset(given)
-
-
 def _start(take: Take, opts: FuseOptions) -> list[float]:
     """Where the offsets start: the ones given; to be found without a calibration, where the
     views' bones move alike (posecam.multiview.coarse_sync.coarse_offsets); else zeros."""
     if opts.offsets is not None:
         return list(opts.offsets)
     if opts.sync and opts.calibration is None:
-        return coarse_offsets(take, opts.max_offset, opts.min_conf)
+        return coarse_offsets(take, opts)
     return [0.0] * len(take.names)
 
 
@@ -273,7 +237,7 @@ def _offsets(take: Take, association: Association, rig: Rig | None, start: list[
     if not opts.sync:
         return SyncResult(start, [1.0] * len(start), [])
     say("synchronising")
-    return synchronise(take, association.people, rig, start, opts.max_offset, opts.min_conf)
+    return synchronise(take, association.people, rig, start, opts)
 
 
 def refined_offsets(sync: SyncResult, cameras: KeptCameras) -> SyncResult:
@@ -312,7 +276,7 @@ def _estimated(take: Take, association: Association, sync: SyncResult, opts: Fus
     if len(take.names) - len(sync.unpinned) < 2:
         raise FusionError("fewer than two cameras can be fused: " + "; ".join(sync.warnings))
     try:
-        cameras = cameras_from_people(take, association, sync, opts.min_conf, opts.bundle, opts.bundle_options)
+        cameras = cameras_from_people(take, association, sync, opts)
         sync = refined_offsets(sync, cameras)
         warnings = sync.warnings + cameras.warnings
         say("checking left and right")
@@ -320,12 +284,11 @@ def _estimated(take: Take, association: Association, sync: SyncResult, opts: Fus
                                    take.joints)
         if swaps.any():
             say("estimating the cameras without the swaps")
-            cameras, people, swaps = cameras_without_swaps(take, cameras, people, swaps, opts.min_conf, opts.bundle,
-                                                           opts.bundle_options)
+            cameras, people, swaps = cameras_without_swaps(take, cameras, people, swaps, opts)
             warnings += cameras.warnings
         if opts.bundle:
             say("bootstrapping the cameras' spreads")
-            cameras = bootstrap_spreads(cameras, people, take.joints, opts.min_conf, opts.bundle_options)
+            cameras = bootstrap_spreads(cameras, people, take.joints, opts)
             cameras, people, swaps = without_loose_cameras(cameras, people, swaps, take.names, take.reference,
                                                            what_helps(take, opts))
             warnings += cameras.warnings
@@ -344,21 +307,17 @@ def fuse_recordings(recordings: list[Recording], options: FuseOptions | None = N
 
 def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[str], None] | None) -> FusionResult:
     say = progress or (lambda _msg: None)
-    opts = replace(opts, sync=finds_offsets(opts.sync, opts.calibration is not None, opts.offsets is not None))
     take = check_take(recordings, opts)
-    refine = opts.bundle_options.refine_offsets
-    opts = replace(opts, bundle_options=replace(opts.bundle_options, fixed_intrinsics=known_lenses(take, opts),
-                                                refine_offsets=opts.sync and opts.calibration is None
-                                                if refine is None else refine))
+    opts = opts.for_take(take)
     given = given_cameras(take, opts.calibration) if opts.calibration is not None else None
     rig = given.rig if given else None
     start = _start(take, opts)
 
     say("associating people across views")
-    association = associate_people(take, rig, start, opts.min_conf)
+    association = associate_people(take, rig, start, opts)
     sync = _offsets(take, association, rig, start, opts, say)
     if given and opts.sync:                  # through a rig, who is who depends on the offsets
-        association = associate_people(take, rig, sync.offsets, opts.min_conf)
+        association = associate_people(take, rig, sync.offsets, opts)
     if given:
         cameras = given
         say("checking left and right")
@@ -380,8 +339,7 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
 
     say("fusing")
     rig, views = cameras.rig, cameras.views
-    fused = [fuse_person(rig, [take.assumed[v].intrinsics for v in views], obs, opts.method, opts.min_conf)
-             for obs in people]
+    fused = [fuse_person(rig, [take.assumed[v].intrinsics for v in views], obs, opts) for obs in people]
     spread = sync.spread or [0.0] * len(recordings)
     fixed = [bool(given) or take.names[v] in opts.bundle_options.fixed_intrinsics for v in views]
     reports = camera_reports(rig, [sync.offsets[v] for v in views], [sync.confidence[v] for v in views],

@@ -18,6 +18,7 @@ from posecam.geometry.camera import Intrinsics, Rig
 from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.multiview.consensus import MAX_VIEW_ANGLE, fuse_points, scaled_depths
 from posecam.multiview.observations import Observations
+from posecam.multiview.options import FuseOptions
 
 
 @dataclass
@@ -87,14 +88,15 @@ def consistent_views(rig: Rig, obs: Observations, min_conf: float) -> np.ndarray
     return keep
 
 
-def fuse_person(rig: Rig, assumed: list[Intrinsics], obs: Observations, method: str,
-                min_conf: float) -> FusedPerson:
+def fuse_person(rig: Rig, assumed: list[Intrinsics], obs: Observations, opts: FuseOptions) -> FusedPerson:
     """Confidence-weighted fusion of the person's consistent views, frame by frame.
 
     method "average": the monocular poses, each moved along its depth axis onto the views'
     triangulation (depth trusted less than the image plane);
-    "triangulate": the 2D keypoints, the average where fewer than two views see a joint.
+    "triangulate": the 2D keypoints, the average where fewer than two views see a joint
+    (FuseOptions.method).
     """
+    method, min_conf = opts.method, opts.min_conf
     used = consistent_views(rig, obs, min_conf)
     conf = np.where(used[..., None], obs.conf, 0.0)                            # (V, F, J)
     tri = rig.triangulate(obs.uv, conf, min_conf)

@@ -30,6 +30,7 @@ from posecam.io.media import DEFAULT_FPS
 from posecam.multiview.coarse_sync import bone_correlations, bone_directions, sampling_step
 from posecam.multiview.motion_sync import MIN_MOTION, keypoint_speed, motion_offset, shared_excursion
 from posecam.multiview.observations import PersonTracks, Take, lowpass
+from posecam.multiview.options import FuseOptions
 from posecam.multiview.rig_sync import estimate_offsets
 
 
@@ -57,16 +58,16 @@ FINE_WINDOW = 3                 # frames either way of the coarse lag that the m
 RIG_MAX_OFFSET = 10             # frames either way that a rig's search tries unless told
 
 
-def synchronise(take: Take, people: list[PersonTracks], rig: Rig | None, start: list[float], max_offset: int | None,
-                min_conf: float) -> SyncResult:
+def synchronise(take: Take, people: list[PersonTracks], rig: Rig | None, start: list[float],
+                opts: FuseOptions) -> SyncResult:
     """Every view's offset (module convention) from the people the association found: with a
     rig (its cameras the take's views, in order), `estimate_offsets` on every person seen twice
-    (within max_offset, RIG_MAX_OFFSET if None); without, each view's motion against the
+    (within FuseOptions.max_offset, RIG_MAX_OFFSET if None); without, each view's motion against the
     reference's (`motion_offset`) within FINE_WINDOW frames of its start (`coarse_offsets`), the
     view left out (SyncResult.unpinned) with a warning where the motion does not pin it."""
     if rig is not None:
-        return _rig_offsets(take, people, rig, start, RIG_MAX_OFFSET if max_offset is None else max_offset)
-    return _motion_offsets(take, people, start, min_conf)
+        return _rig_offsets(take, people, rig, start, RIG_MAX_OFFSET if opts.max_offset is None else opts.max_offset)
+    return _motion_offsets(take, people, start, opts.min_conf)
 
 
 RIG_LOWPASS_HZ = 6.0            # the keypoints a rig's sync reads are low-passed at this (`_rig_offsets`)
