@@ -9,8 +9,9 @@ frame and joint seen by two views or more. Residuals: reprojection errors in uni
 (joints below 0.5 are left out) under a robust soft-L1 loss, plus, when the principal point is
 free, a weak prior that keeps it near the image centre. Solved by Levenberg-Marquardt with the
 points eliminated (posecam.multiview.schur_lm), but for two cameras with a lens to estimate
-(`_inexact`: their minimum is a valley). Reprojection alone cannot tell the rig's scale; it comes back from the metric monocular poses: after the fit the rig and the
-points are scaled so that the fused bones are as long as the monocular skeletons' bones.
+or a free principal point (`_inexact`: their minimum is a valley). Reprojection alone cannot
+tell the rig's scale; it comes back from the metric monocular poses: after the fit the rig and
+the points are scaled so that the fused bones are as long as the monocular skeletons' bones.
 
 What limits the rig is the keypoints' bias, not their noise. Started FROM the lab rig of
 Pose2Sim's two takes (bench/bench_fuse.py, distortion taken out of the keypoints), the
@@ -304,11 +305,14 @@ def camera_covariance(problem: _Problem, x: np.ndarray, loss_weights: np.ndarray
 def _inexact(problem: _Problem, x0: np.ndarray, f_scale: float, lower: np.ndarray, upper: np.ndarray,
              opts: BundleOptions, prior: Prior | None) -> Solution:
     """The objective of posecam.multiview.schur_lm.solve (the prior under the loss too) by
-    scipy's trust-region solver with inexact (LSMR) steps over every unknown, for two cameras
-    with a lens to estimate. Their keypoints cannot tell a lens from a distance (a dolly zoom):
-    the exact minimum slides along that valley (Pose2Sim's pairs to f = 400 px, a quarter of the
-    lab's, at 1 % lower cost; one fused 70 deg off), and these steps stay near the consensus
-    start, where the monocular depths put the people (docs/benchmarks.md, fourth round)."""
+    scipy's trust-region solver with inexact (LSMR) steps over every unknown, where the minimum
+    is a valley and these steps stay near the consensus start, where the monocular depths put
+    the people. Two cameras with a lens to estimate cannot tell a lens from a distance (a dolly
+    zoom): the exact minimum slides to f = 400 px on Pose2Sim's pairs, a quarter of the lab's,
+    at 1 % lower cost, one fused 70 deg off (docs/benchmarks.md, fourth round). A free principal
+    point trades against the rotations: on a synthetic rig 3 % off centre the exact minimum
+    moves it 170 px the wrong way (rotations 9.6 deg off) at the cost this start reaches 1.8 deg
+    off (tests/test_consensus.py)."""
     fun, jac = problem.residuals, problem.jacobian
     if prior is not None:
         def fun(x):
@@ -393,9 +397,9 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
             return (p[:, CENTRE][centre_free] - size[centre_free] / 2) * prior_w
 
         prior = Prior(centre_prior, prior_jac)
-    # two cameras with a lens to estimate leave a valley open (a dolly zoom: `_inexact`); any
-    # other rig takes the exact solver (posecam.multiview.schur_lm)
-    exact = n_v > 2 or not lens_free.any()
+    # two cameras with a lens to estimate (a dolly zoom) and a free principal point (it trades
+    # against the rotations) leave a valley open: `_inexact`; the rest takes the exact solver
+    exact = (n_v > 2 or not lens_free.any()) and opts.fix_principal_point
     converged, x = True, x0
     for f_scale in F_SCALES:
         if exact:
