@@ -51,7 +51,7 @@ def lab_joints(cams, recs) -> tuple[np.ndarray, int]:
 def accuracy(cams, recs) -> None:
     from posecam.geometry.camera import Rig
     from posecam.multiview.fuse import fuse_recordings
-    from posecam.multiview.options import FuseOptions
+    from posecam import FuseOptions
 
     world, n = lab_joints(cams, recs)
     want = angles_of(world, H36M_JOINTS, "world")

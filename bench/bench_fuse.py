@@ -403,10 +403,8 @@ def written_pelvis(res) -> list[list[list[float]]]:
 
 def worker(take: str, cache: Path, offsets: list[float], out: Path) -> None:
     """Run every config on the cached pose JSON and write what `Truth.score` needs."""
-    from posecam import read_poses
+    from posecam import FuseOptions, fuse_recordings, read_poses
     from posecam.io.calibration import read_calibration
-    from posecam.multiview.fuse import fuse_recordings
-    from posecam.multiview.options import FuseOptions
 
     recs = [read_poses(cache / take / f"{n}.json")[0] for n in NAMES]
     lab = read_calibration(ROOT / TAKES[take][0] / "Calib.qca.txt")
@@ -421,8 +419,7 @@ def worker(take: str, cache: Path, offsets: list[float], out: Path) -> None:
 
             kw["heights"] = Heights.parse([TAKES[take][cfg["heights"]]])
         if cfg.get("refine") is not None:
-            from posecam.multiview.options import BundleOptions
-
+            BundleOptions = type(FuseOptions().bundle_options)     # a --before checkout's home for it
             if "refine_offsets" not in {f.name for f in fields(BundleOptions)}:
                 continue
             kw["bundle_options"] = BundleOptions(refine_offsets=cfg["refine"])
@@ -462,12 +459,11 @@ def long_worker(cache: Path, loops: int, out: Path) -> None:
     of fusing it without a calibration (--sync auto) and with the lab calibration."""
     import resource
 
-    from posecam import read_poses
+    from posecam import FuseOptions, fuse_recordings, read_poses
     from posecam.io.calibration import read_calibration
-    from posecam.multiview.options import BundleOptions
-    from posecam.multiview.fuse import fuse_recordings
-    from posecam.multiview.options import FuseOptions
     from posecam.results import Frame
+
+    BundleOptions = type(FuseOptions().bundle_options)                 # a --before checkout's home for it
 
     recs = [read_poses(cache / "single" / f"{n}.json")[0] for n in NAMES]
     for r in recs:
@@ -650,7 +646,7 @@ def new_user_options(**kw):
     """FuseOptions as `posecam fuse` builds them with no option typed: `--sync auto` unless a
     calibration or offsets are given, no `--max-offset` (the command's rule, written out here
     so that a --before checkout is measured the same way)."""
-    from posecam.multiview.options import FuseOptions
+    from posecam import FuseOptions
 
     has = {f.name for f in fields(FuseOptions)}
     base = {"sync": kw.get("calibration") is None and kw.get("offsets") is None, "max_offset": None}

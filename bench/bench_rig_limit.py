@@ -265,7 +265,7 @@ def from_scratch(label: str, truth: bf.Truth, folder: Path) -> None:
     truth offsets (this checkout)."""
     from posecam import read_poses
     from posecam.multiview.fuse import fuse_recordings
-    from posecam.multiview.options import FuseOptions
+    from posecam import FuseOptions
 
     recs = [read_poses(folder / f"{n}.json")[0] for n in bf.NAMES]
     for how, opts in (("--sync auto", FuseOptions(sync=True)),
@@ -289,7 +289,7 @@ def spreads(truth: bf.Truth, folder: Path, n_boot: int, seed: int = 0) -> None:
     from posecam.multiview.associate import associate_people
     from posecam.multiview.calibrate import bootstrap_spreads, estimate_cameras
     from posecam.multiview.fuse import check_take
-    from posecam.multiview.options import FuseOptions
+    from posecam import FuseOptions
     from posecam.multiview.left_right import fix_people
     from posecam.multiview.observations import Observations
     from posecam.multiview.sync import synchronise
@@ -455,7 +455,7 @@ def rig_errors(recs: list, cams: list, **options) -> tuple[float, float, float, 
     the lab's (median and worst over the pairs of kept cameras, deg), the worst focal length error
     (%) and the cameras kept; NaNs if it refuses."""
     from posecam.multiview.fuse import fuse_recordings
-    from posecam.multiview.options import FuseOptions
+    from posecam import FuseOptions
     from synth_rig import relative_rotation_error_deg
 
     try:
@@ -529,7 +529,7 @@ def essential(truth: bf.Truth, folder: Path) -> None:
     from posecam.multiview.calibrate import _bone_lengths, _consensus
     from posecam.multiview.consensus import stretch_residuals
     from posecam.multiview.fuse import check_take
-    from posecam.multiview.options import FuseOptions
+    from posecam import FuseOptions
     from posecam.multiview.observations import Observations
 
     recs = [read_poses(folder / f"{n}.json")[0] for n in bf.NAMES]

@@ -118,7 +118,7 @@ def fused_figures(cams, recs, reference) -> None:
     """The same figures for the views fused through the lab calibration (world frame)."""
     from posecam.geometry.camera import Rig
     from posecam.multiview.fuse import fuse_recordings
-    from posecam.multiview.options import FuseOptions
+    from posecam import FuseOptions
 
     fused = fuse_recordings(recs, FuseOptions(calibration=Rig(cams), offsets=[OFFSETS[c.name] for c in cams])).recording
     start = -min(OFFSETS.values())          # fused frame i is cam01's frame i; the reference starts here

@@ -38,7 +38,7 @@ def test_a_camera_that_tilted_as_it_filmed_is_dropped_for_its_reprojection_error
     frames): no fixed camera fits its keypoints. Offsets given, those --sync auto finds for the
     four untilted views to the frame (the sync leaves a tilting view out: its bones turn with it).
     Its people move as the others' (the motion gate keeps it) and a rig fits it (with this gate
-    open it is fused, marked unpinned); its reprojection error (63 px, the others' 7-12) drops it."""
+    open it is fused, marked unpinned); its reprojection error (66 px, the others' 7-12) drops it."""
     result = fuse_recordings(_views("cam01", "cam02_tilting", "cam03", "cam04"),
                              FuseOptions(offsets=[0.0, -2.0, -3.0, -2.0]))
     assert result.views == [0, 2, 3], result.warnings
