@@ -144,7 +144,8 @@ def fuse_points(points: np.ndarray, rotations: np.ndarray, w: np.ndarray,
     """
     info = np.einsum("vki,k,vkj->vij", rotations, [1.0, 1.0, depth_ratio ** -2], rotations)  # (V, 3, 3)
     wi = w[..., None, None] * info[:, None, None]                                            # (V, F, J, 3, 3)
-    wx = np.einsum("vfjik,vfjk->vfji", wi, np.nan_to_num(points))
+    v = len(points)
+    wx = w[..., None] * (np.nan_to_num(points).reshape(v, -1, 3) @ np.swapaxes(info, 1, 2)).reshape(points.shape)
     m_all, b_all = wi.sum(axis=0), wx.sum(axis=0)
     if leave_one_out:
         m, b, n = m_all - wi, b_all - wx, w.sum(axis=0) - w
@@ -152,8 +153,19 @@ def fuse_points(points: np.ndarray, rotations: np.ndarray, w: np.ndarray,
         m, b, n = m_all, b_all, w.sum(axis=0)
     seen = n > 1e-9
     out = np.full(b.shape, np.nan)
-    out[seen] = np.linalg.solve(m[seen], b[seen][..., None])[..., 0]
+    out[seen] = solve_symmetric_3x3(m[seen], b[seen])
     return out
+
+
+def solve_symmetric_3x3(m: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """x (N, 3) with m x = b for N symmetric positive definite m (N, 3, 3): the adjugate over
+    the determinant, vectorised (numpy's batched solve spends its time per matrix)."""
+    xx, xy, xz, yy, yz, zz = m[:, 0, 0], m[:, 0, 1], m[:, 0, 2], m[:, 1, 1], m[:, 1, 2], m[:, 2, 2]
+    adj = np.array([[yy * zz - yz * yz, xz * yz - xy * zz, xy * yz - xz * yy],
+                    [xz * yz - xy * zz, xx * zz - xz * xz, xy * xz - xx * yz],
+                    [xy * yz - xz * yy, xy * xz - xx * yz, xx * yy - xy * xy]])                # (3, 3, N)
+    det = xx * adj[0, 0] + xy * adj[0, 1] + xz * adj[0, 2]
+    return np.einsum("ijn,nj->ni", adj, b) / det[:, None]
 
 
 def _robust_weights(residual: np.ndarray, w0: np.ndarray, scale: float) -> np.ndarray:
@@ -187,7 +199,7 @@ class _State:
 def _points(assumed: list[CameraCalibration], obs: Observations, s: _State) -> tuple[np.ndarray, np.ndarray]:
     """Camera-frame points (V, F, J, 3) and the same in the reference frame, X = R^T (x - t)."""
     p = camera_points(obs, assumed, s.k)
-    return p, np.einsum("vfjk,vki->vfji", p - s.translation[:, None, None], s.rotation)
+    return p, ((p - s.translation[:, None, None]).reshape(len(p), -1, 3) @ s.rotation).reshape(p.shape)
 
 
 def _run_stage(assumed: list[CameraCalibration], obs: Observations, s: _State, w0: np.ndarray,

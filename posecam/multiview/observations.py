@@ -171,6 +171,7 @@ class Observations:
     xyz: np.ndarray             # (V, F, J, 3) each view's camera coordinates
     conf: np.ndarray            # (V, F, J), 0 where the view does not see the person
     score: np.ndarray           # (V, F)
+    _root_depth: np.ndarray | None = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         v, f, j = self.conf.shape
@@ -206,12 +207,14 @@ class Observations:
 
     def root_depth(self) -> np.ndarray:
         """(V, F) confidence-weighted mean depth of each frame's joints: the part that scales
-        with f (posecam.multiview.consensus)."""
-        w = observation_weights(self.uv, self.conf, 0.0)
-        w = np.where(np.isfinite(self.xyz[..., 2]), w, 0.0)
-        total = w.sum(axis=-1)
-        z = (np.nan_to_num(self.xyz[..., 2]) * w).sum(axis=-1)
-        return np.where(total > 0, z / np.maximum(total, 1e-12), np.nan)
+        with f (posecam.multiview.consensus); computed once (the arrays are never changed in place)."""
+        if self._root_depth is None:
+            w = observation_weights(self.uv, self.conf, 0.0)
+            w = np.where(np.isfinite(self.xyz[..., 2]), w, 0.0)
+            total = w.sum(axis=-1)
+            z = (np.nan_to_num(self.xyz[..., 2]) * w).sum(axis=-1)
+            self._root_depth = np.where(total > 0, z / np.maximum(total, 1e-12), np.nan)
+        return self._root_depth
 
 
 def assumed_cameras(names: list[str], recordings: list[Recording]) -> list[CameraCalibration]:
