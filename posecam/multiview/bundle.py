@@ -204,7 +204,7 @@ class _Problem:
         cam = np.zeros((len(v), 2, p.shape[1]))
         # d(R X)/dr = -R [X]x J = -[R X]x R J: column k is (R J)_k x (R X)
         d_rot = np.cross(np.swapaxes(rj, 1, 2)[v], rx[:, None, :])        # (N, k, 3)
-        cam[:, :, ROTATION] = np.einsum("nai,nki->nak", dproj, d_rot)
+        cam[:, :, ROTATION] = dproj @ d_rot.transpose(0, 2, 1)
         cam[:, :, TRANSLATION] = dproj
         cam[:, :, LOG_F] = f * pc[:, :2] / z[:, None] * self.obs_w[:, None]
         cam[:, 0, CENTRE.start] = cam[:, 1, CENTRE.start + 1] = self.obs_w              # cx, cy

@@ -77,17 +77,19 @@ def solve(problem: Adjustment, x0: np.ndarray, f_scale: float, lower: np.ndarray
         g_cam = np.zeros((n_v, k))
         for c in range(n_v):
             sel = v == c
-            a[c * k:(c + 1) * k, c * k:(c + 1) * k] = np.einsum("nai,naj->ij", cam[sel], cam[sel])
-            g_cam[c] = np.einsum("nai,na->i", cam[sel], rw[sel])
+            rows = cam[sel].reshape(-1, k)
+            a[c * k:(c + 1) * k, c * k:(c + 1) * k] = rows.T @ rows
+            g_cam[c] = rows.T @ rw[sel].ravel()
         a_f, g_c = a[np.ix_(cols, cols)], g_cam.ravel()[cols]
         if prior:
             a_f, g_c = a_f + prior.jac.T @ prior.jac, g_c + prior.jac.T @ pr
-        outer = np.einsum("nai,naj->nij", pt, pt).reshape(-1, 9)
+        pt_t = pt.transpose(0, 2, 1)
+        outer = (pt_t @ pt).reshape(-1, 9)
         c_pts = np.stack([np.bincount(m, outer[:, i], n_m) for i in range(9)], axis=1).reshape(n_m, 3, 3)
-        gp_obs = np.einsum("nai,na->ni", pt, rw)
+        gp_obs = (pt_t @ rw[:, :, None])[..., 0]
         g_pts = np.stack([np.bincount(m, gp_obs[:, i], n_m) for i in range(3)], axis=1)
         b = np.zeros((n_m, n_v, k, 3))                                      # camera-point blocks
-        b[m, v] = np.einsum("nai,naj->nij", cam, pt)
+        b[m, v] = cam.transpose(0, 2, 1) @ pt
         b = b.reshape(n_m, n_v * k, 3)[:, cols]                             # (M, n_cam, 3)
         d_cam = np.maximum(np.diag(a_f), 1e-12)
         held = ((x[:n_cam] <= lower) & (g_c > 0)) | ((x[:n_cam] >= upper) & (g_c < 0))
@@ -107,7 +109,7 @@ def solve(problem: Adjustment, x0: np.ndarray, f_scale: float, lower: np.ndarray
             step = x_new - x
             dc, dp = np.zeros((n_v, k)), step[n_cam:].reshape(n_m, 3)
             dc.ravel()[cols] = step[:n_cam]
-            j_step = np.einsum("nak,nk->na", cam, dc[v]) + np.einsum("nai,ni->na", pt, dp[m])
+            j_step = (cam @ dc[v][:, :, None] + pt @ dp[m][:, :, None])[..., 0]
             predicted = -(g_c @ step[:n_cam] + np.sum(g_pts * dp)) - 0.5 * np.sum(j_step ** 2)
             if prior:
                 predicted -= 0.5 * float(np.sum((prior.jac @ step[:n_cam]) ** 2))
