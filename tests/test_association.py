@@ -47,3 +47,22 @@ def test_two_people_are_told_apart_without_a_calibration():
     people = associate_people(take, None, [0.0, 0.0, 0.0], FuseOptions()).people
     assert _who(people) == [((0, 0), (1, 0), (2, 0)), ((0, 1), (1, 1), (2, 1))]
     assert sorted(len(p.tracks) for p in people) == [3, 4]
+
+
+def test_the_epipolar_fit_s_derivatives_are_the_residuals_own():
+    """The epipolar fit's analytic Jacobian against central differences of its residuals, at a
+    rotation far from the start and one near it (the rotation vector's derivative is singular-
+    looking at 0)."""
+    from posecam.geometry.rotation import rodrigues
+    from posecam.multiview.associate import epipolar_jacobian, epipolar_residuals
+
+    rng = np.random.default_rng(3)
+    pa, pb = (np.c_[rng.normal(0, 0.3, (40, 2)), np.ones(40)] for _ in range(2))
+    start = rodrigues(np.array([[0.2, -0.5, 0.3]]))[0]
+    for x in (np.r_[0.1, -0.2, 0.05, 0.3, 0.1, 0.9], np.r_[0.0, 0.0, 0.0, 1.0, 0.2, 0.1]):
+        h = 1e-6
+        numeric = np.stack([(epipolar_residuals(x + h * e, start, pa, pb) - epipolar_residuals(x - h * e, start, pa, pb))
+                            / (2 * h) for e in np.eye(6)], axis=1)
+        analytic = epipolar_jacobian(x, start, pa, pb)
+        assert np.abs(analytic).max() > 0.5
+        np.testing.assert_allclose(analytic, numeric, atol=1e-7)

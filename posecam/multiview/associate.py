@@ -20,12 +20,12 @@ import itertools
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-import cv2
 import numpy as np
 from scipy.optimize import least_squares
 
 from posecam.errors import FusionError
 from posecam.geometry.camera import FOCAL_RATIOS, CameraCalibration, Rig
+from posecam.geometry.rotation import rodrigues, rotation_jacobian
 from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
 from posecam.multiview.consensus import (MAX_PAIR_ANGLE, ConsensusOptions, camera_points, estimate_rig,
                                         fuse_points, intrinsics_vectors)
@@ -201,20 +201,43 @@ def epipolar_errors(a: np.ndarray, b: np.ndarray, rotation: np.ndarray, w: np.nd
     bh = np.concatenate([b, np.ones(b.shape[:-1] + (1,))], axis=-1)
     ok = np.isfinite(ah).all(axis=-1) & np.isfinite(bh).all(axis=-1) & (w > 0)
     pa, pb, sw = ah[ok], bh[ok], np.sqrt(w[ok])
-
-    def errors(x, pa, pb):
-        r = cv2.Rodrigues(x[:3])[0] @ rotation
-        line = np.cross(x[3:] / np.linalg.norm(x[3:]), pa @ r.T)            # epipolar lines in b
-        return np.sum(line * pb, axis=-1) / np.maximum(np.linalg.norm(line[:, :2], axis=1), 1e-12)
-
     # the translation direction for the starting rotation: t . (R a x b) = 0, least squares
     rows = np.cross(pa @ rotation.T, pb) * sw[:, None]
     t0 = np.linalg.svd(rows, full_matrices=False)[2][-1]
-    fit = least_squares(lambda x: sw * errors(x, pa, pb), np.r_[0.0, 0.0, 0.0, t0], loss="soft_l1",
-                        f_scale=MAX_PAIR_ANGLE / 3, max_nfev=50)
+    fit = least_squares(lambda x: sw * epipolar_residuals(x, rotation, pa, pb), np.r_[0.0, 0.0, 0.0, t0],
+                        jac=lambda x: sw[:, None] * epipolar_jacobian(x, rotation, pa, pb),
+                        loss="soft_l1", f_scale=MAX_PAIR_ANGLE / 3, max_nfev=50)
     out = np.full(w.shape, np.nan)
-    out[ok] = np.abs(errors(fit.x, pa, pb))
+    out[ok] = np.abs(epipolar_residuals(fit.x, rotation, pa, pb))
     return out
+
+
+def _epipolar_lines(x: np.ndarray, rotation: np.ndarray, pa: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The lines l = t x R a (N, 3) in view b for homogeneous points pa (N, 3) of view a, R =
+    rodrigues(x[:3]) rotation and t the direction of x[3:]; with rodrigues(x[:3]), R a and t."""
+    turn = rodrigues(x[None, :3])
+    q = pa @ (turn[0] @ rotation).T
+    t = x[3:] / np.linalg.norm(x[3:])
+    return np.cross(t, q), turn, q, t
+
+
+def epipolar_residuals(x: np.ndarray, rotation: np.ndarray, pa: np.ndarray, pb: np.ndarray) -> np.ndarray:
+    """(N,) signed distance of each homogeneous point pb (N, 3) to its epipolar line
+    (`_epipolar_lines`), in normalised units (rad)."""
+    line = _epipolar_lines(x, rotation, pa)[0]
+    return np.sum(line * pb, axis=-1) / np.maximum(np.linalg.norm(line[:, :2], axis=1), 1e-12)
+
+
+def epipolar_jacobian(x: np.ndarray, rotation: np.ndarray, pa: np.ndarray, pb: np.ndarray) -> np.ndarray:
+    """(N, 6) the derivatives of `epipolar_residuals` against x (rotation vector, translation)."""
+    line, turn, q, t = _epipolar_lines(x, rotation, pa)
+    d = np.maximum(np.linalg.norm(line[:, :2], axis=1), 1e-12)
+    along = np.sum(line * pb, axis=-1)
+    de_dl = pb / d[:, None] - (along / d ** 3)[:, None] * np.c_[line[:, :2], np.zeros(len(line))]
+    # l = t x q: de/dq = de/dl x t, de/dt = q x de/dl; d q / d r_k = (R J)_k x q, so de/dr = (q x de/dq) R J
+    rj = turn[0] @ rotation_jacobian(x[None, :3], turn)[0]
+    dt = (np.eye(3) - np.outer(t, t)) / np.linalg.norm(x[3:])               # d t / d x[3:]
+    return np.concatenate([np.cross(q, np.cross(de_dl, t)) @ rj, np.cross(q, de_dl) @ dt], axis=1)
 
 
 def _best_hypothesis(tracks: list[ViewTrack], people: list[PersonTracks], fused, ref_cam, assumed, offsets,

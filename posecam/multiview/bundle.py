@@ -59,6 +59,7 @@ from scipy.sparse import csr_matrix, vstack
 
 from posecam.errors import FusionError
 from posecam.geometry.camera import Rig
+from posecam.geometry.rotation import rodrigues, rotation_jacobian
 from posecam.multiview.observations import TimedKeypoints, catmull_rom, held
 from posecam.multiview.options import BundleOptions
 from posecam.multiview.schur_lm import Prior, Solution, solve
@@ -102,30 +103,6 @@ def left_out(joints: tuple[str, ...], roles: tuple[str, ...]) -> np.ndarray:
     out = np.zeros(len(joints), bool)
     out[[i for role in roles for i in skeleton.role(role)]] = True
     return out
-
-
-def rodrigues(r: np.ndarray) -> np.ndarray:
-    """(N, 3) rotation vectors -> (N, 3, 3) matrices."""
-    theta = np.linalg.norm(r, axis=1)[:, None, None]
-    kx = _skew(r / np.maximum(theta[:, :, 0], 1e-12))
-    return np.eye(3) + np.sin(theta) * kx + (1 - np.cos(theta)) * kx @ kx
-
-
-def _skew(v: np.ndarray) -> np.ndarray:
-    """(N, 3) -> (N, 3, 3) cross-product matrices [v]x."""
-    out = np.zeros(v.shape[:-1] + (3, 3))
-    out[..., 0, 1], out[..., 0, 2], out[..., 1, 2] = -v[..., 2], v[..., 1], -v[..., 0]
-    return out - np.swapaxes(out, -1, -2)
-
-
-def rotation_jacobian(r: np.ndarray, rot: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) J of d(R(r) X)/dr = -R [X]x J, J = (r r^T + (R^T - I)[r]x) / |r|^2
-    (Gallego & Yezzi 2015, eq. 9); the identity near r = 0."""
-    theta2 = np.sum(r * r, axis=1)[:, None, None]
-    small = theta2[:, 0, 0] < 1e-16
-    j = (r[:, :, None] * r[:, None, :] + (np.swapaxes(rot, 1, 2) - np.eye(3)) @ _skew(r)) / np.maximum(theta2, 1e-300)
-    j[small] = np.eye(3)
-    return j
 
 
 def coverage_frames(points: np.ndarray, weight: np.ndarray, n: int) -> np.ndarray:

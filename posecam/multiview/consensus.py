@@ -108,13 +108,19 @@ def intrinsics_vectors(cameras: list[CameraCalibration]) -> np.ndarray:
 
 
 def procrustes(src: np.ndarray, dst: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Weighted rigid fit dst ~ R src + t without reflection; src, dst (N, 3), w (N,)."""
-    mu_s, mu_d = w @ src / w.sum(), w @ dst / w.sum()
-    h = ((src - mu_s) * w[:, None]).T @ (dst - mu_d)
+    """Weighted rigid fits dst ~ R src + t without reflection, one per leading index; src, dst
+    (..., N, 3), w (..., N); points of weight 0 take no part (and may be NaN)."""
+    used = (w > 0)[..., None]
+    w = np.where(used, w[..., None], 0.0)
+    src, dst = np.where(used, src, 0.0), np.where(used, dst, 0.0)
+    mu_s, mu_d = (w * src).sum(axis=-2) / w.sum(axis=-2), (w * dst).sum(axis=-2) / w.sum(axis=-2)
+    h = np.swapaxes((src - mu_s[..., None, :]) * w, -1, -2) @ (dst - mu_d[..., None, :])
     u, _, vt = np.linalg.svd(h)
-    d = np.sign(np.linalg.det(vt.T @ u.T))
-    r = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
-    return r, mu_d - r @ mu_s          # eq. 8: the mean of the per-point translations
+    v, ut = np.swapaxes(vt, -1, -2), np.swapaxes(u, -1, -2)
+    flip = np.ones(h.shape[:-1])
+    flip[..., 2] = np.sign(np.linalg.det(v @ ut))
+    r = v @ (flip[..., None] * ut)
+    return r, mu_d - (r @ mu_s[..., None])[..., 0]          # eq. 8: the mean of the per-point translations
 
 
 def fit_focal(assumed: CameraCalibration, xyz: np.ndarray, root: np.ndarray, k: np.ndarray, target: np.ndarray,
@@ -220,17 +226,18 @@ def _run_stage(assumed: list[CameraCalibration], obs: Observations, s: _State, w
         w = _robust_weights(np.linalg.norm(x - target, axis=-1), w0, opts.cauchy_scale)
         w = np.where(np.isfinite(target).all(axis=-1), w, 0.0)
         old = s.copy()
-        for i, camera in enumerate(assumed):
-            if i == ref and not joint:
-                continue
-            ok = w[i] > 0
-            if ok.sum() < MIN_SHARED_JOINTS:
-                raise FusionError(f"camera {camera.name} shares fewer than {MIN_SHARED_JOINTS} confident "
+        fitted = [i for i in range(len(assumed)) if joint or i != ref]     # the reference: its focal, in stage 2
+        for i in fitted:
+            if (w[i] > 0).sum() < MIN_SHARED_JOINTS:
+                raise FusionError(f"camera {assumed[i].name} shares fewer than {MIN_SHARED_JOINTS} confident "
                                   "joints with the other views")
-            if i != ref:
-                s.rotation[i], s.translation[i] = procrustes(target[i][ok], p[i][ok], w[i][ok])
-            if camera.name not in opts.fixed:
-                s.k[i] = fit_focal(camera, obs.xyz[i], root[i], s.k[i],
+        moved = [i for i in fitted if i != ref]
+        s.rotation[moved], s.translation[moved] = procrustes(target[moved].reshape(len(moved), -1, 3),
+                                                             p[moved].reshape(len(moved), -1, 3),
+                                                             w[moved].reshape(len(moved), -1))
+        for i in fitted:
+            if assumed[i].name not in opts.fixed:
+                s.k[i] = fit_focal(assumed[i], obs.xyz[i], root[i], s.k[i],
                                    target[i] @ s.rotation[i].T + s.translation[i], w[i])
         if it > 0 and s.change(old) < opts.tol:
             return it + 1, True
