@@ -157,21 +157,20 @@ def fuse_points(points: np.ndarray, rotations: np.ndarray, w: np.ndarray,
         m, b, n = m_all - wi, b_all - wx, w.sum(axis=0) - w
     else:
         m, b, n = m_all, b_all, w.sum(axis=0)
-    seen = n > 1e-9
-    out = np.full(b.shape, np.nan)
-    out[seen] = solve_symmetric_3x3(m[seen], b[seen])
-    return out
+    with np.errstate(divide="ignore", invalid="ignore"):       # where nobody sees the joint: NaN below
+        out = solve_symmetric_3x3(m, b)
+    return np.where((n > 1e-9)[..., None], out, np.nan)
 
 
 def solve_symmetric_3x3(m: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """x (N, 3) with m x = b for N symmetric positive definite m (N, 3, 3): the adjugate over
+    """x (..., 3) with m x = b for symmetric positive definite m (..., 3, 3): the adjugate over
     the determinant, vectorised (numpy's batched solve spends its time per matrix)."""
-    xx, xy, xz, yy, yz, zz = m[:, 0, 0], m[:, 0, 1], m[:, 0, 2], m[:, 1, 1], m[:, 1, 2], m[:, 2, 2]
-    adj = np.array([[yy * zz - yz * yz, xz * yz - xy * zz, xy * yz - xz * yy],
-                    [xz * yz - xy * zz, xx * zz - xz * xz, xy * xz - xx * yz],
-                    [xy * yz - xz * yy, xy * xz - xx * yz, xx * yy - xy * xy]])                # (3, 3, N)
-    det = xx * adj[0, 0] + xy * adj[0, 1] + xz * adj[0, 2]
-    return np.einsum("ijn,nj->ni", adj, b) / det[:, None]
+    xx, xy, xz, yy, yz, zz = m[..., 0, 0], m[..., 0, 1], m[..., 0, 2], m[..., 1, 1], m[..., 1, 2], m[..., 2, 2]
+    a0, a1, a2 = yy * zz - yz * yz, xz * yz - xy * zz, xy * yz - xz * yy                # the adjugate's rows
+    a4, a5, a8 = xx * zz - xz * xz, xy * xz - xx * yz, xx * yy - xy * xy
+    det = xx * a0 + xy * a1 + xz * a2
+    u, v, w = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a0 * u + a1 * v + a2 * w, a1 * u + a4 * v + a5 * w, a2 * u + a5 * v + a8 * w], axis=-1) / det[..., None]
 
 
 def _robust_weights(residual: np.ndarray, w0: np.ndarray, scale: float) -> np.ndarray:
