@@ -155,7 +155,7 @@ MUTANTS = (
            (f"{METRIC}::test_frames_after_the_lens_is_decided_are_placed_through_it_too",)),
     # ---- consensus and the fusion of points -------------------------------------------------
     Mutant("consensus: Procrustes reflection guard removed", "posecam/multiview/consensus.py",
-           "d = np.sign(np.linalg.det(vt.T @ u.T))", "d = 1.0",
+           "flip[..., 2] = np.sign(np.linalg.det(v @ ut))", "flip[..., 2] = 1.0",
            (f"{CONSENSUS}::test_procrustes_finds_a_rotation_and_never_a_reflection",)),
     Mutant("consensus: fused points weighted alike on every axis", "posecam/multiview/consensus.py",
            "[1.0, 1.0, depth_ratio ** -2]", "[1.0, 1.0, 1.0]",
@@ -178,7 +178,7 @@ MUTANTS = (
            "out[0], out[1] = g * assumed.intrinsics.fx, g * assumed.intrinsics.fx",
            (f"{CONSENSUS}::test_a_focal_scale_moves_the_root_depth_and_keeps_the_metric_skeleton",)),
     # ---- bundle adjustment -----------------------------------------------------------------
-    Mutant("bundle: Rodrigues rotation's sign flipped", "posecam/multiview/bundle.py",
+    Mutant("bundle: Rodrigues rotation's sign flipped", "posecam/geometry/rotation.py",
            "np.eye(3) + np.sin(theta) * kx", "np.eye(3) - np.sin(theta) * kx",
            (f"{CONSENSUS}::test_bundle_adjustment_recovers_a_perturbed_rig_and_its_metric_scale",)),
     Mutant("bundle: square pixels assumed in the residuals", "posecam/multiview/bundle.py",
@@ -253,6 +253,9 @@ MUTANTS = (
            "return float(np.sum(np.diff(bounds) * (residual / MAX_PAIR_ANGLE - 1.0)))",
            "return -float(np.sum(np.diff(bounds)))",
            ("tests/test_association.py::test_two_people_are_told_apart_without_a_calibration",)),
+    Mutant("association: the epipolar fit's translation derivative sign flipped", "posecam/multiview/associate.py",
+           "np.cross(q, de_dl) @ dt]", "np.cross(de_dl, q) @ dt]",
+           ("tests/test_association.py::test_the_epipolar_fit_s_derivatives_are_the_residuals_own",)),
     Mutant("association: a view's tracks that overlap in time joined", "posecam/multiview/associate.py",
            "if any(x.view == y.view and _overlap(x, y) > MAX_SHARED for x in ga for y in gb):", "if False:",
            (f"{FUSION}::test_two_people_with_calibration_are_never_mixed",)),
