@@ -11,7 +11,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from posecam.io.media import DEFAULT_FPS
 from posecam.multiview.motion_sync import LOWPASS_HZ, Resamples, shifted_pair
 from posecam.multiview.observations import Take, ViewTrack, lowpass
 from posecam.multiview.options import FuseOptions
@@ -200,7 +199,7 @@ def coarse_offsets(take: Take, opts: FuseOptions) -> list[float]:
     COARSE_TRACKS tracks of each) over every lag that leaves the two views COARSE_SHARE of the
     shorter one's frames; 0 where nothing is shared or the lag exceeds FuseOptions.max_offset
     (None: no limit). Who is who need not be known: it runs on the views' tracks, before the association."""
-    fps, max_offset = take.fps or DEFAULT_FPS, opts.max_offset
+    fps, max_offset = take.fps, opts.max_offset
     ref = take.reference
     out = [0.0] * len(take.names)
     for v in range(len(take.names)):

@@ -15,7 +15,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from posecam.geometry.triangulate import MIN_CONFIDENCE
-from posecam.io.media import DEFAULT_FPS
 from posecam.multiview.observations import PersonTracks, Take, lowpass, shift
 
 LOWPASS_HZ = 3.0                # Butterworth cut-off of the motion signals
@@ -178,10 +177,10 @@ def shared_motion(take: Take, people: list[PersonTracks], v: int,
     shared = [p for p in people if ref in p.views and v in p.views]
     if not shared:
         return None
-    fps = take.fps or DEFAULT_FPS
     signals, excursion = [], []
     for u in (ref, v):
-        parts = [motion_signals(*p.view_arrays(u, take.lengths[u])[1:3], fps, min_conf) for p in shared]
+        tracks = [p.in_view(u, take.lengths[u]) for p in shared]
+        parts = [motion_signals(t.xyz, t.conf, take.fps, min_conf) for t in tracks]
         signals.append(np.concatenate([s for s, _ in parts], axis=1))
         excursion.append(max(e for _, e in parts))
     return signals[0], signals[1], min(excursion)
@@ -193,7 +192,6 @@ def shared_excursion(take: Take, people: list[PersonTracks], v: int, min_conf: f
     shared = [p for p in people if take.reference in p.views and v in p.views]
     if not shared:
         return None
-    fps = take.fps or DEFAULT_FPS
-    return min(max(_excursion(*_smoothed(*p.view_arrays(u, take.lengths[u])[1:3], fps, min_conf)) for p in shared)
-               for u in (take.reference, v))
+    tracks = [[p.in_view(u, take.lengths[u]) for p in shared] for u in (take.reference, v)]
+    return min(max(_excursion(*_smoothed(t.xyz, t.conf, take.fps, min_conf)) for t in view) for view in tracks)
 

@@ -151,16 +151,18 @@ class PersonTracks:
     def views(self) -> list[int]:
         return sorted({t.view for t in self.tracks})
 
-    def view_arrays(self, view: int, n_frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(uv, xyz, conf, score) of this person in `view`'s own frames (its tracks merged)."""
+    def in_view(self, view: int, n_frames: int) -> ViewTrack:
+        """This person in `view`'s own n_frames, its tracks there merged into one."""
         j = self.tracks[0].conf.shape[1]
         uv, xyz = np.full((n_frames, j, 2), np.nan), np.full((n_frames, j, 3), np.nan)
         conf, score = np.zeros((n_frames, j)), np.zeros(n_frames)
+        ids = []
         for t in self.tracks:
             if t.view == view:
                 s = t.seen & (conf.max(axis=1) == 0)
                 uv[s], xyz[s], conf[s], score[s] = t.uv[s], t.xyz[s], t.conf[s], t.score[s]
-        return uv, xyz, conf, score
+                ids += t.ids
+        return ViewTrack(view, tuple(ids), uv, xyz, conf, score)
 
 
 @dataclass
@@ -184,9 +186,9 @@ class Observations:
     def of(cls, person: PersonTracks, lengths: list[int], offsets: list[float], n: int) -> "Observations":
         """The person in every view (lengths: each view's frames), shifted by the offsets
         (posecam.multiview.sync) onto the reference's n frames."""
-        parts = [person.view_arrays(v, length) for v, length in enumerate(lengths)]
-        return cls(*(np.stack([shift(p[k], o, n, fill) for p, o in zip(parts, offsets)])
-                     for k, fill in ((0, np.nan), (1, np.nan), (2, 0.0), (3, 0.0))))
+        parts = [person.in_view(v, length) for v, length in enumerate(lengths)]
+        return cls(*(np.stack([shift(getattr(p, k), o, n, fill) for p, o in zip(parts, offsets)])
+                     for k, fill in (("uv", np.nan), ("xyz", np.nan), ("conf", 0.0), ("score", 0.0))))
 
     @classmethod
     def side_by_side(cls, people: list["Observations"]) -> "Observations":
@@ -257,14 +259,14 @@ class Take:
     lengths: list[int]                   # each view's frames
     joints: tuple[str, ...]
     reference: int                       # the view whose camera and frames the others are put in
-    fps: float | None                    # the reference's frame rate, where known
+    fps: float                           # the reference's frame rate (DEFAULT_FPS where it has none)
     warnings: list[str] = field(default_factory=list)   # what checking the views found (posecam.multiview.fuse)
 
     @classmethod
     def of(cls, names: list[str], recordings: list[Recording], reference: int) -> "Take":
         return cls(names, assumed_cameras(names, recordings), [tracks_of(r, v) for v, r in enumerate(recordings)],
                    [len(r.frames) for r in recordings], recordings[reference].joints, reference,
-                   recordings[reference].fps)
+                   recordings[reference].fps or DEFAULT_FPS)
 
     def observations(self, people: list[PersonTracks], offsets: list[float], views: list[int]) -> list[Observations]:
         """Each person in the `views`, at the offsets, in the reference's frames."""
@@ -277,15 +279,16 @@ class Take:
         Observations.side_by_side puts them), low-passed at `hz` (`lowpass`; a joint seen
         below min_conf is a gap), at whole-frame offsets `window` frames either way of each
         view's offset (TimedKeypoints)."""
-        n, fps = self.lengths[self.reference], self.fps or DEFAULT_FPS
+        n = self.lengths[self.reference]
         base = np.round(offsets).astype(int) - window - 1
         steps = 2 * window + 3
         uv = np.full((len(self.names), steps, n * len(people), len(self.joints), 2), np.nan)
         conf = np.zeros(uv.shape[:-1])
         for v, length in enumerate(self.lengths):
             for q, person in enumerate(people):
-                track, _, c, _ = person.view_arrays(v, length)
-                smooth = lowpass(track, (c >= min_conf) & np.isfinite(track).all(axis=-1), fps, hz)
+                seen = person.in_view(v, length)
+                track, c = seen.uv, seen.conf
+                smooth = lowpass(track, (c >= min_conf) & np.isfinite(track).all(axis=-1), self.fps, hz)
                 c = np.where(np.isfinite(smooth).all(axis=-1), c, 0.0)
                 for s in range(steps):
                     uv[v, s, q * n:(q + 1) * n] = shift(smooth, base[v] + s, n)

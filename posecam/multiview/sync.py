@@ -26,10 +26,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from posecam.geometry.camera import Rig
-from posecam.io.media import DEFAULT_FPS
 from posecam.multiview.coarse_sync import bone_correlations, bone_directions, sampling_step
 from posecam.multiview.motion_sync import MIN_MOTION, keypoint_speed, motion_offset, shared_excursion
-from posecam.multiview.observations import PersonTracks, Take, lowpass
+from posecam.multiview.observations import PersonTracks, Take, ViewTrack, lowpass
 from posecam.multiview.options import FuseOptions
 from posecam.multiview.rig_sync import estimate_offsets
 
@@ -80,10 +79,9 @@ def _rig_offsets(take: Take, people: list[PersonTracks], rig: Rig, start: list[f
     calibration, single take: 0.91 frame off the bench's offsets and the pelvis 6 mm off unfiltered,
     0.69 and 4 mm filtered; two people: 2.5 frames, 20 mm either way)."""
     views = list(range(len(rig.cameras)))
-    fps = take.fps or DEFAULT_FPS
     uv, conf = [], []
     for v in views:
-        arrays = [_low_passed(p.view_arrays(v, take.lengths[v]), fps) for p in people if len(p.views) > 1]
+        arrays = [_low_passed(p.in_view(v, take.lengths[v]), take.fps) for p in people if len(p.views) > 1]
         uv.append(np.concatenate([a[0] for a in arrays], axis=1))
         conf.append(np.concatenate([a[1] for a in arrays], axis=1))
     result = estimate_offsets(rig.cameras, uv, conf, views.index(take.reference), max_offset,
@@ -94,24 +92,23 @@ def _rig_offsets(take: Take, people: list[PersonTracks], rig: Rig, start: list[f
     return SyncResult(full, confidence, result.warnings)
 
 
-def _low_passed(arrays: tuple[np.ndarray, ...], fps: float) -> tuple[np.ndarray, np.ndarray]:
-    """One person's (uv, conf) in one view (PersonTracks.view_arrays), the keypoints low-passed at
+def _low_passed(track: ViewTrack, fps: float) -> tuple[np.ndarray, np.ndarray]:
+    """One person's (uv, conf) in one view (PersonTracks.in_view), the keypoints low-passed at
     RIG_LOWPASS_HZ where seen, unseen (NaN, 0) elsewhere."""
-    track, _, c, _ = arrays
-    seen = (c > 0) & np.isfinite(track).all(axis=-1)
-    uv = np.where(seen[..., None], lowpass(track, seen, fps, RIG_LOWPASS_HZ), np.nan)
-    return uv, np.where(np.isfinite(uv).all(axis=-1), c, 0.0)
+    seen = (track.conf > 0) & np.isfinite(track.uv).all(axis=-1)
+    uv = np.where(seen[..., None], lowpass(track.uv, seen, fps, RIG_LOWPASS_HZ), np.nan)
+    return uv, np.where(np.isfinite(uv).all(axis=-1), track.conf, 0.0)
 
 
 def _shared_bones(take: Take, people: list[PersonTracks], v: int, min_conf: float) -> tuple[np.ndarray, np.ndarray]:
     """The bone directions (`bone_directions`) of the people view v shares with the reference,
     the reference's and v's, each (F_view, P * B, 3), people side by side."""
-    fps = take.fps or DEFAULT_FPS
     shared = [p for p in people if take.reference in p.views and v in p.views]
     out = []
     for u in (take.reference, v):
-        out.append(np.concatenate([bone_directions(*p.view_arrays(u, take.lengths[u])[1:3], take.joints, fps, min_conf)
-                                   for p in shared], axis=1))
+        tracks = [p.in_view(u, take.lengths[u]) for p in shared]
+        out.append(np.concatenate([bone_directions(t.xyz, t.conf, take.joints, take.fps, min_conf) for t in tracks],
+                                  axis=1))
     return out[0], out[1]
 
 
@@ -133,13 +130,12 @@ def _motion_offsets(take: Take, people: list[PersonTracks], start: list[float], 
             confidence[v], spread[v] = 0.0, np.inf
             continue
         a, b = _shared_bones(take, people, v, min_conf)
-        sampled = np.arange(0, len(a), sampling_step(take.fps or DEFAULT_FPS, len(a)))     # a long take's
+        sampled = np.arange(0, len(a), sampling_step(take.fps, len(a)))     # a long take's
         m = motion_offset(lambda lag, resamples: bone_correlations(a, b, lag, resamples, sampled), len(sampled),
                           a.shape[1], start[v], FINE_WINDOW)
         confidence[v], spread[v] = max(float(np.nan_to_num(m.correlation)), 0.0), m.spread
-        fps = take.fps or DEFAULT_FPS
-        speeds = np.array([keypoint_speed(uv, conf, fps, min_conf) for uv, _, conf, _ in
-                           (p.view_arrays(v, take.lengths[v]) for p in people if ref in p.views and v in p.views)])
+        speeds = np.array([keypoint_speed(t.uv, t.conf, take.fps, min_conf) for t in
+                           (p.in_view(v, take.lengths[v]) for p in people if ref in p.views and v in p.views)])
         speed = float(np.nanmedian(speeds)) if np.isfinite(speeds).any() else np.nan
         why = None
         if excursion < MIN_MOTION:
