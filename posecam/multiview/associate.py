@@ -49,7 +49,7 @@ def associate_people(take: Take, rig: Rig | None, offsets: list[float], opts: Fu
     `associate_by_consensus`."""
     min_conf = opts.min_conf
     if rig is None:
-        return associate_by_consensus(take.tracks, take.assumed, take.lengths, offsets, take.reference, min_conf)
+        return associate_by_consensus(take, offsets, min_conf)
     n = take.lengths[take.reference]
     return associate(take.tracks, pair_cost_calibrated(rig.cameras, offsets, n, min_conf), MAX_PAIR_ANGLE)
 
@@ -62,7 +62,7 @@ class PairFit:
 PairCost = Callable[[ViewTrack, ViewTrack], PairFit]
 
 
-def _common(a: ViewTrack, b: ViewTrack, offsets: list[int], n: int, min_conf: float):
+def _common(a: ViewTrack, b: ViewTrack, offsets: list[float], n: int, min_conf: float):
     """Both tracks in the reference's frames, restricted to frames where both are seen."""
     arrays = []
     for t in (a, b):
@@ -73,7 +73,7 @@ def _common(a: ViewTrack, b: ViewTrack, offsets: list[int], n: int, min_conf: fl
     return [tuple(x[both] for x in arr) for arr in arrays], int(both.sum())
 
 
-def pair_cost_calibrated(cams: list[CameraCalibration], offsets: list[int], n: int,
+def pair_cost_calibrated(cams: list[CameraCalibration], offsets: list[float], n: int,
                          min_conf: float = MIN_CONFIDENCE) -> PairCost:
     """Cost of two tracks with a calibration: median reprojection angle of their triangulation."""
 
@@ -134,16 +134,14 @@ def _merged(groups: dict[int, list[ViewTrack]], pairs: list[tuple[ViewTrack, Vie
     return groups
 
 
-def _fused(people: list[PersonTracks], core: list[int], rig: Rig, assumed: list[CameraCalibration], lengths: list[int],
-           offsets: list[int], reference: int, min_conf: float) -> list[tuple[np.ndarray, np.ndarray]]:
+def _fused(take: Take, people: list[PersonTracks], core: list[int], rig: Rig, offsets: list[float],
+           min_conf: float) -> list[tuple[np.ndarray, np.ndarray]]:
     """Each person's (F, J, 3) consensus fusion of the `core` views (reference frame, mm) and
     (F, J) confidence."""
-    n = lengths[reference]
     rot = np.stack([c.rotation for c in rig.cameras])
-    core_assumed = [assumed[v] for v in core]
+    core_assumed = [take.assumed[v] for v in core]
     out = []
-    for person in people:
-        obs = Observations.of(person, lengths, offsets, n).take(core)
+    for obs in take.observations(people, offsets, core):
         local = camera_points(obs, core_assumed, intrinsics_vectors(rig.cameras))
         pts = np.stack([c.to_world(p) for p, c in zip(local, rig.cameras)])
         w = obs.weights(min_conf)
@@ -152,15 +150,15 @@ def _fused(people: list[PersonTracks], core: list[int], rig: Rig, assumed: list[
 
 
 def _hypothesis_cost(pairs: list[tuple[int, ViewTrack]], fused: list[tuple[np.ndarray, np.ndarray]], ref_cam: CameraCalibration,
-                     assumed: list[CameraCalibration], offsets: list[int], min_conf: float) -> float:
-    """Sum over the pairs (person, track of the new view) of frames x (epipolar residual / MAX_PAIR_ANGLE - 1)
-    under ONE consensus of all the pairs: negative when one camera explains them all."""
+                     view_cam: CameraCalibration, offset: float, min_conf: float) -> float:
+    """Sum over the pairs (person, track of the new view: its camera as assumed, its offset) of
+    frames x (epipolar residual / MAX_PAIR_ANGLE - 1) under ONE consensus of all the pairs:
+    negative when one camera explains them all."""
     n = len(fused[0][0])
-    v = pairs[0][1].view
     a_parts, b_parts, bounds = [], [], [0]
     for p, t in pairs:
         pts, conf = fused[p]
-        uv, xyz, c = shift(t.uv, offsets[v], n), shift(t.xyz, offsets[v], n), shift(t.conf, offsets[v], n, 0.0)
+        uv, xyz, c = shift(t.uv, offset, n), shift(t.xyz, offset, n), shift(t.conf, offset, n, 0.0)
         both = (np.isfinite(pts).all(axis=-1) & (conf >= min_conf)).sum(axis=1) >= 6
         both &= (c >= min_conf).sum(axis=1) >= 6
         both[1::2] = False                                          # every other frame is enough
@@ -172,7 +170,7 @@ def _hypothesis_cost(pairs: list[tuple[int, ViewTrack]], fused: list[tuple[np.nd
     uv, xyz, conf = (np.stack([np.concatenate([x[i] for x in parts]) for parts in (a_parts, b_parts)]) for i in range(3))
     obs = Observations(uv, xyz, conf, np.zeros(conf.shape[:2]))
     try:
-        fit = estimate_rig([CameraCalibration("people", ref_cam.size, ref_cam.intrinsics), assumed[v]], obs,
+        fit = estimate_rig([CameraCalibration("people", ref_cam.size, ref_cam.intrinsics), view_cam], obs,
                            ConsensusOptions(min_conf=min_conf, max_iter=30, joint=False))
     except FusionError:
         return np.inf
@@ -240,10 +238,10 @@ def epipolar_jacobian(x: np.ndarray, rotation: np.ndarray, pa: np.ndarray, pb: n
     return np.concatenate([np.cross(q, np.cross(de_dl, t)) @ rj, np.cross(q, de_dl) @ dt], axis=1)
 
 
-def _best_hypothesis(tracks: list[ViewTrack], people: list[PersonTracks], fused, ref_cam, assumed, offsets,
+def _best_hypothesis(tracks: list[ViewTrack], people: list[PersonTracks], fused, ref_cam, view_cam, offset,
                      min_conf: float) -> tuple[float, list[tuple[int, ViewTrack]]]:
     """The cheapest assignment of a new view's tracks to the people (or to nobody)."""
-    single = {(p, id(t)): _hypothesis_cost([(p, t)], fused, ref_cam, assumed, offsets, min_conf)
+    single = {(p, id(t)): _hypothesis_cost([(p, t)], fused, ref_cam, view_cam, offset, min_conf)
               for p in range(len(people)) for t in tracks}
     options = [[None] + [p for p in range(len(people)) if single[(p, id(t))] < 0] for t in tracks]
     best, best_pairs = 0.0, []
@@ -253,20 +251,20 @@ def _best_hypothesis(tracks: list[ViewTrack], people: list[PersonTracks], fused,
                             for (p, s), (q, t) in itertools.combinations(pairs, 2)):
             continue
         cost = single[(pairs[0][0], id(pairs[0][1]))] if len(pairs) == 1 else \
-            _hypothesis_cost(pairs, fused, ref_cam, assumed, offsets, min_conf)
+            _hypothesis_cost(pairs, fused, ref_cam, view_cam, offset, min_conf)
         if cost < best:
             best, best_pairs = cost, pairs
     return best, best_pairs
 
 
-def associate_by_consensus(tracks: list[list[ViewTrack]], assumed: list[CameraCalibration], lengths: list[int],
-                           offsets: list[int], reference: int = 0, min_conf: float = MIN_CONFIDENCE) -> Association:
+def associate_by_consensus(take: Take, offsets: list[float], min_conf: float = MIN_CONFIDENCE) -> Association:
     """Association without a calibration, view by view: the people start as the reference
     view's tracks; each round, every view not yet placed scores every assignment of its tracks
     to the people (or to nobody) with `_hypothesis_cost` against the people fused from the views
     placed so far, and the view with the cheapest hypothesis joins: its links are made, its
     unassigned tracks become new people, and the placed views' cameras are estimated again by
     consensus. A view with no hypothesis that holds joins no one."""
+    tracks, assumed, reference = take.tracks, take.assumed, take.reference
     flat = [t for view in tracks for t in view]
     groups = {id(t): [t] for t in flat}
     core = [reference]
@@ -275,11 +273,11 @@ def associate_by_consensus(tracks: list[list[ViewTrack]], assumed: list[CameraCa
     links = []
     while pending:
         people = _people([t for v in core for t in tracks[v]], groups)
-        fused = _fused(people, core, rig, assumed, lengths, offsets, reference, min_conf)
+        fused = _fused(take, people, core, rig, offsets, min_conf)
         ref_cam = rig.cameras[core.index(reference)]
         best, best_v, best_pairs = 0.0, None, []
         for v in pending:
-            cost, pairs = _best_hypothesis(tracks[v], people, fused, ref_cam, assumed, offsets, min_conf)
+            cost, pairs = _best_hypothesis(tracks[v], people, fused, ref_cam, assumed[v], offsets[v], min_conf)
             if cost < best:
                 best, best_v, best_pairs = cost, v, pairs
         if best_v is None:
@@ -288,8 +286,8 @@ def associate_by_consensus(tracks: list[list[ViewTrack]], assumed: list[CameraCa
         trial = groups
         for p, t in best_pairs:
             trial = _merged(trial, [(people[p].tracks[0], t)])
-        placed = _place(core + [best_v], _people([t for v in core + [best_v] for t in tracks[v]], trial),
-                        assumed, lengths, offsets, reference, min_conf)
+        placed = _place(take, core + [best_v], _people([t for v in core + [best_v] for t in tracks[v]], trial),
+                        offsets, min_conf)
         if placed is None:
             continue
         groups, core, rig = trial, core + [best_v], placed
@@ -297,14 +295,12 @@ def associate_by_consensus(tracks: list[list[ViewTrack]], assumed: list[CameraCa
     return Association(_people(flat, groups), links)
 
 
-def _place(core: list[int], people: list[PersonTracks], assumed: list[CameraCalibration], lengths: list[int], offsets: list[int],
-           reference: int, min_conf: float) -> Rig | None:
+def _place(take: Take, core: list[int], people: list[PersonTracks], offsets: list[float], min_conf: float) -> Rig | None:
     """The consensus cameras of the `core` views (their order) from the people, None if it fails."""
-    obs = Observations.side_by_side([Observations.of(p, lengths, offsets, lengths[reference]).take(core)
-                                     for p in people])
+    obs = Observations.side_by_side(take.observations(people, offsets, core))
     try:
-        return estimate_rig([assumed[v] for v in core], obs,
-                            ConsensusOptions(reference=core.index(reference), min_conf=min_conf, max_iter=40)).rig
+        return estimate_rig([take.assumed[v] for v in core], obs,
+                            ConsensusOptions(reference=core.index(take.reference), min_conf=min_conf, max_iter=40)).rig
     except FusionError:
         return None
 
