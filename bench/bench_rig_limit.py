@@ -288,7 +288,7 @@ def spreads(truth: bf.Truth, folder: Path, n_boot: int, seed: int = 0) -> None:
     from posecam import read_poses
     from posecam.multiview.associate import associate_people
     from posecam.multiview.calibrate import bootstrap_spreads, estimate_cameras
-    from posecam.multiview.fuse import check_take
+    from posecam.multiview.take_check import check_take
     from posecam import FuseOptions
     from posecam.multiview.left_right import fix_people
     from posecam.multiview.observations import Observations
@@ -528,7 +528,7 @@ def essential(truth: bf.Truth, folder: Path) -> None:
     from posecam.multiview.bundle import bundle_adjust
     from posecam.multiview.calibrate import _bone_lengths, _consensus
     from posecam.multiview.consensus import stretch_residuals
-    from posecam.multiview.fuse import check_take
+    from posecam.multiview.take_check import check_take
     from posecam import FuseOptions
     from posecam.multiview.observations import Observations
 

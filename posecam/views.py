@@ -26,7 +26,7 @@ from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
 from posecam.io.poses import read_poses
 from posecam.io.media import DEFAULT_FPS, FrameSelection, folder_holds, open_media
 from posecam.options import EstimatorOptions, PredictOptions
-from posecam.multiview.fuse import check_lengths
+from posecam.multiview.take_check import check_lengths
 from posecam.multiview.options import FuseOptions
 from posecam.results import Person, Recording
 

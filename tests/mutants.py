@@ -298,7 +298,7 @@ MUTANTS = (
            "(times <= time + self.window + 1e-6) & others", "(times <= time + self.window + 1e-6)",
            ("tests/test_doubts.py::test_a_root_is_tested_against_a_path_drawn_without_it",)),
     # ---- views lined up by given offsets --------------------------------------------------------
-    Mutant("fuse: frames shared at given offsets counted from the wrong side", "posecam/multiview/fuse.py",
+    Mutant("fuse: frames shared at given offsets counted from the wrong side", "posecam/multiview/take_check.py",
            "max(0.0, o_ref - o)", "max(0.0, o - o_ref)",
            ("tests/test_views.py::test_offsets_given_line_up_views_of_different_lengths",)),
     # ---- what fusion estimates from ---------------------------------------------------------------

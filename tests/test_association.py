@@ -4,7 +4,7 @@ import numpy as np
 
 from posecam.geometry.camera import Rig
 from posecam.multiview.associate import associate_people
-from posecam.multiview.fuse import check_take
+from posecam.multiview.take_check import check_take
 from posecam.multiview.options import FuseOptions
 from synth_rig import make_rig, monocular_views, skeleton_motion
 

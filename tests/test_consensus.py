@@ -7,7 +7,8 @@ from posecam.errors import FusionError
 from posecam.geometry.camera import CameraCalibration, Intrinsics
 from posecam.multiview.associate import associate_people
 from posecam.multiview.calibrate import cameras_from_people
-from posecam.multiview.fuse import check_take, fuse_recordings
+from posecam.multiview.fuse import fuse_recordings
+from posecam.multiview.take_check import check_take
 from posecam.multiview.options import BundleOptions, FuseOptions
 from posecam.multiview.sync import SyncResult
 from synth_rig import make_rig, monocular_views, relative_rotation_error_deg, skeleton_motion

@@ -4,7 +4,8 @@
 import numpy as np
 
 from posecam.multiview.associate import associate_people
-from posecam.multiview.fuse import check_take, fuse_recordings
+from posecam.multiview.fuse import fuse_recordings
+from posecam.multiview.take_check import check_take
 from posecam.multiview.options import FuseOptions
 from posecam.multiview.coarse_sync import _bone_products, _resampled_products, bone_correlation, bone_directions, coarse_offsets
 from posecam.multiview.motion_sync import Resamples, motion_correlations, shifted_pair

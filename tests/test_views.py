@@ -12,7 +12,7 @@ from posecam.geometry.camera import CameraCalibration, Intrinsics
 from posecam.io.calibration import write_toml
 from posecam.io.intrinsics import IntrinsicsOptions
 from posecam.io.poses import read_poses, write_poses
-from posecam.multiview.fuse import check_lengths
+from posecam.multiview.take_check import check_lengths
 from posecam.multiview.options import FuseOptions
 from posecam.views import load_views, view_intrinsics
 

@@ -7,12 +7,12 @@
     result.warnings             # one line each: cameras dropped, offsets not found, ...
 
 The stages, one line each in `_fuse`, each from a typed input to a typed output, over the
-types of posecam.multiview.observations: the checked views (`check_take` -> Take), association
+types of posecam.multiview.observations: the checked views (.take_check -> Take), association
 across views (posecam.multiview.associate -> Association), sync (.sync -> SyncResult; through
 a given rig, the people are associated again at the offsets found), the rig (KeptCameras: a
 given calibration matched by Rig.match, or .calibrate: consensus, bundle adjustment and a
 quality gate), left/right (.left_right; estimated cameras are estimated again once the swaps
-are undone), the metric scale (`to_metric`), fusion of each person (.fuse_people) and the
+are undone), the metric scale (.rig_scale), fusion of each person (.fuse_people) and the
 camera report (.report). Without a calibration a rig fitted to unsynchronised views partly
 absorbs their lag, so the offsets come first, from each view's own motion
 (posecam.multiview.sync), and the rig is estimated at them (sub-frame: views interpolated
@@ -24,15 +24,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from posecam.errors import FusionError, InputError
+from posecam.errors import FusionError
 from posecam.geometry.camera import Rig
-from posecam.scale.heights import Heights
-from posecam.scale.stature import stature
 from posecam.multiview.associate import Association, associate_people
 from posecam.multiview.calibrate import (KeptCameras, bootstrap_spreads, cameras_from_people, cameras_without_swaps,
                                           without_loose_cameras)
@@ -41,8 +38,10 @@ from posecam.multiview.left_right import fix_people
 from posecam.multiview.observations import Observations, Take
 from posecam.multiview.options import FuseOptions
 from posecam.multiview.report import CameraReport, camera_reports
+from posecam.multiview.rig_scale import to_metric
 from posecam.multiview.coarse_sync import coarse_offsets
-from posecam.multiview.sync import RIG_MAX_OFFSET, SyncResult, synchronise
+from posecam.multiview.sync import SyncResult, synchronise
+from posecam.multiview.take_check import check_take
 from posecam.results import Frame, Person, Recording
 from posecam.skeleton import skeleton_of
 
@@ -55,134 +54,7 @@ class FusionResult:
     cameras: list[CameraReport]            # per kept camera
     views: list[int] = field(default_factory=list)      # input index of each kept camera
     warnings: list[str] = field(default_factory=list)
-    scale_source: str = "the calibration"   # what fixes the metric scale (see `metric_scale`)
-
-
-def view_names(recordings: list[Recording]) -> list[str]:
-    """Camera names: the input file stems, made unique."""
-    names = []
-    for r in recordings:
-        stem = Path(r.source).stem or "view"
-        names.append(stem if stem not in names else f"{stem}_{len(names)}")
-    return names
-
-
-MIN_SHARED = 0.5    # share of the shorter view's frames that views lined up by given offsets must share
-REFERENCE = 0       # the view whose camera and frames the fused recording is in: the first
-
-
-def check_lengths(names: list[str], lengths: list[int], opts: FuseOptions) -> str | None:
-    """Views of different lengths are what cameras started and stopped by hand give: lined up
-    by offsets found without a calibration, or by the offsets given, which must leave each view
-    MIN_SHARED of its frames (or of the reference's, if fewer) in common with the reference
-    (REFERENCE); a warning line says they differ. Views taken as started together (no offsets, no search
-    without a calibration) may differ by at most the search of a calibrated sync (`max_offset`):
-    InputError past what they allow."""
-    sync = opts.finds_offsets
-    if not lengths or max(lengths) == min(lengths) or (sync and opts.calibration is None):
-        return None
-    shown = ", ".join(f"{n} {k}" for n, k in zip(names, lengths))
-    if opts.offsets is not None and len(opts.offsets) == len(lengths):
-        ref, o_ref = lengths[REFERENCE], opts.offsets[REFERENCE]
-        for name, n, o in zip(names, lengths, opts.offsets):       # reference frames i with i + o in the view
-            shared = max(0, int(np.floor(min(ref, n - (o - o_ref)) - max(0.0, o_ref - o))))
-            if shared < MIN_SHARED * min(n, ref):
-                raise InputError(f"the views have different lengths ({shown} frames) and at the offsets given "
-                                 f"{name} shares only {shared} of its frames with {names[REFERENCE]}: "
-                                 "check --offsets, or fuse recordings of the same take")
-    else:
-        search = opts.max_offset if opts.max_offset is not None else RIG_MAX_OFFSET if sync else 0
-        if max(lengths) - min(lengths) > search:
-            raise InputError(f"the views have different lengths ({shown} frames): fuse needs "
-                             "recordings of the same take; trim them to it, or give --offsets")
-    return (f"the views differ in length ({shown} frames): fuse lines them up by their first frames "
-            "(shifted by --offsets or --sync auto); are they one take?")
-
-
-def check_take(recordings: list[Recording], opts: FuseOptions) -> Take:
-    """The recordings as one take's views (posecam.multiview.observations.Take; its warnings: the
-    views' lengths differ, `check_lengths`), or InputError / FusionError saying why they are not."""
-    if len(recordings) < 2:
-        raise InputError(f"fusion needs two views or more, got {len(recordings)}")
-    if len({r.joints for r in recordings}) != 1:
-        raise InputError("the views were predicted with different skeletons; predict them with the same --skeleton")
-    if opts.offsets is not None and len(opts.offsets) != len(recordings):
-        raise InputError(f"--offsets needs one value per view ({len(recordings)}), got {len(opts.offsets)}")
-    names = view_names(recordings)
-    differ = check_lengths(names, [len(r.frames) for r in recordings], opts)
-    rates = [r.fps for r in recordings if r.fps]
-    if rates and max(rates) > 1.01 * min(rates):
-        raise InputError(f"the views have different frame rates ({', '.join(f'{f:g}' for f in rates)} fps)")
-    for name, r in zip(names, recordings):
-        if not any(f.people for f in r.frames):
-            raise FusionError(f"no person found in view {name}")
-        if r.intrinsics is None:
-            raise InputError(f"view {name} has no intrinsics")
-    for a, b in _twins(recordings):
-        raise FusionError(f"views {names[a]} and {names[b]} hold the same poses (one recording given twice?): "
-                          "fusion needs different cameras")
-    take = Take.of(names, recordings, REFERENCE)
-    take.warnings = [differ] if differ else []
-    return take
-
-
-def _twins(recordings: list[Recording], max_px: float = 0.5) -> list[tuple[int, int]]:
-    """Pairs of views whose people sit at the same pixels in most frames they both have."""
-    def first(r: Recording) -> dict[int, np.ndarray]:
-        return {i: np.stack([p.keypoints_2d for p in f.people]) for i, f in enumerate(r.frames) if f.people}
-
-    people = [first(r) for r in recordings]
-    out = []
-    for a in range(len(recordings)):
-        for b in range(a + 1, len(recordings)):
-            common = sorted(set(people[a]) & set(people[b]))[:50]
-            same = [_closest(np.linalg.norm(people[a][i][:, None] - people[b][i][None], axis=-1)) < max_px
-                    for i in common]
-            if same and np.mean(same) > 0.8:
-                out.append((a, b))
-    return out
-
-
-def _closest(distances: np.ndarray) -> float:
-    """The smallest median over joints of (Pa, Pb, J) distances between two views' people
-    (inf where no pair shares a joint: people whose joints a file left null)."""
-    seen = np.isfinite(distances).any(axis=-1)
-    return float(np.nanmedian(distances[seen], axis=-1).min()) if seen.any() else np.inf
-
-
-HEIGHTS_AGREE = 0.10    # given heights whose ratios to the measured ones spread wider disagree with the rig
-
-
-def metric_scale(rig: Rig, people: list[Observations], joints: tuple[str, ...], heights: Heights,
-                 min_conf: float) -> tuple[float, str, list[str]]:
-    """The factor that brings an estimated rig to the people's given heights, what the table
-    says of it, and a warning where the heights given disagree with the relative heights the rig
-    measures (given / measured spread by more than HEIGHTS_AGREE: no one scale fits them all).
-    The rig gives the people's relative heights exactly (one scale for all): each person's
-    height is the median over frames of posecam.scale.stature.stature of the triangulation of its 2D
-    keypoints (the rig's geometry alone, not the monocular skeletons' adult size); a list is
-    matched tallest first (posecam.scale.heights) and the factor is the median of given / measured.
-    Without heights: 1 (the bundle adjustment's scale, from the monocular bone lengths)."""
-    estimated = {}
-    for pid, obs in enumerate(people):
-        tri = rig.triangulate(obs.uv, obs.conf, min_conf)
-        conf = np.where(np.isfinite(tri).all(axis=-1), obs.conf.max(axis=0), 0.0)
-        h = stature(tri, conf, joints)
-        if np.isfinite(h).sum() >= 5:
-            estimated[pid] = float(np.nanmedian(h)) / 1000.0
-    given = heights.assign(estimated) if heights else {}
-    if not given:
-        return 1.0, "the pose model's bone lengths (an adult's; --height gives it)", []
-    ratios = [m / estimated[pid] for pid, (m, _) in given.items()]
-    factor = float(np.median(ratios))
-    people_text = ", ".join(f"person {pid} {m:.2f} m ({how})" for pid, (m, how) in sorted(given.items()))
-    warnings = []
-    if max(ratios) > (1 + HEIGHTS_AGREE) * min(ratios):
-        measured = ", ".join(f"person {pid} {estimated[pid] * factor:.2f} m (given {m:.2f})"
-                             for pid, (m, _) in sorted(given.items()))
-        warnings.append(f"the heights given disagree with the people's relative heights, which the cameras "
-                        f"measure: at the scale used, {measured}; check --height")
-    return factor, f"the heights given: {people_text}", warnings
+    scale_source: str = "the calibration"   # what fixes the metric scale (posecam.multiview.rig_scale)
 
 
 def _to_recording(fused: list[FusedPerson], rig: Rig, ref_index: int, ref: Recording) -> Recording:
@@ -207,18 +79,6 @@ def given_cameras(take: Take, calibration: Rig) -> KeptCameras:
     """The calibration's cameras matched to the views (Rig.match), every view kept."""
     cams, note = calibration.match(take.names, [c.size for c in take.assumed])
     return KeptCameras(Rig(cams, None), list(range(len(cams))), [note] if note else [])
-
-
-def to_metric(cameras: KeptCameras, people: list[Observations], take: Take,
-              opts: FuseOptions) -> tuple[KeptCameras, str, list[str]]:
-    """Estimated cameras at the people's given heights (`metric_scale`: one similarity about the
-    reference camera, reprojection unchanged), what fixes the scale and its warnings."""
-    factor, source, warnings = metric_scale(cameras.rig, people, take.joints, opts.heights, opts.min_conf)
-    if factor == 1.0:
-        return cameras, source, warnings
-    rig = Rig([replace(c, translation=c.translation * factor) for c in cameras.rig.cameras], cameras.rig.reference)
-    spreads = cameras.spreads and [replace(c, position_mm=c.position_mm * factor) for c in cameras.spreads]
-    return replace(cameras, rig=rig, spreads=spreads), source, warnings
 
 
 def _start(take: Take, opts: FuseOptions) -> list[float]:

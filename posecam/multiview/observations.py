@@ -251,7 +251,7 @@ def tracks_of(rec: Recording, view: int, min_frames: int = MIN_TRACK_FRAMES) -> 
 
 @dataclass
 class Take:
-    """The views of one take, checked (posecam.multiview.fuse), as every stage reads them."""
+    """The views of one take, checked (posecam.multiview.take_check), as every stage reads them."""
 
     names: list[str]                     # camera names: the input file stems, made unique
     assumed: list[CameraCalibration]     # each view's camera as its monocular poses assumed it
@@ -260,7 +260,7 @@ class Take:
     joints: tuple[str, ...]
     reference: int                       # the view whose camera and frames the others are put in
     fps: float                           # the reference's frame rate (DEFAULT_FPS where it has none)
-    warnings: list[str] = field(default_factory=list)   # what checking the views found (posecam.multiview.fuse)
+    warnings: list[str] = field(default_factory=list)   # what checking the views found (posecam.multiview.take_check)
 
     @classmethod
     def of(cls, names: list[str], recordings: list[Recording], reference: int) -> "Take":

@@ -1,6 +1,6 @@
 """A skeleton's size and stance from its joints: its stature from the bone lengths, whatever the
 pose, and whether it stands upright (its down direction, its ankles). posecam.scale.metric
-measures every person with them, posecam.multiview.fuse the fused people.
+measures every person with them, posecam.multiview.rig_scale the people an estimated rig triangulates.
 """
 
 from __future__ import annotations

@@ -1,0 +1,63 @@
+"""An estimated rig at the people's given heights: the factor (`metric_scale`) and the rig and
+spreads it scales (`to_metric`). Without heights the bundle adjustment's scale stays, the one
+the monocular bone lengths set."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from posecam.geometry.camera import Rig
+from posecam.multiview.calibrate import KeptCameras
+from posecam.multiview.observations import Observations, Take
+from posecam.multiview.options import FuseOptions
+from posecam.scale.heights import Heights
+from posecam.scale.stature import stature
+
+HEIGHTS_AGREE = 0.10    # given heights whose ratios to the measured ones spread wider disagree with the rig
+
+
+def metric_scale(rig: Rig, people: list[Observations], joints: tuple[str, ...], heights: Heights,
+                 min_conf: float) -> tuple[float, str, list[str]]:
+    """The factor that brings an estimated rig to the people's given heights, what the table
+    says of it, and a warning where the heights given disagree with the relative heights the rig
+    measures (given / measured spread by more than HEIGHTS_AGREE: no one scale fits them all).
+    The rig gives the people's relative heights exactly (one scale for all): each person's
+    height is the median over frames of posecam.scale.stature.stature of the triangulation of its 2D
+    keypoints (the rig's geometry alone, not the monocular skeletons' adult size); a list is
+    matched tallest first (posecam.scale.heights) and the factor is the median of given / measured.
+    Without heights: 1 (the bundle adjustment's scale, from the monocular bone lengths)."""
+    estimated = {}
+    for pid, obs in enumerate(people):
+        tri = rig.triangulate(obs.uv, obs.conf, min_conf)
+        conf = np.where(np.isfinite(tri).all(axis=-1), obs.conf.max(axis=0), 0.0)
+        h = stature(tri, conf, joints)
+        if np.isfinite(h).sum() >= 5:
+            estimated[pid] = float(np.nanmedian(h)) / 1000.0
+    given = heights.assign(estimated) if heights else {}
+    if not given:
+        return 1.0, "the pose model's bone lengths (an adult's; --height gives it)", []
+    ratios = [m / estimated[pid] for pid, (m, _) in given.items()]
+    factor = float(np.median(ratios))
+    people_text = ", ".join(f"person {pid} {m:.2f} m ({how})" for pid, (m, how) in sorted(given.items()))
+    warnings = []
+    if max(ratios) > (1 + HEIGHTS_AGREE) * min(ratios):
+        measured = ", ".join(f"person {pid} {estimated[pid] * factor:.2f} m (given {m:.2f})"
+                             for pid, (m, _) in sorted(given.items()))
+        warnings.append(f"the heights given disagree with the people's relative heights, which the cameras "
+                        f"measure: at the scale used, {measured}; check --height")
+    return factor, f"the heights given: {people_text}", warnings
+
+
+def to_metric(cameras: KeptCameras, people: list[Observations], take: Take,
+              opts: FuseOptions) -> tuple[KeptCameras, str, list[str]]:
+    """Estimated cameras at the people's given heights (`metric_scale`: one similarity about the
+    reference camera, reprojection unchanged), what fixes the scale and its warnings."""
+    factor, source, warnings = metric_scale(cameras.rig, people, take.joints, opts.heights, opts.min_conf)
+    if factor == 1.0:
+        return cameras, source, warnings
+    rig = Rig([replace(c, translation=c.translation * factor) for c in cameras.rig.cameras], cameras.rig.reference)
+    spreads = cameras.spreads and [replace(c, position_mm=c.position_mm * factor) for c in cameras.spreads]
+    return replace(cameras, rig=rig, spreads=spreads), source, warnings
+
