@@ -24,8 +24,9 @@ Each run of `fuse_recordings` (from the cached pose JSON) is scored against it: 
 pair the angle between estimated and lab relative rotation, per camera the focal length error
 and the camera centre error (cam01's frame, mm), the offsets against the truth, and every
 true pelvis's distance to the nearest fused pelvis of its frame as fuse writes it (smoothed; median, mm; fused people the
-truth lacks, seen by one view only like the single take's bystander, are counted apart); and per
-estimated camera its spreads (one standard deviation of rotation, focal length, centre) beside its errors.
+truth lacks, seen by one view only like the single take's bystander, are counted apart), split
+into its distance from the reference camera (fused / true: the rig's scale) and its direction
+(deg: the rays); and per estimated camera its spreads (one standard deviation of rotation, focal length, centre) beside its errors.
 `--rigs` ends with the spreads' coverage (`coverage_rows`, `show_coverage`): per quantity (rotation,
 focal length, position at the lab's scale, the offsets against the uncut run's plus the cut and
 against the lab's), how many of the sweep's errors lie within 1 and 2 reported standard
@@ -360,7 +361,8 @@ class Truth:
             true = c0["R"] @ (-c["R"].T @ c["t"]) + c0["t"]
             centre[n] = float(np.linalg.norm(est - true))
         errs, extra = [], 0   # each true pelvis to the nearest fused one of its frame; fused people the
-        for i, people in enumerate(run["pelvis"]):   # truth lacks (seen by one view: a bystander) counted apart
+        pairs = []            # truth lacks (seen by one view: a bystander) counted apart
+        for i, people in enumerate(run["pelvis"]):
             k = int(round(i + first))
             if not 0 <= k < len(self.pelvis):
                 continue
@@ -368,14 +370,24 @@ class Truth:
             fused = np.array([x if world else c0["R"].T @ (np.array(x) - c0["t"]) for x in people
                               if np.isfinite(x).all()]).reshape(-1, 3)
             if truth.size and fused.size:
-                errs += np.linalg.norm(truth[:, None] - fused[None], axis=2).min(axis=1).tolist()
+                d = np.linalg.norm(truth[:, None] - fused[None], axis=2)
+                errs += d.min(axis=1).tolist()
+                pairs += [(t, fused[j]) for t, j in zip(truth, d.argmin(axis=1))]
             extra += max(len(fused) - len(truth), 0)
+        # the pelvis error split, in the reference camera's frame: its distance from the camera
+        # (fused / true: the rig's scale) and its direction (deg: the rays)
+        seen = [(c0["R"] @ t + c0["t"], c0["R"] @ f + c0["t"]) for t, f in pairs]
+        ranges = [np.linalg.norm(f) / np.linalg.norm(t) for t, f in seen]
+        rays = [np.degrees(np.arccos(np.clip(t @ f / (np.linalg.norm(t) * np.linalg.norm(f)), -1.0, 1.0)))
+                for t, f in seen]
         off = {n: float(o) - self.combination[v] + self.combination[views[0]]   # against the run's reference
                for n, o, v in zip(names, run["offsets_kept"], views)}
         return {"rot": rot, "rot_median": float(np.median(list(rot.values()))) if rot else np.nan,
                 "focal": focal, "focal_max": max(abs(e) for e in focal.values()), "centre": centre,
                 "centre_median": float(np.median(list(centre.values())[1:])) if len(centre) > 1 else np.nan,
                 "pelvis_median": float(np.median(errs)) if errs else np.nan, "pelvises": len(errs), "extra": extra,
+                "pelvis_range": float(np.median(ranges)) if ranges else np.nan,
+                "pelvis_ray_deg": float(np.median(rays)) if rays else np.nan,
                 "offset_error": off, "offset_max": max(abs(e) for e in off.values())}
 
 
@@ -554,7 +566,8 @@ def show(label: str, runs: dict[str, dict], truth: Truth) -> None:
         print(f"   {code:6s}: {r['time_s']:.1f} s; rotation median {s['rot_median']:.2f} deg "
               f"({', '.join(f'{k} {v:.1f}' for k, v in s['rot'].items())}); focal max {s['focal_max']:.1f} % "
               f"({', '.join(f'{k} {v:+.1f}' for k, v in s['focal'].items())}); centre median {s['centre_median']:.0f} mm; "
-              f"pelvis median {s['pelvis_median']:.0f} mm ({s['pelvises']}; {s['extra']} fused not in the truth); offsets {r['offsets_kept']} "
+              f"pelvis median {s['pelvis_median']:.0f} mm ({s['pelvises']}; {s['extra']} fused not in the truth; "
+              f"distance from the camera x{s['pelvis_range']:.3f}, direction {s['pelvis_ray_deg']:.2f} deg); offsets {r['offsets_kept']} "
               f"(max error {s['offset_max']:.2f} frame)" + (f"; scale: {r['scale']}" if "scale" in r else ""))
         if any(r.get("spreads") or []):
             # one standard deviation per camera against its error: rotation against cam01's (the
