@@ -29,7 +29,7 @@ from posecam.analysis.doubts import DoubtStage
 from posecam.errors import InputError, ModelError, warn
 from posecam.analysis.filters import StreamingSmoother
 from posecam.scale.metric import MetricOptions, MetricStage
-from posecam.geometry.boxes import boxes_overlap
+from posecam.geometry.boxes import box_iou, boxes_overlap
 from posecam.geometry.camera import Intrinsics
 from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.inference.detector import Detection, MoveNetDetector, detect_any_turn, load_detector, load_second_look
@@ -310,8 +310,11 @@ class PoseEstimator:
 
     def _own_pose(self, image_rgb: np.ndarray, track: Track, c: PoseCandidate,
                   detections: list[Detection]) -> tuple[PoseCandidate, str | None]:
-        """The pose of the track's own person, and why it is dropped (None: kept). A pose the
-        pose model doubts (presence below min_presence) or with 3 or more joints on a neighbour
+        """The pose of the track's own person, and why it is dropped (None: kept). Where the
+        detector gave an upright box for someone followed turned (`Track.own_roi`), the pose from
+        the crop their own pose gave is tried too, and the one whose joints fill the box better
+        kept (`_box_fit`: the box crop of someone upside down gives a skeleton on part of them,
+        a crop that slid off them one on part of the box). A pose the pose model doubts (presence below min_presence) or with 3 or more joints on a neighbour
         is tried again: from an upright crop of the person's box, from one reaching past the
         image's border where it cuts the box (`past_border`), then from the detector's crop
         turned by 90, -90 and 180 degrees (people lying, upside down), the first pose kept
@@ -320,6 +323,10 @@ class PoseEstimator:
         do. A doubted pose is kept when it agrees with the detector's keypoints of the person
         (OKS >= 0.5)."""
         own = track.detection
+        if track.own_roi is not None:   # the detector's upright box or the crop the person's own pose gave
+            mine = self.pose_model(image_rgb, [track.own_roi])[0]
+            if _box_fit(mine, own.box) > _box_fit(c, own.box):
+                c = mine
         others = [d for d in detections if d is not own and boxes_overlap(d.box, own.box)]
         idx, min_presence = self._to_detector, self.options.min_presence
 
@@ -484,6 +491,11 @@ def _box_of(uv: np.ndarray, conf: np.ndarray, min_conf: float = MIN_CONFIDENCE) 
     """(4,) bounds of the confident joints (of all joints when fewer than 2 are)."""
     seen = uv[conf >= min_conf] if (conf >= min_conf).sum() >= 2 else uv
     return np.concatenate([seen.min(axis=0), seen.max(axis=0)])
+
+
+def _box_fit(pose: PoseCandidate, box: np.ndarray) -> float:
+    """How well a pose fills a detection's box: the IoU of its confident joints' bounds with it."""
+    return float(box_iou(_box_of(pose.keypoints_2d, pose.confidence)[None], np.asarray(box)[None])[0, 0])
 
 
 def _check_image(image_rgb: np.ndarray) -> None:

@@ -293,6 +293,10 @@ MUTANTS = (
     Mutant("tracker: assignment of a tall matrix not transposed back", "posecam/tracking/assignment.py",
            "    if transposed:\n        rows, cols = cols, rows", "    if False:\n        rows, cols = cols, rows",
            (f"{TRACKING}::test_min_cost_assignment_matches_scipy_on_random_matrices",)),
+    Mutant("tracker: a person followed upside down loses their own crop to a box", "posecam/tracking/track.py",
+           "        self.own_roi = self.roi if turned and self.upside_down and not d.roi.oriented else None",
+           "        self.own_roi = None",
+           ("tests/test_turned_views.py::test_a_person_followed_upside_down_keeps_their_own_crop_beside_a_detector_box",)),
     # ---- the doubts -----------------------------------------------------------------------------
     Mutant("doubts: the root tested votes for its own steady path", "posecam/analysis/doubts.py",
            "(times <= time + self.window + 1e-6) & others", "(times <= time + self.window + 1e-6)",
@@ -315,7 +319,8 @@ MUTANTS = (
 # The test files of each stage's modules, by the start of the mutated file's path: a mutant runs
 # all of them (first match wins).
 MULTIVIEW = (CONSENSUS, FUSION, "tests/test_schur_lm.py", "tests/test_sync.py", "tests/test_association.py",
-             "tests/test_spreads.py", "tests/test_camera_gate.py", "tests/test_views.py", "tests/test_fuse_cmd.py")
+             "tests/test_spreads.py", "tests/test_camera_gate.py", "tests/test_views.py", "tests/test_fuse_cmd.py",
+             "tests/test_turned_views.py")
 STAGES = (
     ("posecam/geometry/lift.py", (CAMERA, "tests/test_predict.py")),
     ("posecam/geometry/camera.py", (CAMERA, CALIB)),
@@ -325,7 +330,8 @@ STAGES = (
     ("posecam/io/poses.py", ("tests/test_pose_files.py", "tests/test_fuse_cmd.py")),
     ("posecam/scale/", (METRIC, "tests/test_heights.py")),
     ("posecam/multiview/", MULTIVIEW),
-    ("posecam/tracking/", (TRACKING, "tests/test_embedder.py", "tests/test_reid.py", "tests/test_reid_gate.py")),
+    ("posecam/tracking/", (TRACKING, "tests/test_embedder.py", "tests/test_reid.py", "tests/test_reid_gate.py",
+                           "tests/test_turned_views.py")),
     ("posecam/analysis/doubts.py", ("tests/test_doubts.py",)),
 )
 

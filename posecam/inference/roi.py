@@ -15,12 +15,15 @@ ROI_SCALE = 1.25
 
 @dataclass(frozen=True)
 class Roi:
-    """A square of side `size` px centred on (cx, cy), rotated by `angle` rad (clockwise in the image)."""
+    """A square of side `size` px centred on (cx, cy), rotated by `angle` rad (clockwise in the image);
+    `oriented`: its angle follows a body's axis (False: an upright square about a box, which
+    tells nothing of how the body lies)."""
 
     cx: float
     cy: float
     size: float
     angle: float = 0.0
+    oriented: bool = True
 
     @classmethod
     def from_alignment_points(cls, centre: np.ndarray, scale_point: np.ndarray) -> "Roi":
@@ -35,7 +38,7 @@ class Roi:
         """Upright square around the bounding box of (N, 2) points."""
         lo, hi = points.min(axis=0), points.max(axis=0)
         c = (lo + hi) / 2
-        return cls(float(c[0]), float(c[1]), float((hi - lo).max() * margin))
+        return cls(float(c[0]), float(c[1]), float((hi - lo).max() * margin), oriented=False)
 
     def crop_matrix(self, out_size: int) -> np.ndarray:
         """2x3 affine matrix taking image pixels to crop pixels (0..out_size)."""

@@ -1,0 +1,94 @@
+"""Cameras turned on their axis: a video filmed upside down is followed as the upright one is."""
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from conftest import DATA
+from posecam import PoseEstimator, PredictOptions
+from posecam.inference.detector import Detection, turned_back
+from posecam.inference.roi import Roi
+from posecam.tracking.motion import BoxKalman
+from posecam.tracking.track import TURNED, Track
+
+
+def _frames(path: Path) -> list[np.ndarray]:
+    cap, frames = cv2.VideoCapture(str(path)), []
+    while True:
+        ok, bgr = cap.read()
+        if not ok:
+            return frames
+        frames.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
+
+
+def test_a_video_filmed_upside_down_gives_the_upright_skeletons():
+    """Pose2Sim's balancing adult (30 frames) and the same frames turned by 180 deg: each turned
+    frame's skeleton, carried back, lies on the upright one. On frame 15 the detector (made for
+    upright people) cannot tell his axis and gives an upright box: its crop alone turned him
+    upright for the pose model, whose skeleton then slid off him for 10 frames (15 % of his
+    height at worst); the crop his own pose gives, tried beside it, fills the box and keeps him."""
+    frames = _frames(DATA / "balance_cam01_30f.mp4")
+    h, w = frames[0].shape[:2]
+    estimator, options = PoseEstimator(), PredictOptions(fps=60.0)
+    upright = list(estimator.track(frames, options=options))
+    turned = list(estimator.track([np.ascontiguousarray(np.rot90(f, 2)) for f in frames], options=options))
+    assert len(turned) == len(upright) == 30
+    worst = 0.0
+    for a, b in zip(upright, turned):
+        person = max(a.people, key=lambda p: np.ptp(p.keypoints_2d[:, 1]))
+        height = np.ptp(person.keypoints_2d[:, 1])
+        errors = [np.median(np.linalg.norm(turned_back(q.keypoints_2d, 2, w, h) - person.keypoints_2d, axis=1))
+                  for q in b.people]
+        assert errors, f"frame {a.index}: nobody in the turned frame"
+        worst = max(worst, min(errors) / height)
+    assert worst < 0.03, worst
+
+
+def _track(angle: float, lost: int = 0, told: bool = True) -> Track:
+    """A track followed at `angle`, whose detector last told it upside down (`told`) or not."""
+    box = np.array([100.0, 100.0, 300.0, 500.0])
+    track = Track(0, Roi(200.0, 300.0, 500.0, angle), BoxKalman(box), np.zeros((17, 2)), np.zeros(17), lost=lost)
+    track.upside_down = told
+    return track
+
+
+def _detection(roi: Roi) -> Detection:
+    box = np.array([110.0, 90.0, 310.0, 510.0])
+    return Detection(0.6, box, np.zeros((17, 2)), np.zeros(17), roi)
+
+
+UPRIGHT_BOX = Roi.around_points(np.array([[110.0, 90.0], [310.0, 510.0]]))
+
+
+@pytest.mark.parametrize("angle", [np.pi, -2.5, TURNED + 0.05])
+def test_a_person_followed_upside_down_keeps_their_own_crop_beside_a_detector_box(angle):
+    """The detector's upright box (it could not tell the body's axis) is this frame's crop, and
+    the crop the person's own pose gave is kept beside it, for the pose model to try too."""
+    assert not UPRIGHT_BOX.oriented
+    track = _track(angle)
+    own = track.roi
+    track.take(_detection(UPRIGHT_BOX))
+    assert track.roi == UPRIGHT_BOX and track.own_roi == own
+    assert track.detection is not None and track.lost == 0 and track.hits == 2
+    assert track.upside_down                           # an upright box tells nothing of the axis
+
+
+def test_no_second_crop_where_the_detector_knows_the_body_or_the_person_is_not_upside_down():
+    body = Roi(210.0, 300.0, 520.0, 0.1)               # from the detector's hips and shoulders: upright
+    track = _track(np.pi)
+    track.take(_detection(body))
+    assert track.roi == body and track.own_roi is None and not track.upside_down
+    track.take(_detection(UPRIGHT_BOX))                # the detector told him upright: his pose is not offered
+    assert track.own_roi is None
+    for track in (_track(TURNED - 0.05), _track(-np.pi / 2), _track(np.pi, lost=3), _track(np.pi, told=False)):
+        track.take(_detection(UPRIGHT_BOX))            # lost: its crop is old; not told: a pose that turned on its own
+        assert track.roi == UPRIGHT_BOX and track.own_roi is None
+
+
+def test_a_track_born_of_a_turned_detection_is_upside_down():
+    assert Track(0, Roi(0, 0, 1, 3.0), BoxKalman(np.array([0.0, 0, 1, 1])), np.zeros((17, 2)), np.zeros(17),
+                 detection=_detection(Roi(0, 0, 1, 3.0))).upside_down
+    assert not Track(0, UPRIGHT_BOX, BoxKalman(np.array([0.0, 0, 1, 1])), np.zeros((17, 2)), np.zeros(17),
+                     detection=_detection(UPRIGHT_BOX)).upside_down
