@@ -305,6 +305,9 @@ MUTANTS = (
     Mutant("fuse: frames shared at given offsets counted from the wrong side", "posecam/multiview/take_check.py",
            "max(0.0, o_ref - o)", "max(0.0, o - o_ref)",
            ("tests/test_views.py::test_offsets_given_line_up_views_of_different_lengths",)),
+    Mutant("fuse: a view a calibration does not fit left out unsaid", "posecam/multiview/fuse.py",
+           " + unmatched_views(take, association)", "",
+           ("tests/test_turned_views.py::test_a_view_the_calibration_does_not_fit_is_named",)),
     # ---- what fusion estimates from ---------------------------------------------------------------
     Mutant("observations: the take read from the smoothed keypoints", "posecam/multiview/observations.py",
            "(uv[i], xyz[i]), conf[i], score[i] = p.observed(), p.confidence, p.score",

@@ -1,5 +1,7 @@
-"""Cameras turned on their axis: a video filmed upside down is followed as the upright one is."""
+"""Cameras turned on their axis: a video filmed upside down is followed as the upright one is,
+and a view a calibration does not fit is named, not silently left out of the fusion."""
 
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -10,8 +12,13 @@ from conftest import DATA
 from posecam import PoseEstimator, PredictOptions
 from posecam.inference.detector import Detection, turned_back
 from posecam.inference.roi import Roi
+from posecam.io.poses import read_poses
+from posecam.multiview.fuse import fuse_recordings
+from posecam.multiview.options import FuseOptions
 from posecam.tracking.motion import BoxKalman
 from posecam.tracking.track import TURNED, Track
+
+TAKE = Path(__file__).parent / "data" / "two_people_50f"
 
 
 def _frames(path: Path) -> list[np.ndarray]:
@@ -92,3 +99,38 @@ def test_a_track_born_of_a_turned_detection_is_upside_down():
                  detection=_detection(Roi(0, 0, 1, 3.0))).upside_down
     assert not Track(0, UPRIGHT_BOX, BoxKalman(np.array([0.0, 0, 1, 1])), np.zeros((17, 2)), np.zeros(17),
                      detection=_detection(UPRIGHT_BOX)).upside_down
+
+
+def _upside_down(recording):
+    """A recording's people as an upside-down camera sees them: pixels and camera axes turned
+    by 180 deg about the optical axis."""
+    size = np.array([recording.width, recording.height], float)
+
+    def turned(p):
+        kp = size - p.keypoints_2d
+        return replace(p, keypoints_2d=kp, keypoints_3d=p.keypoints_3d * [-1.0, -1.0, 1.0],
+                       bbox=np.concatenate([size - p.bbox[2:], size - p.bbox[:2]]),
+                       observed_2d=None if p.observed_2d is None else size - p.observed_2d,
+                       observed_3d=None if p.observed_3d is None else p.observed_3d * [-1.0, -1.0, 1.0])
+
+    return replace(recording, frames=[replace(f, people=[turned(p) for p in f.people]) for f in recording.frames])
+
+
+def test_a_view_the_calibration_does_not_fit_is_named():
+    """The two-person take (50 frames of each view) through the lab's calibration, at the
+    offsets --sync auto finds: with cam02's people turned upside down (the calibration is of
+    the upright camera) nobody in cam02 matches anyone in the other views; cam02 adds nothing
+    to the fusion, and the warnings say so."""
+    assets = pytest.importorskip("export.assets", reason="the Pose2Sim wheel comes with the export extra")
+    from posecam.io.calibration import read_calibration
+
+    lab = read_calibration(assets.pose2sim_demo_path("calibration/Calib.qca.txt"))
+    views = [read_poses(TAKE / f"cam0{i}.json")[0] for i in range(1, 5)]
+    opts = FuseOptions(calibration=lab, offsets=[0.0, -2.0, -3.0, -2.0])
+    plain = fuse_recordings(views, opts)
+    assert not [w for w in plain.warnings if "matches a person of another view" in w], plain.warnings
+    views[1] = _upside_down(views[1])
+    result = fuse_recordings(views, opts)
+    named = [w for w in result.warnings if "matches a person of another view" in w]
+    assert len(named) == 1 and named[0].startswith("cam02:"), result.warnings
+    assert result.cameras[1].joints_used == 0

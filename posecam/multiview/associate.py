@@ -54,6 +54,16 @@ def associate_people(take: Take, rig: Rig | None, offsets: list[float], opts: Fu
     return associate(take.tracks, pair_cost_calibrated(rig.cameras, offsets, n, min_conf), MAX_PAIR_ANGLE)
 
 
+def unmatched_views(take: Take, association: Association) -> list[str]:
+    """A warning for each view none of whose people is the same person as someone in another
+    view: it adds nothing to the fusion (through a calibration: one of another camera, or of
+    the video in another orientation or size)."""
+    shared = {v for p in association.people if len(p.views) > 1 for v in p.views}
+    return [f"{name}: none of its people matches a person of another view through the calibration, so it "
+            "adds nothing to the fusion: is the calibration this camera's, at this orientation and size?"
+            for v, name in enumerate(take.names) if v not in shared]
+
+
 @dataclass
 class PairFit:
     cost: float                 # np.inf: not the same person

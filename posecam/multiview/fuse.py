@@ -30,7 +30,7 @@ from threadpoolctl import threadpool_limits
 
 from posecam.errors import FusionError
 from posecam.geometry.camera import Rig
-from posecam.multiview.associate import Association, associate_people
+from posecam.multiview.associate import Association, associate_people, unmatched_views
 from posecam.multiview.calibrate import (KeptCameras, bootstrap_spreads, cameras_from_people, cameras_without_swaps,
                                           without_loose_cameras)
 from posecam.multiview.fuse_people import FusedPerson, fuse_person
@@ -183,7 +183,7 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
         say("checking left and right")
         people, swaps = fix_people(cameras.rig, take.observations(association.people, sync.offsets, cameras.views),
                                    take.joints)
-        warnings = sync.warnings + cameras.warnings
+        warnings = sync.warnings + cameras.warnings + unmatched_views(take, association)
     else:
         cameras, sync, people, swaps, warnings = _estimated(take, association, sync, opts, say)
     if not opts.sync and opts.offsets is None:
