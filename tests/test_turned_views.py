@@ -4,7 +4,6 @@ and a view a calibration does not fit is named, not silently left out of the fus
 from dataclasses import replace
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
 
@@ -12,6 +11,7 @@ from conftest import DATA
 from posecam import PoseEstimator, PredictOptions
 from posecam.inference.detector import Detection, turned_back
 from posecam.inference.roi import Roi
+from posecam.io.media import open_media
 from posecam.io.poses import read_poses
 from posecam.multiview.fuse import fuse_recordings
 from posecam.multiview.options import FuseOptions
@@ -21,22 +21,13 @@ from posecam.tracking.track import TURNED, Track
 TAKE = Path(__file__).parent / "data" / "two_people_50f"
 
 
-def _frames(path: Path) -> list[np.ndarray]:
-    cap, frames = cv2.VideoCapture(str(path)), []
-    while True:
-        ok, bgr = cap.read()
-        if not ok:
-            return frames
-        frames.append(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
-
-
 def test_a_video_filmed_upside_down_gives_the_upright_skeletons():
     """Pose2Sim's balancing adult (30 frames) and the same frames turned by 180 deg: each turned
     frame's skeleton, carried back, lies on the upright one. On frame 15 the detector (made for
     upright people) cannot tell his axis and gives an upright box: its crop alone turned him
     upright for the pose model, whose skeleton then slid off him for 10 frames (15 % of his
     height at worst); the crop his own pose gives, tried beside it, fills the box and keeps him."""
-    frames = _frames(DATA / "balance_cam01_30f.mp4")
+    frames = [rgb for _, _, rgb in open_media(DATA / "balance_cam01_30f.mp4").frames()]
     h, w = frames[0].shape[:2]
     estimator, options = PoseEstimator(), PredictOptions(fps=60.0)
     upright = list(estimator.track(frames, options=options))
