@@ -7,7 +7,9 @@ The clips (100 frames, 60 fps, written to --cache, .cache/bench_hard_people): `b
 darkened to 12 % under a low sun's glare over him), `backlit_all` (every frame so), `rot180`
 (turned 180 deg), `border` (cropped at x = 520: the left edge cuts him), `occluded` (a grey
 box over his body for frames 30-59), `lost_backlit` (hidden by a grey box for frames 30-49,
-then backlit). Yardstick: his box on the plain clip (the tallest person of each frame: he is,
+then backlit), `turn90` (turned 90 deg: a phone held sideways), `spin` (turned about his own
+centre, a whole turn over the 100 frames) and `flip` (a whole turn over frames 35-64, half a
+second: a backflip's speed), the last two on a square canvas as wide as the frame's diagonal. Yardstick: his box on the plain clip (the tallest person of each frame: he is,
 by eye, on frames 0, 50 and 99), carried through each edit; a frame counts where he is in view
 (half of him or more for `border`, not hidden for `lost_backlit`). Found: frames with a person
 on his box (IoU > 0.3); one id: frames under his most frequent id. With --before the same runs
@@ -29,7 +31,27 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 SOURCE = REPO / "examples" / "demo" / "single" / "cam01.mp4"
 CUT_X = 520          # border: the columns kept start here
-CLIPS = ("backlit", "backlit_all", "rot180", "border", "occluded", "lost_backlit")
+CLIPS = ("backlit", "backlit_all", "rot180", "border", "occluded", "lost_backlit", "turn90", "spin", "flip")
+FLIP = (35, 65)      # the frames over which `flip` turns him once
+
+
+def turn_deg(clip: str, i: int, n: int) -> float:
+    """How far frame i of n is turned (deg, anticlockwise) in the `spin` and `flip` clips."""
+    if clip == "spin":
+        return 360.0 * i / n
+    return 360.0 * float(np.clip((i - FLIP[0]) / (FLIP[1] - FLIP[0]), 0, 1))
+
+
+def turn_matrix(clip: str, i: int, n: int, centre: np.ndarray, w: int, h: int) -> tuple[np.ndarray, int]:
+    """The 2x3 map of frame i onto the turned clip's square canvas (its side: the frame's
+    diagonal), the frame centred on it and turned about `centre` (his, in the frame), and the side."""
+    import cv2
+
+    side = int(np.ceil(np.hypot(w, h)))
+    shift = np.array([(side - w) / 2, (side - h) / 2])
+    m = cv2.getRotationMatrix2D(tuple(map(float, centre + shift)), turn_deg(clip, i, n), 1.0)
+    m[:, 2] += m[:, :2] @ shift
+    return m, side
 
 
 def make_clips(out_dir: Path) -> None:
@@ -63,7 +85,13 @@ def make_clips(out_dir: Path) -> None:
         "occluded": [box(f, 600, 1300, 250, 800) if 30 <= i < 60 else f for i, f in enumerate(frames)],
         "lost_backlit": [box(f, 300, 1500, 0, 1000) if 30 <= i < 50 else dark(f) if i >= 50 else f
                          for i, f in enumerate(frames)],
+        "turn90": [np.rot90(f) for f in frames],
     }
+    centres = [(b[:2] + b[2:]) / 2 for b in his_boxes()] if any(
+        not (out_dir / f"{c}.mp4").exists() for c in ("spin", "flip")) else []
+    for clip in ("spin", "flip") if centres else ():
+        maps = [turn_matrix(clip, i, len(frames), c, w, h) for i, c in enumerate(centres)]
+        edits[clip] = [cv2.warpAffine(f, m, (side, side)) for f, (m, side) in zip(frames, maps)]
     for name, images in edits.items():
         path = out_dir / f"{name}.mp4"
         if path.exists():
@@ -75,16 +103,36 @@ def make_clips(out_dir: Path) -> None:
         out.release()
 
 
+def his_poses() -> list:
+    """His pose on each frame of the plain clip: the tallest person's (by eye, he is)."""
+    from posecam import PoseEstimator
+
+    return [max(f.people, key=lambda p: p.bbox[3] - p.bbox[1]) for f in PoseEstimator().predict_file(SOURCE).frames]
+
+
+def his_boxes() -> list[np.ndarray]:
+    return [p.bbox for p in his_poses()]
+
+
 def measure(clips: list[str], out_dir: Path) -> dict:
     from posecam import PoseEstimator
     from posecam.geometry.boxes import box_iou
 
     est = PoseEstimator()
     w, h = 1080, 1920
-    plain = est.predict_file(SOURCE)
-    him = [max(f.people, key=lambda p: p.bbox[3] - p.bbox[1]).bbox for f in plain.frames]
-    carry = {"rot180": lambda b: np.array([w - b[2], h - b[3], w - b[0], h - b[1]]),
-             "border": lambda b: np.array([max(b[0] - CUT_X, 0), b[1], b[2] - CUT_X, b[3]])}
+    poses = his_poses()
+    him = [p.bbox for p in poses]
+
+    def turned(clip: str, i: int, b: np.ndarray) -> np.ndarray:     # his seen joints carried, their box
+        p = poses[i]
+        m, _ = turn_matrix(clip, i, len(poses), (b[:2] + b[2:]) / 2, w, h)
+        uv = p.keypoints_2d[p.confidence >= 0.3] @ m[:, :2].T + m[:, 2]
+        return np.concatenate([uv.min(axis=0), uv.max(axis=0)])
+
+    carry = {"rot180": lambda i, b: np.array([w - b[2], h - b[3], w - b[0], h - b[1]]),
+             "border": lambda i, b: np.array([max(b[0] - CUT_X, 0), b[1], b[2] - CUT_X, b[3]]),
+             "turn90": lambda i, b: np.array([b[1], w - b[2], b[3], w - b[0]]),
+             "spin": lambda i, b: turned("spin", i, b), "flip": lambda i, b: turned("flip", i, b)}
     out = {}
     for name in clips:
         rec = est.predict_file(out_dir / f"{name}.mp4")
@@ -93,7 +141,7 @@ def measure(clips: list[str], out_dir: Path) -> dict:
             if (name == "border" and b[2] - CUT_X < 0.5 * (b[2] - b[0])) or (name == "lost_backlit" and 30 <= i < 50):
                 continue
             counted += 1
-            want = carry.get(name, lambda b: b)(b)[None]
+            want = carry.get(name, lambda i, b: b)(i, b)[None]
             best = max(f.people, key=lambda p: box_iou(p.bbox, want)[0, 0], default=None)
             ids.append(best.id if best is not None and box_iou(best.bbox, want)[0, 0] > 0.3 else None)
         c = Counter(i for i in ids if i is not None)
