@@ -294,9 +294,9 @@ MUTANTS = (
            "    if transposed:\n        rows, cols = cols, rows", "    if False:\n        rows, cols = cols, rows",
            (f"{TRACKING}::test_min_cost_assignment_matches_scipy_on_random_matrices",)),
     Mutant("tracker: a person followed upside down loses their own crop to a box", "posecam/tracking/track.py",
-           "        self.own_roi = self.roi if turned and self.upside_down and not d.roi.oriented else None",
+           "        self.own_roi = self.roi if turned and self.turned and not d.roi.oriented else None",
            "        self.own_roi = None",
-           ("tests/test_turned_views.py::test_a_person_followed_upside_down_keeps_their_own_crop_beside_a_detector_box",)),
+           ("tests/test_turned_views.py::test_a_person_followed_turned_keeps_their_own_crop_beside_a_detector_box",)),
     # ---- the doubts -----------------------------------------------------------------------------
     Mutant("doubts: the root tested votes for its own steady path", "posecam/analysis/doubts.py",
            "(times <= time + self.window + 1e-6) & others", "(times <= time + self.window + 1e-6)",

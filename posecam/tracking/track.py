@@ -11,10 +11,14 @@ from posecam.inference.roi import Roi
 from posecam.tracking.motion import BoxKalman
 
 
-# rad: a person followed at more than this from upright is upside down, and a detector's upright
-# box of them no crop to trust alone (the athlete of Pose2Sim's single take filmed upside down:
-# 137-165 deg; poses turned wrongly, of someone half hidden or in the dark: 46-100 deg)
-TURNED = 2 * np.pi / 3
+# rad: a person followed at more than this from upright lies, hangs or is filmed sideways or upside
+# down, and a detector's upright box of them no crop to trust alone: from it the pose model, whose
+# crops are turned to the body's axis, gives a confident skeleton on part of them (Pose2Sim's
+# athlete filmed upside down: 137-165 deg; sideways: 69-85 deg). Poses that turned on their own, of
+# someone half hidden or in the dark (46-100 deg), are not offered: the detector must have told
+# the person turned too (`Track.turned`); one that told 49 deg, of the adult of the two-person
+# take leaning in an overlap, is kept out by this bound.
+TURNED = np.pi / 3
 
 
 @dataclass
@@ -32,24 +36,24 @@ class Track:
     gallery: list[np.ndarray] = field(default_factory=list, repr=False)   # unit appearance vectors, newest last
     looked: int = -1                           # frame of the newest one (-1: none)
     number: int | None = None                  # the person's id, numbered once the track is confirmed
-    upside_down: bool = False                  # the detector last told this person's axis upside down
+    turned: bool = False                       # the detector last told this person's axis turned (TURNED)
     own_roi: Roi | None = None                 # this frame's crop from the person's own pose, beside the detector's (`take`)
 
     def __post_init__(self) -> None:
         if self.detection is not None:
-            self.upside_down = _told_upside_down(self.detection.roi, False)
+            self.turned = _told_turned(self.detection.roi, False)
 
     def take(self, d: Detection) -> None:
         """This frame's detection of the person: their ROI, box and keypoints. Where the
         detection's ROI is an upright square about its box (`Roi.oriented`: the detector could
-        not tell the body's axis, as one made for upright people cannot of someone upside down)
-        and the person, whom the detector last saw upside down, was followed so last frame (more
-        than TURNED from upright), the crop their own pose gave is kept as `own_roi`, for the
-        pose model to try beside it. (A pose that turned on its own, of someone half hidden, is
-        not offered.)"""
+        not tell the body's axis, as one made for upright people cannot of someone lying or
+        upside down) and the person, whom the detector last saw turned, was followed so last
+        frame (more than TURNED from upright), the crop their own pose gave is kept as
+        `own_roi`, for the pose model to try beside it. (A pose that turned on its own, of
+        someone half hidden, is not offered.)"""
         turned = self.lost == 0 and self.roi.oriented and abs(self.roi.angle) > TURNED
-        self.own_roi = self.roi if turned and self.upside_down and not d.roi.oriented else None
-        self.upside_down = _told_upside_down(d.roi, self.upside_down)
+        self.own_roi = self.roi if turned and self.turned and not d.roi.oriented else None
+        self.turned = _told_turned(d.roi, self.turned)
         self.detection, self.roi, self.lost = d, d.roi, 0
         self.hits += 1
         self.kalman.update(d.box)
@@ -66,9 +70,9 @@ class Track:
         return self.kalman.box
 
 
-def _told_upside_down(roi: Roi, before: bool) -> bool:
-    """Whether a detection's ROI shows its person upside down: by its own axis where it has one,
-    else as known `before`."""
+def _told_turned(roi: Roi, before: bool) -> bool:
+    """Whether a detection's ROI shows its person turned (more than TURNED from upright): by its
+    own axis where it has one, else as known `before`."""
     return abs(roi.angle) > TURNED if roi.oriented else before
 
 
