@@ -12,7 +12,8 @@ of the plain videos cached in --fuse-cache): a turned camera's estimated rotatio
 are turned back before they are scored (the turn is a rotation about its optical axis), and so
 is the fused pelvis when the turned camera is the reference. Per case: the cameras kept, the
 median and worst rotation against the lab's, the worst focal length error, the fused pelvis
-against the lab's (median, mm), and the warnings. With --before the same runs of an older
+against the lab's (median, mm), and the warnings; then whether the spreads posecam reports
+cover the errors of the defaults' cameras (`coverage`). With --before the same runs of an older
 posecam/ (its folder first on the path, in a child process) come first.
 """
 
@@ -78,7 +79,10 @@ def fuse_case(jsons: list[Path], lab: bool) -> dict:
     return {"frame": "world" if lab else "camera", "cameras_names": [c.name for c in cams],
             "R": [c.rotation.tolist() for c in cams], "t": [c.translation.tolist() for c in cams],
             "fx": [c.intrinsics.fx for c in cams], "offsets_kept": [res.offsets[v] for v in res.views],
-            "warnings": res.warnings, "pelvis": bf.written_pelvis(res)}
+            "warnings": res.warnings, "pelvis": bf.written_pelvis(res),
+            "spreads": [[r.spread.rotation_deg, r.spread.focal_pct] if r.spread is not None else None
+                        for r in res.cameras],
+            "pinned": [r.unpinned is None for r in res.cameras]}
 
 
 def run_cases(takes: list[str], edits: list[str], cache: Path, fuse_cache: Path) -> dict:
@@ -137,6 +141,35 @@ def show(runs: dict[str, dict], truths: dict[str, bf.Truth]) -> None:
                       + "".join(f"\n      warning: {w}" for w in r["warnings"]))
 
 
+def coverage(runs: dict, truth: dict[str, bf.Truth]) -> None:
+    """Whether the spreads posecam reports cover the errors on these cases (the defaults' estimated
+    rigs): per camera but the reference, its rotation relative to the reference's against the
+    lab's, and its focal length where estimated, each within 2 reported standard deviations;
+    the misses listed with whether posecam said the camera is not pinned."""
+    within, total, misses = 0, 0, []
+    for case, r in runs.items():
+        take, edit, cam = case.split()
+        r = turned_back(r["defaults"], cam, edit)
+        if "error" in r or not r.get("spreads"):
+            continue
+        s, names = truth[take].score(r), r["cameras_names"]
+        for i, (n, sp) in enumerate(zip(names, r["spreads"])):
+            if sp is None:
+                continue
+            for what, err, sd in (("rotation", s["rot"][f"{names[0]}-{n}"] if i else None, sp[0]),
+                                  ("focal", abs(s["focal"][n]), sp[1])):
+                if err is None:
+                    continue
+                total += 1
+                within += err <= 2 * sd
+                if err > 2 * sd:
+                    misses.append(f"{case}: {n} {what} {err:.1f} against sd {sd:.1f}"
+                                  + ("" if r["pinned"][i] else " (said not pinned)"))
+    print(f"   spreads covering the errors (within 2 sd): {within} of {total}")
+    for m in misses:
+        print(f"      {m}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--before", type=Path, help="a folder with an older posecam/")
@@ -164,7 +197,12 @@ def main() -> None:
             subprocess.run([sys.executable, str(Path(__file__).resolve()), "--json", str(out), "--take", a.take, "--edits", a.edits,
                            "--cache", str(cache / code), "--fuse-cache", str(fuse_cache)], env=env, check=True, cwd=path)
         runs[code] = json.loads(out.read_text())
-    show(runs, {take: bf.Truth(take, fuse_cache) for take in takes})
+    truths = {take: bf.Truth(take, fuse_cache) for take in takes}
+    show(runs, truths)
+    for code, res in runs.items():
+        if any("spreads" in r["defaults"] for r in res.values()):
+            print(f"-- {code}, the defaults' cameras")
+            coverage(res, truths)
 
 
 if __name__ == "__main__":
