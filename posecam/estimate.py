@@ -271,10 +271,10 @@ class PoseEstimator:
 
     def _track(self, image_rgb: np.ndarray, tracker: Tracker) -> tuple[list[PoseCandidate], list[Track], list[Dropped]]:
         """Detect and track, one frame: detect if the tracker asks for it (searching for people
-        as small as the smallest it has seen), run the pose model on every track. Returns the
-        poses kept and their tracks (their ids are numbered once the tracks are confirmed:
-        `number_people`, `ConfirmedIds`), and the people left out, each with the stage that
-        dropped them."""
+        as small as the smallest it has seen), run the pose model on every track and where the
+        people just lost may be (`Tracker.probes`). Returns the poses kept and their tracks
+        (their ids are numbered once the tracks are confirmed: `number_people`, `ConfirmedIds`),
+        and the people left out, each with the stage that dropped them."""
         _check_image(image_rgb)
         h, w = image_rgb.shape[:2]
         detections, search, run = None, None, tracker.detector_run(w, h)
@@ -290,14 +290,16 @@ class PoseEstimator:
                 detections = detections + second_look(self.second_look, self.detector, image_rgb, detections,
                                                       [t.box for t in tracker.active()])
         tracks = tracker.begin_frame(detections, image_rgb, search)
-        if not tracks:
+        probes = tracker.probes(w, h)   # people just lost, looked for again where their motion puts them
+        if not tracks and not probes:
             return [], [], list(tracker.refused)
-        candidates = self.pose_model(image_rgb, [t.roi for t in tracks])
+        candidates = self.pose_model(image_rgb, [t.roi for t in tracks + probes])
         stages: list[str | None] = [None if c.score >= self.options.min_presence else "presence" for c in candidates]
         if detections is not None:
             checked = [self._own_pose(image_rgb, t, c, detections) if t.detection is not None else (c, stage)
                        for t, c, stage in zip(tracks, candidates, stages)]
-            candidates, stages = [c for c, _ in checked], [stage for _, stage in checked]
+            candidates[:len(tracks)], stages[:len(tracks)] = [c for c, _ in checked], [stage for _, stage in checked]
+        looked_for, tracks = len(tracks), tracks + probes
         idx = self._to_detector
         kept = tracker.end_frame(
             tracks, [stage is None for stage in stages],
@@ -305,7 +307,8 @@ class PoseEstimator:
             [c.confidence[idx] if idx is not None else None for c in candidates],
             [c.next_roi for c in candidates])
         dropped = [Dropped(stage or "duplicate", float(c.score), _box_of(c.keypoints_2d, c.confidence))
-                   for i, (c, stage) in enumerate(zip(candidates, stages)) if i not in kept]
+                   for i, (c, stage) in enumerate(zip(candidates, stages))
+                   if i not in kept and i < looked_for]     # a probe that finds nobody drops nobody
         return [candidates[i] for i in kept], [tracks[i] for i in kept], list(tracker.refused) + dropped
 
     def _own_pose(self, image_rgb: np.ndarray, track: Track, c: PoseCandidate,

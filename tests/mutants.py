@@ -300,6 +300,16 @@ MUTANTS = (
     Mutant("tracker: only people upside down keep their own crop", "posecam/tracking/track.py",
            "TURNED = np.pi / 3", "TURNED = 2 * np.pi / 3",
            ("tests/test_turned_views.py::test_a_video_filmed_upside_down_or_sideways_gives_the_upright_skeletons",)),
+    Mutant("tracker: a person lost is not looked for again", "posecam/tracking/tracker.py",
+           "if t.number is None or not 0 < t.lost <= self.options.probe_frames or t.seen_box is None:",
+           "if True:",
+           ("tests/test_lost_people.py::test_someone_hidden_then_in_the_dark_keeps_their_id",)),
+    Mutant("tracker: a lost person looked for over someone followed", "posecam/tracking/tracker.py",
+           " or any(boxes_overlap(t.box, b) for b in followed):", ":",
+           ("tests/test_lost_people.py::test_no_probe_for_the_unconfirmed_the_long_lost_those_who_left_or_over_someone_followed",)),
+    Mutant("tracker: a probe's pose over someone kept takes their place", "posecam/tracking/tracker.py",
+           "            if not found[i] or over or", "            if not found[i] or",
+           ("tests/test_lost_people.py::test_a_probe_whose_pose_lands_on_someone_kept_gives_way",)),
     # ---- the doubts -----------------------------------------------------------------------------
     Mutant("doubts: the root tested votes for its own steady path", "posecam/analysis/doubts.py",
            "(times <= time + self.window + 1e-6) & others", "(times <= time + self.window + 1e-6)",
@@ -337,7 +347,7 @@ STAGES = (
     ("posecam/scale/", (METRIC, "tests/test_heights.py")),
     ("posecam/multiview/", MULTIVIEW),
     ("posecam/tracking/", (TRACKING, "tests/test_embedder.py", "tests/test_reid.py", "tests/test_reid_gate.py",
-                           "tests/test_turned_views.py")),
+                           "tests/test_turned_views.py", "tests/test_lost_people.py")),
     ("posecam/analysis/doubts.py", ("tests/test_doubts.py",)),
 )
 

@@ -10,8 +10,11 @@ decided. On a detector frame the tracks are matched to the detections in two sta
 left over, each by the Hungarian method on a cost that mixes box overlap (IoU) and keypoint
 similarity (OKS). Hysteresis: only a confident detection starts a track, a weak one keeps it
 alive, and an unmatched track can be matched by its motion for `max_lost` frames. Between
-detector frames each track's ROI comes from its previous pose. With an embedder the looks
-weigh in where the motion is ambiguous and bring back people lost (`reid`).
+detector frames each track's ROI comes from its previous pose. Someone the pose model lost is
+looked for again by it for `probe_frames` frames, where their motion puts them and nobody else
+followed is (`Tracker.probes`): the detector may not see them there (backlit, in the dark).
+With an embedder the looks weigh in where the motion is ambiguous and bring back people lost
+(`reid`).
 
 The tracker also says when to run the detector and where (`schedule`: `Tracker.detector_run`,
 `Tracker.search`, the search handed back to `Tracker.begin_frame`), and how small the people it

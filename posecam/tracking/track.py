@@ -38,6 +38,7 @@ class Track:
     number: int | None = None                  # the person's id, numbered once the track is confirmed
     turned: bool = False                       # the detector last told this person's axis turned (TURNED)
     own_roi: Roi | None = None                 # this frame's crop from the person's own pose, beside the detector's (`take`)
+    seen_box: np.ndarray | None = None         # the box when the pose model last found them (Tracker.probes)
 
     def __post_init__(self) -> None:
         if self.detection is not None:
@@ -93,6 +94,7 @@ class TrackerOptions:
     high_score: float = 0.3         # a detection this confident may start a track ...
     low_score: float = 0.1          # ... one this confident only keeps a track alive
     max_lost: int = 30              # frames a track survives unseen
+    probe_frames: int = 30          # frames the pose model looks again for a person lost, where their motion puts them
     coast: int = 4                  # detector runs in a row that may miss someone the pose model still follows
     match_cost: float = 0.8         # 1 - similarity above which no match (first stage)
     low_match_cost: float = 0.5     # ... second stage (weak detections)

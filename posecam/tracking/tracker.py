@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from posecam.geometry.boxes import box_iou
+from dataclasses import replace
+
+from posecam.geometry.boxes import box_iou, boxes_overlap
 from posecam.inference.detector import SEEN_KEYPOINT_SCORE, Detection
 from posecam.inference.embedder import AppearanceEmbedder
 from posecam.inference.roi import Roi
@@ -127,6 +129,26 @@ class Tracker:
             reid.refresh_looks(self.tracks, detections, looks, self._frame, o)
         return self.active()
 
+    def probes(self, width: int, height: int) -> list[Track]:
+        """The people confirmed and lost for at most `probe_frames` frames whose box, carried by
+        their motion, keeps its centre in the `width` x `height` image; each with its ROI carried
+        there (`Track.roi` moved as the box moved since their last pose),
+        for the pose model to look again where the detector may not see them (backlit, in the
+        dark), unless their box overlaps someone followed (the pose model, which gives one person
+        a crop, may find them there). Hand them to `end_frame` after this frame's tracks: one
+        found takes their id back, unless its pose overlaps someone kept this frame."""
+        out, followed = [], [t.box for t in self.tracks if t.lost == 0]
+        for t in self.tracks:
+            if t.number is None or not 0 < t.lost <= self.options.probe_frames or t.seen_box is None:
+                continue
+            centre = (t.box[:2] + t.box[2:]) / 2
+            if not (0 <= centre[0] < width and 0 <= centre[1] < height) or any(boxes_overlap(t.box, b) for b in followed):
+                continue
+            shift = centre - (t.seen_box[:2] + t.seen_box[2:]) / 2
+            t.roi, t.seen_box = replace(t.roi, cx=t.roi.cx + shift[0], cy=t.roi.cy + shift[1]), t.box.copy()
+            out.append(t)
+        return out
+
     def _forget(self) -> None:
         """Drop the tracks unseen for longer than they are remembered, and the tentative ones
         as soon as they are lost: a track that was never confirmed is a false start."""
@@ -171,27 +193,28 @@ class Tracker:
 
     def end_frame(self, tracks: list[Track], found: list[bool], keypoints: list[np.ndarray | None],
                   keypoint_scores: list[np.ndarray | None], next_rois: list[Roi]) -> list[int]:
-        """After the pose model ran on `tracks`: the found ones move to their next ROI (and, off
-        detector frames, their pose updates the motion model); the others count as lost.
-        A track whose pose duplicates an older track's is lost too. Returns the indices (into
+        """After the pose model ran on `tracks` (this frame's, then the `probes`): the found ones
+        move to their next ROI (and, off detector frames, their pose updates the motion model);
+        the others count as lost. A track whose pose duplicates an older track's is lost too, and
+        a probe whose pose duplicates or overlaps any kept person's. Returns the indices (into
         `tracks`) of the people to report."""
         kept: list[int] = []
-        order = sorted(range(len(tracks)), key=lambda i: -tracks[i].hits)
+        order = sorted(range(len(tracks)), key=lambda i: (tracks[i].lost > 0, -tracks[i].hits))
         for i in order:
             t = tracks[i]
             kp, sc = keypoints[i], keypoint_scores[i]
-            if not found[i] or (kp is not None and any(same_pose(kp, sc, tracks[j]) for j in kept)):
-                t.lost = max(t.lost, 1)
-                if t.shown > 0:   # someone followed is lost (not a false start)
+            over = t.lost > 0 and kp is not None and any(boxes_overlap(_box_of(kp, sc), tracks[j].box) for j in kept)
+            if not found[i] or over or (kp is not None and any(same_pose(kp, sc, tracks[j]) for j in kept)):
+                if t.lost == 0 and t.shown > 0:   # someone followed is lost (not a false start)
                     self._lost_now.add(t.id)
+                t.lost = max(t.lost, 1)
                 continue
+            t.lost = 0
             if t.detection is None and kp is not None:
-                seen = kp[sc >= SEEN_KEYPOINT_SCORE]
-                if len(seen) >= 2:
-                    lo, hi = seen.min(axis=0), seen.max(axis=0)
-                    t.kalman.update(np.concatenate([lo, hi]))
+                if (sc >= SEEN_KEYPOINT_SCORE).sum() >= 2:
+                    t.kalman.update(_box_of(kp, sc))
                 t.keypoints, t.keypoint_scores = kp, sc
-            t.roi = next_rois[i]
+            t.roi, t.seen_box = next_rois[i], t.box.copy()
             t.shown += 1
             kept.append(i)
             if t.hits >= self.options.confirm_hits:
@@ -221,3 +244,11 @@ class Tracker:
             return found.number
         number, self._next_number = self._next_number, self._next_number + 1
         return number
+
+
+def _box_of(keypoints: np.ndarray, scores: np.ndarray) -> np.ndarray:
+    """(4,) bounds of the keypoints seen (scored SEEN_KEYPOINT_SCORE or more; all of them when
+    fewer than 2 are)."""
+    seen = keypoints[scores >= SEEN_KEYPOINT_SCORE]
+    seen = seen if len(seen) >= 2 else keypoints
+    return np.concatenate([seen.min(axis=0), seen.max(axis=0)])
