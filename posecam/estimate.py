@@ -35,7 +35,7 @@ from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.inference.detector import (SEEN_KEYPOINT_SCORE, Detection, MoveNetDetector, detect_any_turn, load_detector,
                                         load_second_look)
 from posecam.inference.embedder import load_embedder
-from posecam.inference.paint import painted_over
+from posecam.inference.paint import painted_over, under
 from posecam.inference.pose_model import PoseCandidate, make_lifter, make_pose_model
 from posecam.inference.roi import Roi, past_border
 from posecam.inference.session import load_model
@@ -347,11 +347,12 @@ class PoseEstimator:
             if first is None:
                 continue
             other = candidates[first]
-            painted = painted_over(image_rgb, other.keypoints_2d, other.confidence >= SEEN_KEYPOINT_SCORE,
-                                   self._pose_bones)
+            painted, mask = painted_over(image_rgb, other.keypoints_2d, other.confidence >= SEEN_KEYPOINT_SCORE,
+                                         self._pose_bones)
             redo = self.pose_model(painted, [tracks[j].roi])[0]
             if redo.score >= self.options.min_presence and taken(redo, order[:n]) is None:
-                candidates[j] = redo
+                # joints under the paint are the pose model's guesses: unseen
+                candidates[j] = replace(redo, confidence=np.where(under(mask, redo.keypoints_2d), 0.0, redo.confidence))
 
     def _own_pose(self, image_rgb: np.ndarray, track: Track, c: PoseCandidate,
                   detections: list[Detection]) -> tuple[PoseCandidate, str | None]:

@@ -7,7 +7,7 @@ import pytest
 
 from conftest import DATA
 from posecam import PoseEstimator
-from posecam.inference.paint import GREY, painted_over
+from posecam.inference.paint import GREY, painted_over, under
 from posecam.inference.roi import Roi
 from posecam.tracking import Track, alike
 from posecam.tracking.motion import BoxKalman
@@ -40,11 +40,13 @@ def test_painting_a_person_over_covers_their_limbs_and_leaves_the_image_alone():
     image = np.full((100, 100, 3), 10, np.uint8)
     points = np.array([[20.0, 20], [20, 80], [80, 80]])
     bones = np.array([[0, 1], [1, 2]])
-    out = painted_over(image, points, np.array([True, True, False]), bones)
+    out, mask = painted_over(image, points, np.array([True, True, False]), bones)
     assert (image == 10).all()                             # a copy is painted
     assert (out[50, 20] == GREY).all()                     # the bone between two seen joints
     assert (out[80, 60] == 10).all()                       # not the one to a joint not seen
     assert (out[50, 60] == 10).all()
+    assert mask[50, 20] and not mask[80, 60]
+    assert under(mask, np.array([[20.0, 50], [60, 80], [-5, 50]])).tolist() == [True, False, False]
 
 
 @pytest.mark.parametrize("cx", [280, 320, 360])
@@ -66,6 +68,10 @@ def test_a_man_whose_crop_gives_the_woman_behind_him_is_posed_again_with_her_pai
     assert _inside(again.keypoints_2d[ankles], MAN_FEET)   # his feet, not hers
     assert not alike(again.keypoints_2d[idx], again.confidence[idx], woman.keypoints_2d[idx],
                      woman.confidence[idx], woman_box)
+    _, painted = painted_over(rgb, woman.keypoints_2d, woman.confidence >= 0.3, est._pose_bones)
+    hidden = under(painted, again.keypoints_2d)
+    assert hidden.any() and (again.confidence[hidden] == 0).all()   # his joints behind her paint: unseen
+    assert (again.confidence[~hidden] > 0).any()
 
 
 def test_the_person_kept_first_is_the_one_detected_most(scene):
