@@ -281,7 +281,8 @@ class PoseEstimator:
     def _track(self, image_rgb: np.ndarray, tracker: Tracker) -> tuple[list[PoseCandidate], list[Track], list[Dropped]]:
         """Detect and track, one frame: detect if the tracker asks for it (searching for people
         as small as the smallest it has seen), run the pose model on every track and where the
-        people just lost may be (`Tracker.probes`). Returns the poses kept and their tracks
+        people just lost may be (`Tracker.probes`), posing apart people one crop confuses
+        (`_apart`). Returns the poses kept and their tracks
         (their ids are numbered once the tracks are confirmed: `number_people`, `ConfirmedIds`),
         and the people left out, each with the stage that dropped them."""
         _check_image(image_rgb)
