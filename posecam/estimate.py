@@ -32,10 +32,8 @@ from posecam.scale.metric import MetricOptions, MetricStage
 from posecam.geometry.boxes import box_iou, boxes_overlap
 from posecam.geometry.camera import Intrinsics
 from posecam.geometry.triangulate import MIN_CONFIDENCE
-from posecam.inference.detector import (SEEN_KEYPOINT_SCORE, Detection, MoveNetDetector, detect_any_turn, load_detector,
-                                        load_second_look)
+from posecam.inference.detector import Detection, MoveNetDetector, detect_any_turn, load_detector, load_second_look
 from posecam.inference.embedder import load_embedder
-from posecam.inference.paint import painted_over, under
 from posecam.inference.pose_model import PoseCandidate, make_lifter, make_pose_model
 from posecam.inference.roi import Roi, past_border
 from posecam.inference.session import load_model
@@ -44,8 +42,7 @@ from posecam.io.media import DEFAULT_FPS, Media, open_media
 from posecam.options import EstimatorOptions, PredictOptions
 from posecam.results import Dropped, Frame, Person, Recording
 from posecam.skeleton import BLAZEPOSE33, BLAZEPOSE_LANDMARKS, H36M_JOINTS, SKELETONS, blazepose_to_h36m, skeleton_of
-from posecam.tracking import (ConfirmedIds, Track, Tracker, TrackerOptions, alike, foreign_joints, number_people,
-                              oks)
+from posecam.tracking import ConfirmedIds, Track, Tracker, TrackerOptions, foreign_joints, number_people, oks
 from posecam.tracking.second_look import due, second_look
 
 MIN_PERSON_PX = 40    # the detector searches for people at least this tall (image pixels)
@@ -247,7 +244,6 @@ class PoseEstimator:
         self.skeleton = skeleton_of(self.joints)
         # pose joints in the detector's keypoint order, to tell whose joints a pose holds
         names = self.pose_model.joints
-        self._pose_bones = skeleton_of(tuple(names)).bone_indices   # to paint a pose model's person over
         self._to_detector = np.array([names.index(n) for n in self.detector.joints]) \
             if self.detector.joints and set(self.detector.joints) <= set(names) else None
 
@@ -281,8 +277,7 @@ class PoseEstimator:
     def _track(self, image_rgb: np.ndarray, tracker: Tracker) -> tuple[list[PoseCandidate], list[Track], list[Dropped]]:
         """Detect and track, one frame: detect if the tracker asks for it (searching for people
         as small as the smallest it has seen), run the pose model on every track and where the
-        people just lost may be (`Tracker.probes`), posing apart people one crop confuses
-        (`_apart`). Returns the poses kept and their tracks
+        people just lost may be (`Tracker.probes`). Returns the poses kept and their tracks
         (their ids are numbered once the tracks are confirmed: `number_people`, `ConfirmedIds`),
         and the people left out, each with the stage that dropped them."""
         _check_image(image_rgb)
@@ -310,7 +305,6 @@ class PoseEstimator:
             checked = [self._own_pose(image_rgb, t, c, detections) if t.detection is not None else (c, stage)
                        for t, c, stage in zip(tracks, candidates, stages)]
             candidates[:len(tracks)], stages[:len(tracks)] = [c for c, _ in checked], [stage for _, stage in checked]
-        self._apart(image_rgb, tracks, candidates, stages)
         looked_for, tracks = len(tracks), tracks + probes
         idx = self._to_detector
         kept = tracker.end_frame(
@@ -322,38 +316,6 @@ class PoseEstimator:
                    for i, (c, stage) in enumerate(zip(candidates, stages))
                    if i not in kept and i < looked_for]     # a probe that finds nobody drops nobody
         return [candidates[i] for i in kept], [tracks[i] for i in kept], list(tracker.refused) + dropped
-
-    def _apart(self, image_rgb: np.ndarray, tracks: list[Track], candidates: list[PoseCandidate],
-               stages: list[str | None]) -> None:
-        """People one crop confuses (one behind the other): someone followed whose pose is that
-        of a person kept before them (`alike`, in the tracker's order: `Tracker.ranked`) is
-        posed again from their own crop with that person painted over (`painted_over`), and
-        keeps the new pose when the pose model is sure of it (presence over min_presence) and
-        it is nobody's kept before them. Replaces their entry of `candidates` in place."""
-        idx = self._to_detector
-        if idx is None:   # the tracker tells no poses apart either
-            return
-
-        def pose_of(i: int) -> tuple[np.ndarray, np.ndarray]:   # as Tracker.end_frame compares it
-            t, c = tracks[i], candidates[i]
-            return (t.keypoints, t.keypoint_scores) if t.detection is not None else (c.keypoints_2d[idx], c.confidence[idx])
-
-        def taken(c: PoseCandidate, before: list[int]) -> int | None:
-            return next((i for i in before if alike(c.keypoints_2d[idx], c.confidence[idx], *pose_of(i), tracks[i].box)),
-                        None)
-
-        order = [i for i in Tracker.ranked(tracks) if stages[i] is None]
-        for n, j in enumerate(order):
-            first = taken(candidates[j], order[:n])
-            if first is None:
-                continue
-            other = candidates[first]
-            painted, mask = painted_over(image_rgb, other.keypoints_2d, other.confidence >= SEEN_KEYPOINT_SCORE,
-                                         self._pose_bones)
-            redo = self.pose_model(painted, [tracks[j].roi])[0]
-            if redo.score >= self.options.min_presence and taken(redo, order[:n]) is None:
-                # joints under the paint are the pose model's guesses: unseen
-                candidates[j] = replace(redo, confidence=np.where(under(mask, redo.keypoints_2d), 0.0, redo.confidence))
 
     def _own_pose(self, image_rgb: np.ndarray, track: Track, c: PoseCandidate,
                   detections: list[Detection]) -> tuple[PoseCandidate, str | None]:

@@ -310,16 +310,6 @@ MUTANTS = (
     Mutant("tracker: a probe's pose over someone kept takes their place", "posecam/tracking/tracker.py",
            "            if not found[i] or over or", "            if not found[i] or",
            ("tests/test_lost_people.py::test_a_probe_whose_pose_lands_on_someone_kept_gives_way",)),
-    Mutant("estimator: someone whose crop gives another's pose is not posed apart", "posecam/estimate.py",
-           "            if redo.score >= self.options.min_presence and taken(redo, order[:n]) is None:",
-           "            if False:",
-           ("tests/test_overlapping_people.py",)),
-    Mutant("estimator: the joints under the paint kept as seen", "posecam/estimate.py",
-           "np.where(under(mask, redo.keypoints_2d), 0.0, redo.confidence)", "redo.confidence",
-           ("tests/test_overlapping_people.py",)),
-    Mutant("paint: the person confused with another not painted over", "posecam/inference/paint.py",
-           "        cv2.line(mask,", "        0 and cv2.line(mask,",
-           ("tests/test_overlapping_people.py",)),
     # ---- the doubts -----------------------------------------------------------------------------
     Mutant("doubts: the root tested votes for its own steady path", "posecam/analysis/doubts.py",
            "(times <= time + self.window + 1e-6) & others", "(times <= time + self.window + 1e-6)",
@@ -357,8 +347,7 @@ STAGES = (
     ("posecam/scale/", (METRIC, "tests/test_heights.py")),
     ("posecam/multiview/", MULTIVIEW),
     ("posecam/tracking/", (TRACKING, "tests/test_embedder.py", "tests/test_reid.py", "tests/test_reid_gate.py",
-                           "tests/test_turned_views.py", "tests/test_lost_people.py",
-                           "tests/test_overlapping_people.py")),
+                           "tests/test_turned_views.py", "tests/test_lost_people.py")),
     ("posecam/analysis/doubts.py", ("tests/test_doubts.py",)),
 )
 

@@ -25,7 +25,7 @@ assignment, track, motion.
 """
 
 from posecam.inference.detector import oks
-from posecam.tracking.assignment import alike, foreign_joints, min_cost_assignment, unambiguous_pairs
+from posecam.tracking.assignment import foreign_joints, min_cost_assignment, unambiguous_pairs
 from posecam.tracking.ids import ConfirmedIds, number_people
 from posecam.tracking.motion import BoxKalman
 from posecam.tracking.schedule import DetectorRun, Search
@@ -33,4 +33,4 @@ from posecam.tracking.track import Track, TrackerOptions
 from posecam.tracking.tracker import Tracker
 
 __all__ = ["BoxKalman", "ConfirmedIds", "DetectorRun", "Search", "Track", "Tracker", "TrackerOptions",
-           "alike", "foreign_joints", "min_cost_assignment", "number_people", "oks", "unambiguous_pairs"]
+           "foreign_joints", "min_cost_assignment", "number_people", "oks", "unambiguous_pairs"]

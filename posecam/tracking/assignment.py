@@ -94,16 +94,10 @@ def gated_assignment(cost: np.ndarray, motion: np.ndarray, max_cost: float) -> l
     return [(i, j) for i, j in zip(rows, cols) if motion[i, j] <= max_cost and np.isfinite(cost[i, j])]
 
 
-def alike(kp: np.ndarray, sc: np.ndarray, kp_other: np.ndarray, sc_other: np.ndarray, box: np.ndarray) -> bool:
-    """Whether two poses (keypoints, scores) are one person's: OKS over 0.7 at the size of
-    `box`, the other's."""
-    area = float(np.prod(np.clip(box[2:] - box[:2], 1, None)))
-    return len(kp) == len(kp_other) and oks(kp, sc, kp_other, sc_other, area) > 0.7
-
-
 def same_pose(kp: np.ndarray, sc: np.ndarray, other: Track) -> bool:
-    """Whether a pose (keypoints, scores) duplicates the track `other`'s (`alike`)."""
-    return alike(kp, sc, other.keypoints, other.keypoint_scores, other.box)
+    """Whether a pose (keypoints, scores) duplicates the track `other`'s (OKS over 0.7)."""
+    area = float(np.prod(np.clip(other.box[2:] - other.box[:2], 1, None)))
+    return len(kp) == len(other.keypoints) and oks(kp, sc, other.keypoints, other.keypoint_scores, area) > 0.7
 
 
 def foreign_joints(points: np.ndarray, conf: np.ndarray, own: Detection, others: list[Detection]) -> np.ndarray:

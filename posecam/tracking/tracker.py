@@ -191,13 +191,6 @@ class Tracker:
             used.add(j)
         return [d for j, d in enumerate(detections) if j not in used]
 
-    @staticmethod
-    def ranked(tracks: list[Track]) -> list[int]:
-        """The order in which `end_frame` keeps `tracks` (indices): the people followed before
-        those looked for again, the most often detected first. A pose that duplicates one kept
-        before it is dropped."""
-        return sorted(range(len(tracks)), key=lambda i: (tracks[i].lost > 0, -tracks[i].hits))
-
     def end_frame(self, tracks: list[Track], found: list[bool], keypoints: list[np.ndarray | None],
                   keypoint_scores: list[np.ndarray | None], next_rois: list[Roi]) -> list[int]:
         """After the pose model ran on `tracks` (this frame's, then the `probes`): the found ones
@@ -206,7 +199,8 @@ class Tracker:
         a probe whose pose duplicates or overlaps any kept person's. Returns the indices (into
         `tracks`) of the people to report."""
         kept: list[int] = []
-        for i in self.ranked(tracks):
+        order = sorted(range(len(tracks)), key=lambda i: (tracks[i].lost > 0, -tracks[i].hits))
+        for i in order:
             t = tracks[i]
             kp, sc = keypoints[i], keypoint_scores[i]
             over = t.lost > 0 and kp is not None and any(boxes_overlap(_box_of(kp, sc), tracks[j].box) for j in kept)
