@@ -260,6 +260,13 @@ MUTANTS = (
            "if any(x.view == y.view and _overlap(x, y) > MAX_SHARED for x in ga for y in gb):", "if False:",
            (f"{FUSION}::test_two_people_with_calibration_are_never_mixed",)),
     # ---- the calibration's gate -----------------------------------------------------------------
+    Mutant("self-calibration: the scale from every person's bones", "posecam/multiview/calibrate.py",
+           "scale_frames=frames if tallest is not None else None)", "scale_frames=None)",
+           ("tests/test_consensus.py::test_the_scale_comes_from_the_tallest_persons_bones",)),
+    Mutant("self-calibration: the scale from the shortest person's bones", "posecam/multiview/calibrate.py",
+           "tallest = max(statures, key=statures.get) if statures else None",
+           "tallest = min(statures, key=statures.get) if statures else None",
+           ("tests/test_consensus.py::test_the_scale_comes_from_the_tallest_persons_bones",)),
     Mutant("calibration gate: a camera the bootstrap leaves loose kept", "posecam/multiview/calibrate.py",
            "if v != reference and not boot <= MAX_BOOT_ROTATION_DEG:", "if False:",
            ("tests/test_spreads.py::test_a_camera_whose_spread_says_it_is_not_pinned_is_kept_marked_and_warned_about",

@@ -481,3 +481,29 @@ def test_a_known_lens_stays_known_and_can_be_freed():
     assert worst(held) < 1.0 and worst(held) <= worst(freed) + 0.2, (worst(held), worst(freed))
     default = fuse_recordings(monocular_views(cams, world), FuseOptions(sync=False))
     assert not any(rep.intrinsics_fixed for rep in default.cameras)          # the default lens: estimated
+
+
+def test_the_scale_comes_from_the_tallest_persons_bones():
+    """Two people, the second 0.8 times the first's size, whom the pose model makes as big as the
+    first (its monocular skeletons are an adult's, a child's too): the rig's scale is the
+    first's, the tallest (a median over both people's bones put it 15 % too large)."""
+    cams = make_rig()
+    adult = skeleton_motion(40, centre=(-900.0, 0.0))
+    child = skeleton_motion(40, seed=3, centre=(900.0, 0.0))
+    child = child[:, :1] + 0.8 * (child - child[:, :1])
+    recs = monocular_views(cams, np.stack([adult, child]))
+    for rec in recs:
+        for f in rec.frames:
+            for p in f.people:
+                if p.id == 1:                                  # the pose model's adult-sized child
+                    root = p.keypoints_3d[:1]
+                    p.keypoints_3d = root + (p.keypoints_3d - root) / 0.8
+    result = fuse_recordings(recs, FuseOptions(sync=False))
+    assert "tallest" in result.scale_source
+
+    def spread(centres):
+        c = np.stack(centres)
+        return np.linalg.norm(c - c.mean(axis=0), axis=1).sum()
+
+    ratio = spread([c.centre for c in result.rig.cameras]) / spread([cams[v].centre for v in result.views])
+    assert abs(ratio - 1) < 0.03, ratio

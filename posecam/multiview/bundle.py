@@ -307,10 +307,12 @@ def _inexact(problem: _Problem, x0: np.ndarray, f_scale: float, lower: np.ndarra
 
 def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarray | None,
                   joints: tuple[str, ...], options: BundleOptions | None = None,
-                  timed: TimedKeypoints | None = None, offsets: np.ndarray | None = None) -> BundleResult:
+                  timed: TimedKeypoints | None = None, offsets: np.ndarray | None = None,
+                  scale_frames: np.ndarray | None = None) -> BundleResult:
     """Refine `rig` (reference camera first-class, any order) from keypoints uv (V, F, J, 2)
     and confidences (V, F, J); `bones_mm` (B,) is the metric length of each bone of the
-    skeleton of `joints` (None keeps the input rig's scale). At most `max_frames` frames take
+    skeleton of `joints` (None keeps the input rig's scale), measured on the frames
+    `scale_frames` (F,) marks (None: all; one person's bones). At most `max_frames` frames take
     part, chosen for coverage (`coverage_frames`). With `timed` keypoints of the same views and
     frames and the views' `offsets` (V,) (uv, conf: `timed.at(offsets)`), each camera's offset
     but the reference's is one more unknown, started there (`BundleOptions.refine_offsets`):
@@ -398,6 +400,8 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
         idx = skel.bone_indices
         lengths = np.linalg.norm(full[:, idx[:, 0]] - full[:, idx[:, 1]], axis=-1)     # (F, B)
         ratio = bones_mm[None] / lengths
+        if scale_frames is not None and np.isfinite(ratio[scale_frames[frames]]).any():
+            ratio = ratio[scale_frames[frames]]
         scale = float(np.nanmedian(ratio)) if np.isfinite(ratio).any() else 1.0
     pts, p[:, TRANSLATION] = pts * scale, p[:, TRANSLATION] * scale
     cov[:, TRANSLATION, :] *= scale

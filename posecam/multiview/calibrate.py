@@ -36,6 +36,7 @@ from posecam.multiview.motion_sync import MIN_MOTION
 from posecam.multiview.options import FuseOptions
 from posecam.multiview.same_scene import MIN_SAME_MOTION, motion_agreement
 from posecam.multiview.sync import SyncResult
+from posecam.scale.stature import stature
 from posecam.skeleton import skeleton_of
 
 MIN_FRAMES = 15                 # frames a camera must share with the others (>= 6 confident joints)
@@ -95,6 +96,22 @@ class KeptCameras:
     offset_spreads: list[float] | None = None   # (len(views),) their standard deviations, frames
     # (len(views),) why the people do not pin each camera (`pinned`); None: it is pinned
     unpinned: list[str | None] | None = None
+
+
+def measured_statures(rig: Rig, people: list[Observations], joints: tuple[str, ...],
+                      min_conf: float) -> dict[int, float]:
+    """Each person's height (m) as the rig measures it, by their index in `people` (the rig's
+    views): the median over frames of posecam.scale.stature.stature of the triangulation of
+    their 2D keypoints, for those with 5 frames or more. At the rig's scale: the ratios are
+    exact, whatever the scale."""
+    out = {}
+    for i, obs in enumerate(people):
+        tri = rig.triangulate(obs.uv, obs.conf, min_conf)
+        conf = np.where(np.isfinite(tri).all(axis=-1), obs.conf.max(axis=0), 0.0)
+        h = stature(tri, conf, joints)
+        if np.isfinite(h).sum() >= 5:
+            out[i] = float(np.nanmedian(h)) / 1000.0
+    return out
 
 
 def _bone_lengths(obs: Observations, joints: tuple[str, ...], min_conf: float) -> np.ndarray:
@@ -199,8 +216,17 @@ def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations
             if opts.bundle:
                 start = None if timed is None else np.asarray(offsets, float)[views]
                 uv, conf = (obs.uv, obs.conf) if timed is None else timed.take(views).at(start)
-                fit = bundle_adjust(rig, uv, conf, _bone_lengths(obs, joints, min_conf), joints, bundle_options,
-                                    None if timed is None else timed.take(views), start)
+                # the rig's scale from the tallest person's bones: the pose model gives everyone an
+                # adult's skeleton, too large for a child, and a median over a child's and an
+                # adult's frames swings between the two as their shares of the frames change
+                taken = [p.take(views) for p in people]
+                statures = measured_statures(rig, taken, joints, min_conf)
+                tallest = max(statures, key=statures.get) if statures else None
+                frames = np.repeat(np.arange(len(taken)), [p.conf.shape[1] for p in taken]) == tallest
+                bones = _bone_lengths(taken[tallest] if tallest is not None else obs, joints, min_conf)
+                fit = bundle_adjust(rig, uv, conf, bones, joints, bundle_options,
+                                    None if timed is None else timed.take(views), start,
+                                    scale_frames=frames if tallest is not None else None)
                 rig, med, points, spreads = fit.rig, fit.median_error_px, fit.points, fit.spreads
                 refined = fit
                 if not fit.converged and not notes:

@@ -9,11 +9,10 @@ from dataclasses import replace
 import numpy as np
 
 from posecam.geometry.camera import Rig
-from posecam.multiview.calibrate import KeptCameras
+from posecam.multiview.calibrate import KeptCameras, measured_statures
 from posecam.multiview.observations import Observations, Take
 from posecam.multiview.options import FuseOptions
 from posecam.scale.heights import Heights
-from posecam.scale.stature import stature
 
 HEIGHTS_AGREE = 0.10    # given heights whose ratios to the measured ones spread wider disagree with the rig
 
@@ -28,16 +27,10 @@ def metric_scale(rig: Rig, people: list[Observations], joints: tuple[str, ...], 
     keypoints (the rig's geometry alone, not the monocular skeletons' adult size); a list is
     matched tallest first (posecam.scale.heights) and the factor is the median of given / measured.
     Without heights: 1 (the bundle adjustment's scale, from the monocular bone lengths)."""
-    estimated = {}
-    for pid, obs in enumerate(people):
-        tri = rig.triangulate(obs.uv, obs.conf, min_conf)
-        conf = np.where(np.isfinite(tri).all(axis=-1), obs.conf.max(axis=0), 0.0)
-        h = stature(tri, conf, joints)
-        if np.isfinite(h).sum() >= 5:
-            estimated[pid] = float(np.nanmedian(h)) / 1000.0
+    estimated = measured_statures(rig, people, joints, min_conf)
     given = heights.assign(estimated) if heights else {}
     if not given:
-        return 1.0, "the pose model's bone lengths (an adult's; --height gives it)", []
+        return 1.0, "the tallest person's bone lengths from the pose model (an adult's; --height gives it)", []
     ratios = [m / estimated[pid] for pid, (m, _) in given.items()]
     factor = float(np.median(ratios))
     people_text = ", ".join(f"person {pid} {m:.2f} m ({how})" for pid, (m, how) in sorted(given.items()))
