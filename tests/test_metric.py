@@ -325,6 +325,7 @@ def test_a_floor_that_would_make_someone_a_toddler_is_refused(tmp_path):
     out = tmp_path / "poses.json"
     run = run_posecam("predict", DATA / "balance_cam01_30f.mp4", "-o", out)
     assert run.returncode == 0 and "no floor: the feet's plane would make person" in run.stderr, run.stderr
+    assert "an adult's (1.68 m): a child or anyone far from it is placed too far" in run.stderr, run.stderr
     rec = read_poses(out)[0]
     people = [p for f in rec.frames for p in f.people]
     assert {p.height_source for p in people} == {"model"}

@@ -40,9 +40,11 @@ from posecam.skeleton import MIN_CONFIDENCE, skeleton_of
 SAMPLES = 512                   # per track: the most frames kept for its statistics
 ADULT_CLUSTER = 0.85            # tracks at least this fraction of the tallest are the adult-sized ones
 MODEL_SD = 0.06                 # relative uncertainty of the pose model's adult size for one person
-GIVEN_SD = 0.035                # relative uncertainty of the scale a given height fixes: the spread of the
-                                # 1.72 m adult's depth over the 8 lab views of the Pose2Sim takes (the
-                                # pose model's per-view bias, 0.92-1.02), the typed height's own ~0.01 aside
+GIVEN_SD = 0.057                # relative uncertainty of a root depth whose scale a given height fixes: the
+                                # RMS per-frame error of the depth against the lab, the people's own heights
+                                # given, over the Pose2Sim takes' views (the 1.72 m man's 8: 0.049, his depth
+                                # 1.4-4.0 % long by view; the 1.40 m woman's 4: 0.071): the pose model's
+                                # error in that view, which the typed height (~0.01) does not remove
 MIN_TRACK_CONTACTS = 5          # foot contacts a track needs for the floor to scale it
 REFIT_EVERY = 30                # frames between fits of the floor (and at the end)
 LENS_SAMPLES = 64               # per track: upright frames kept for the lens
@@ -183,7 +185,9 @@ class MetricStage:
         if self._k is None:
             self._check_lens()
         if self.floor_refused and self._tracks and self._frames_seen > 1:
-            size = "everyone has the pose model's size" if self._model_mm else "each person keeps their track's own scale"
+            size = (f"everyone has the pose model's size, an adult's ({self._model_mm / 1000:.2f} m): a child or anyone "
+                    f"far from it is placed too far or too near in proportion (give --height)"
+                    if self._model_mm else "each person keeps their track's own scale")
             self.notes.append(f"no floor: {self.floor_refused}; {size}")
         return out
 
