@@ -119,6 +119,19 @@ def test_given_heights_by_rank_and_by_id():
     assert abs(p1.root[2] - truth[(5, 1)][0, 2]) < 0.02 * truth[(5, 1)][0, 2]    # the given height places the child
 
 
+def test_a_list_of_heights_for_people_of_one_size_is_a_note():
+    """Two people 1 cm apart and a list of two heights: the floor cannot tell who is taller, and
+    the stage says so (with the ranks it gave); 55 cm apart it says nothing."""
+    for heights_mm, doubtful in (({0: 1750.0, 1: 1740.0}, True), ({0: 1750.0, 1: 1200.0}, False)):
+        rec, _ = scene(heights_mm, frames=20)
+        stage = MetricStage(rec, MetricOptions(heights=Heights.parse(["1.75,1.20"])))
+        for f in rec.frames:
+            stage.push(f)
+        stage.flush()
+        notes = [n for n in stage.notes if "too close in height" in n]
+        assert len(notes) == int(doubtful), stage.notes
+
+
 def test_each_track_keeps_one_size_across_frames():
     rec, _ = scene({0: 1700.0}, frames=40, noise=0.05, seed=4)
     raw = np.array([stature(f.people[0].keypoints_3d, f.people[0].confidence, H36M_JOINTS) for f in rec.frames])

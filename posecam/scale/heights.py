@@ -4,6 +4,7 @@ people tallest first, or per person id (`--height 1.72`, `--height 1.72,1.21`,
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -74,3 +75,25 @@ class Heights:
             return {pid: (self.ranked[0], "given") for pid in estimated}
         order = sorted(estimated, key=lambda pid: (-estimated[pid], pid))     # equal heights: by id
         return {pid: (h, f"given, rank {k + 1}") for k, (pid, h) in enumerate(zip(order, self.ranked))}
+
+    def doubts(self, estimated: dict[int, tuple[float, float]]) -> list[str]:
+        """Where a list matched tallest first may have gone to the wrong people: each pair of
+        people next in height whom the list gives different heights (or one a height, the other
+        none), whose estimated heights (m, with their standard uncertainties) differ by less than
+        one combined uncertainty (the order is then barely better than a coin's). Empty for
+        heights by id or one height for everyone."""
+        if self.by_id or len(self.ranked) < 2:
+            return []
+        order = sorted(estimated, key=lambda pid: (-estimated[pid][0], pid))
+        given = dict(zip(order, self.ranked))
+        notes = []
+        for a, b in zip(order, order[1:]):
+            (ha, sa), (hb, sb) = estimated[a], estimated[b]
+            if given.get(a) == given.get(b) or ha - hb >= math.hypot(sa, sb):
+                continue
+            went = ", ".join(f"{pid} {given[pid]:.2f} m" if pid in given else f"{pid} none" for pid in (a, b))
+            notes.append(f"--height {','.join(f'{h:.2f}' for h in self.ranked)} went tallest first, but persons {a} "
+                         f"({ha:.2f} +- {sa:.2f} m) and {b} ({hb:.2f} +- {sb:.2f} m) are too close in height to tell "
+                         f"which is taller ({went}): if that is wrong, give heights by id "
+                         f"(--height {a}=M --height {b}=M)")
+        return notes

@@ -159,6 +159,7 @@ class MetricStage:
         self.intrinsics = rec.intrinsics        # the lens of the frames given out
         self._k: Intrinsics | None = None       # the people's lens, once taken: every pose is solved again with it
         self._frames_seen = 0
+        self._last: dict[int, TrackScale] = {}  # the scales of the last frames given out
         self._measurable = segments(rec.joints) is not None
         self._model_mm = 1000.0 * MODEL_STATURE[rec.model] if rec.model in MODEL_STATURE else None
         self._core = np.zeros(len(rec.joints))
@@ -184,6 +185,7 @@ class MetricStage:
         out = self._emit(len(self._pending))
         if self._k is None:
             self._check_lens()
+        self.notes += self.options.heights.doubts({tid: (ts.estimated, ts.estimated_sd) for tid, ts in self._last.items()})
         if self.floor_refused and self._tracks and self._frames_seen > 1:
             size = (f"everyone has the pose model's size, an adult's ({self._model_mm / 1000:.2f} m): a child or anyone "
                     f"far from it is placed too far or too near in proportion (give --height)"
@@ -328,7 +330,7 @@ class MetricStage:
             return []
         if self._frames_seen == len(self._pending):     # nothing given out yet
             self._decide_lens()
-        scales = self._scales() if self._measurable else {}
+        scales = self._last = self._scales() if self._measurable else {}
         out = [self._scaled(f, scales) for f in self._pending[:n]]
         self._pending = self._pending[n:]
         return out
