@@ -16,12 +16,19 @@ distance (mm, each camera's frame) between posecam's root and that pelvis, over 
 every camera matched to a group. Heights: each track's estimated height against 1.72 / 1.21 m
 (who is who: the group's triangulated head-to-ankle length, adult above 1.25 m). vtest.avi
 (default lens): the floor and the heights of its tracks.
+
+Edited views (`--edits`): each camera's video darkened to a quarter of its light, turned by 180
+deg and by 90 deg (bench/bench_hard_views.py's videos), predicted through the lab's lens turned
+with it; a turn about the optical axis keeps every depth, so each person is scored against the
+plain views' DLT pelvis, matched by its projection (within GATE_PX of the person's pelvis turned
+back): mean depth error and how often it lies within 1 and 2 depth_sd.
 """
 
 from __future__ import annotations
 
 import argparse
 import itertools
+import sys
 import time
 from pathlib import Path
 
@@ -471,6 +478,87 @@ def model_size_bench(cache: Path, vtest: Path) -> None:
           + ", ".join(f"{h / 1000:.2f}" for h in views) + " m")
 
 
+def turned_lens(k, width: int, height: int, quarters: int):
+    """The lens of a video turned by np.rot90(frame, quarters) (quarters 0, 1 or 2): pixel (u, v)
+    goes to (v, width - 1 - u) per quarter turn, so the normalised point (x, y) to (y, -x); the
+    tangential distortion turns with it."""
+    import dataclasses
+
+    d = list(k.distortion)
+    for _ in range(quarters):
+        k = dataclasses.replace(k, fx=k.fy, fy=k.fx, cx=k.cy, cy=width - 1 - k.cx)
+        width, height = height, width
+        if len(d) >= 4:
+            d[2], d[3] = -d[3], d[2]
+    return dataclasses.replace(k, distortion=tuple(d))
+
+
+def unturned(uv: np.ndarray, width: int, height: int, quarters: int) -> np.ndarray:
+    """A pixel of the turned video back in the plain video (width x height)."""
+    u, v = uv
+    sizes = [(width, height), (height, width)]
+    for q in range(quarters):   # undo one quarter turn at a time: (u', v') = (v, w - 1 - u)
+        w = sizes[(quarters - 1 - q) % 2][0]
+        u, v = w - 1 - v, u
+    return np.array([u, v])
+
+
+def edited_bench(cache: Path, edits: list[str]) -> None:
+    import cv2
+
+    sys.path.insert(0, str(REPO / "bench"))
+    import bench_hard_views as hv   # the edited videos
+
+    from posecam import PoseEstimator, PredictOptions, read_poses, write_poses
+    from posecam.scale.heights import Heights
+    from posecam.scale.metric import MetricOptions, scale_recording
+
+    given = {"single": "1.72", "multi": "1.72,1.40"}
+    print("\n== edited views through the lab's lens (turned with the view): depth error (mm, unsmoothed, mean) and the "
+          "depth within 1 / 2 depth_sd, each view scored against the plain views' lab DLT pelvis")
+    print(f"{'':24s}{'defaults':>28s}{'no floor':>28s}{'the heights given':>28s}")
+    for take in ("single", "multi"):
+        cams = lab_cameras(take)
+        plain = predictions(take, cams, cache)
+        people = lab_people(cams, plain, take)
+        lo = min(OFFSETS.values())
+        for edit in ["plain", *edits]:
+            quarters = hv.QUARTERS.get(edit, 0)
+            recs = []
+            for cam in cams:
+                if edit == "plain":
+                    recs = plain
+                    break
+                video = REPO / ".cache" / "videos" / take / edit / f"{cam.name}.mp4"
+                hv.make_video(take, cam.name, edit, video)
+                path = cache / f"{take}_{cam.name}_{edit}_lab.json"
+                if not path.exists():
+                    cap = cv2.VideoCapture(str(REPO / "examples" / "demo" / take / f"{cam.name}.mp4"))
+                    w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
+                    k = turned_lens(cam.intrinsics, w, h, quarters)
+                    write_poses(path, [PoseEstimator().predict_file(video, k, PredictOptions(smooth=False, metric=None))])
+                recs.append(read_poses(path)[0])
+            cells = []
+            for opts in (MetricOptions(), MetricOptions(floor=False), MetricOptions(heights=Heights.parse([given[take]]))):
+                errs, ratios = [], []
+                for c, (cam, rec) in enumerate(zip(cams, (scale_recording(r, opts) for r in recs))):
+                    w, h = plain[c].width, plain[c].height
+                    for g in people:
+                        frame = rec.frames[OFFSETS[cam.name] - lo + g["frame"]]
+                        uv = cam.project(g["world"][PELVIS])
+                        near = [(np.linalg.norm(unturned(p.keypoints_2d[PELVIS], w, h, quarters) - uv), p)
+                                for p in frame.people if p.confidence[PELVIS] >= 0.3]
+                        if not near or min(near, key=lambda x: x[0])[0] >= GATE_PX:
+                            continue
+                        p = min(near, key=lambda x: x[0])[1]
+                        z = cam.to_camera(g["world"][PELVIS])[2]
+                        errs.append(abs(p.root[2] - z))
+                        ratios.append(abs(p.root[2] - z) / p.depth_sd if p.depth_sd > 0 else np.inf)
+                r = np.array(ratios)
+                cells.append(f"{np.mean(errs):5.0f} mm {100 * np.mean(r <= 1):3.0f} / {100 * np.mean(r <= 2):3.0f} % ({len(r)})")
+            print(f"  {take:6s} {edit:15s}" + "".join(f"{c:>28s}" for c in cells))
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--cache", type=Path, default=REPO / ".cache" / "bench_depth")
@@ -478,6 +566,8 @@ def main() -> None:
                                                 "(git archive COMMIT posecam | tar -x -C DIR)")
     ap.add_argument("--vtest", type=Path, help="OpenCV's vtest.avi (apt-get download opencv-doc); "
                                                "without it its part is skipped")
+    ap.add_argument("--edits", default="dark,turn180,turn90",
+                    help="edited views to score (bench/bench_hard_views.py's edits; '' for none)")
     a = ap.parse_args()
     a.cache.mkdir(parents=True, exist_ok=True)
     for take in ("single", "multi"):
@@ -486,6 +576,8 @@ def main() -> None:
         vtest_bench(a.cache, a.vtest)
         model_size_bench(a.cache, a.vtest)
     lens_bench(a.cache)
+    if a.edits:
+        edited_bench(a.cache, a.edits.split(","))
     speed()
     if a.before:
         speed_against(a.before)
