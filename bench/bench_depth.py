@@ -17,6 +17,10 @@ every camera matched to a group. Heights: each track's estimated height against 
 (who is who: the group's triangulated head-to-ankle length, adult above 1.25 m). vtest.avi
 (default lens): the floor and the heights of its tracks.
 
+No lens given (what a new user runs): each camera predicted with the default lens (28 mm-
+equivalent, 15 % short of the lab's), its people matched to the lab-lens predictions' by their 2D
+pelvis (the same detector and 2D): depth error and its coverage by depth_sd.
+
 Edited views (`--edits`): each camera's video darkened to a quarter of its light, turned by 180
 deg and by 90 deg (bench/bench_hard_views.py's videos), predicted through the lab's lens turned
 with it; a turn about the optical axis keeps every depth, so each person is scored against the
@@ -478,6 +482,41 @@ def model_size_bench(cache: Path, vtest: Path) -> None:
           + ", ".join(f"{h / 1000:.2f}" for h in views) + " m")
 
 
+def default_lens_bench(cache: Path) -> None:
+    from posecam import PoseEstimator, PredictOptions, read_poses, write_poses
+    from posecam.scale.heights import Heights
+    from posecam.scale.metric import MetricOptions, scale_recording
+
+    given = {"single": "1.72", "multi": "1.72,1.40"}
+    print("\n== no lens given (the default lens): depth / lab depth (median per camera), mean depth error (mm, "
+          "unsmoothed), depth within 1 / 2 depth_sd")
+    for take in ("single", "multi"):
+        cams = lab_cameras(take)
+        plain = predictions(take, cams, cache)
+        ref = reference(lab_people(cams, plain, take))
+        recs = []
+        for cam in cams:
+            path = cache / f"{take}_{cam.name}_default.json"
+            if not path.exists():
+                video = REPO / "examples" / "demo" / take / f"{cam.name}.mp4"
+                write_poses(path, [PoseEstimator().predict_file(video, None, PredictOptions(smooth=False, metric=None))])
+            recs.append(read_poses(path)[0])
+        for label, opts in (("defaults", MetricOptions()), (f"--height {given[take]}", MetricOptions(heights=Heights.parse([given[take]])))):
+            rows = []
+            for c, (cam, rec, lab_lens) in enumerate(zip(cams, (scale_recording(r, opts) for r in recs), plain)):
+                for f, twin in zip(rec.frames, lab_lens.frames):
+                    for p in f.people:
+                        q = min(twin.people, key=lambda q: np.linalg.norm(q.keypoints_2d[PELVIS] - p.keypoints_2d[PELVIS]), default=None)
+                        if q is None or np.linalg.norm(q.keypoints_2d[PELVIS] - p.keypoints_2d[PELVIS]) > 5 or (c, f.index, q.id) not in ref:
+                            continue
+                        z = cam.to_camera(ref[(c, f.index, q.id)][0])[2]
+                        rows.append((c, p.root[2] / z, abs(p.root[2] - z), abs(p.root[2] - z) / p.depth_sd))
+            r = np.array(rows)
+            ratios = ", ".join(f"{CAMERAS[c]} {np.median(r[r[:, 0] == c, 1]):.3f}" for c in range(len(cams)))
+            print(f"  {take:6s} {label:18s} {ratios}; {np.mean(r[:, 2]):4.0f} mm; {100 * np.mean(r[:, 3] <= 1):3.0f} / "
+                  f"{100 * np.mean(r[:, 3] <= 2):3.0f} % ({len(r)})")
+
+
 def turned_lens(k, width: int, height: int, quarters: int):
     """The lens of a video turned by np.rot90(frame, quarters) (quarters 0, 1 or 2): pixel (u, v)
     goes to (v, width - 1 - u) per quarter turn, so the normalised point (x, y) to (y, -x); the
@@ -576,6 +615,7 @@ def main() -> None:
         vtest_bench(a.cache, a.vtest)
         model_size_bench(a.cache, a.vtest)
     lens_bench(a.cache)
+    default_lens_bench(a.cache)
     if a.edits:
         edited_bench(a.cache, a.edits.split(","))
     speed()

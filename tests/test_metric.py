@@ -331,6 +331,27 @@ def test_frames_after_the_lens_is_decided_are_placed_through_it_too():
     assert len(per_frame) == 60 and np.abs(np.array(per_frame) - 1).max() < 0.02, np.round(per_frame, 2)
 
 
+def test_the_default_lens_is_in_the_depth_spread(tmp_path):
+    """Pose2Sim's cam01, 30 frames (540x960), no lens given: the 28 mm-equivalent default lens
+    (713 px) is 15 % short of the lab's (834 px at this size: examples/cam01_intrinsics.json, for
+    1088x1920, halved), so every depth comes out 15 % near; each frame's depth_sd covers that
+    within two of it. With the lab's lens given, the spread has no lens in it: under half."""
+    runs = {}
+    for name, lens in (("default", ()), ("lab", ("--fx", "834.4", "--fy", "834.3", "--cx", "264.5", "--cy", "470.6"))):
+        out = tmp_path / f"{name}.json"
+        run = run_posecam("predict", DATA / "balance_cam01_30f.mp4", *lens, "--no-smooth", "-o", out)
+        assert run.returncode == 0, run.stderr
+        rec = read_poses(out)[0]
+        runs[name] = {f.index: max(f.people, key=lambda p: p.bbox[3] - p.bbox[1]) for f in rec.frames if f.people}
+    frames = sorted(set(runs["default"]) & set(runs["lab"]))
+    assert len(frames) >= 25
+    default, lab = ([runs[n][i] for i in frames] for n in ("default", "lab"))
+    near = np.array([d.root[2] / g.root[2] for d, g in zip(default, lab)])
+    assert 0.80 < np.median(near) < 0.90, np.median(near)           # the default lens's 15 %
+    assert all(abs(d.root[2] - g.root[2]) <= 2 * d.depth_sd for d, g in zip(default, lab))
+    assert all(g.depth_sd / g.root[2] < 0.5 * d.depth_sd / d.root[2] for d, g in zip(default, lab))
+
+
 def test_a_floor_that_would_make_someone_a_toddler_is_refused(tmp_path):
     """Pose2Sim's cam01, 30 frames: the man balances on a board (his feet off the ground) and a
     bystander stands at the left border. Their feet fit a plane that made the man 0.56 m tall

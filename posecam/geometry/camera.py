@@ -19,6 +19,12 @@ FILM_DIAGONAL_MM = 43.2666
 # Default lens when nothing better is known: a 28 mm-equivalent focal length,
 # i.e. a 75 degree diagonal field of view, typical of phone and action cameras.
 DEFAULT_FOCAL_35MM = 28.0
+# How far the default lens may be from the real one, a relative standard uncertainty: the cameras
+# people film with run from action cameras (about 16 mm-equivalent) to a phone's 2x lens or a
+# surveillance camera (50 mm and more): ln(16/28) and ln(50/28), -0.56 and +0.58, taken as two
+# standard uncertainties. Pose2Sim's lab cameras are 33 mm-equivalent (0.5 of it), the PETS 2009
+# camera of OpenCV's vtest.avi 53 mm (2.1). Every monocular distance scales with the focal length.
+DEFAULT_FOCAL_SD = 0.3
 # Plausible lenses, the one rule: a lens given (flags, a file) has a horizontal field of view in
 # FOV_RANGE degrees, a long telephoto to a fisheye; one estimated from the views (a rig posecam
 # calibrates) a focal length within FOCAL_WIDTHS image widths (fields of view of 136 to 5.7

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from posecam.errors import InputError
-from posecam.geometry.camera import Intrinsics
+from posecam.geometry.camera import DEFAULT_FOCAL_SD, Intrinsics
 from posecam.geometry.floor import Floor, FloorFit, fit_floor, robust_sd
 from posecam.geometry.lift import place_on_keypoints
 from posecam.results import Frame, Person, Recording
@@ -331,11 +331,22 @@ class MetricStage:
         if self._frames_seen == len(self._pending):     # nothing given out yet
             self._decide_lens()
         scales = self._last = self._scales() if self._measurable else {}
-        out = [self._scaled(f, scales) for f in self._pending[:n]]
+        lens_sd = self._lens_sd()
+        out = [self._scaled(f, scales, lens_sd) for f in self._pending[:n]]
         self._pending = self._pending[n:]
         return out
 
-    def _scaled(self, frame: Frame, scales: dict[int, TrackScale]) -> Frame:
+    def _lens_sd(self) -> float:
+        """Relative uncertainty of the focal length the frames given out are placed through (every
+        distance scales with it): the default lens's, the people's fit's, none for a lens given."""
+        k = self.intrinsics
+        if k is not None and k.source == "default":
+            return DEFAULT_FOCAL_SD
+        if self._k is not None and self.lens is not None and self.lens.focal:
+            return self.lens.sd / self.lens.focal
+        return 0.0
+
+    def _scaled(self, frame: Frame, scales: dict[int, TrackScale], lens_sd: float) -> Frame:
         people = []
         for p in frame.people:
             ts = scales.get(p.id)
@@ -350,7 +361,7 @@ class MetricStage:
             people.append(dataclasses.replace(
                 p, keypoints_3d=xyz, height=ts.scale * ts.stature / 1000.0, height_source=ts.source,
                 height_estimated=ts.estimated, height_sd=ts.estimated_sd,
-                depth_sd=abs(depth) * float(np.hypot(ts.relative_sd, breathing))))
+                depth_sd=abs(depth) * float(np.linalg.norm([ts.relative_sd, breathing, lens_sd]))))
         return dataclasses.replace(frame, people=people)
 
 
