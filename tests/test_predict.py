@@ -221,8 +221,11 @@ def test_summary_fits_80_columns_with_nothing_cut(tmp_path, monkeypatch):
     assert "".join(cells[1].strip() for cells in rows) == long_name.name + "basketball2.png" * 2, r.stdout
     assert sum("1.70 given" in line for line in r.stdout.splitlines()) >= 2, r.stdout
     header = " ".join(line for line in r.stdout.splitlines() if line.startswith("┃"))
-    assert header.count(" mm ") == 3 and " m " in header, header
+    assert header.count(" mm ") == 4 and " m " in header and "±z" in header, header
     r = run_posecam("predict", long_name)       # one input: named in the title, no column for it
     assert r.returncode == 0, r.stderr
     assert "…" not in r.stdout and long_name.name in r.stdout, r.stdout
     assert re.search(r"│ +[12]\.\d\d model │", r.stdout), r.stdout          # the pose model's scale
+    # no lens given: the depth's spread has the default lens's 30 % in it
+    z, sd = (int(v) for v in re.search(r"│ +-?\d+ │ +-?\d+ │ +(\d+) │ +(\d+) │ +[01]\.\d\d │", r.stdout).groups())
+    assert 0.3 < sd / z < 0.4, r.stdout

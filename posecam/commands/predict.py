@@ -7,6 +7,7 @@ from contextlib import ExitStack
 from pathlib import Path
 
 import click
+import numpy as np
 
 from posecam.commands.common import (angle_options, check_angles, check_output, estimator_options, floor_option,
                                      frame_options, height_option, intrinsics_options, make_estimator_options,
@@ -24,7 +25,8 @@ class InputSummary:
         self.rec = rec
         self.found = found                     # posecam.estimate.Found: the people dropped, per stage
         self.frames = 0
-        self.people: dict[int, list] = {}      # id -> [frames, sum of root (3,), sum of mean confidence, height]
+        # id -> [frames, sum of root (3,), sum of mean confidence, height, sum and count of depth_sd]
+        self.people: dict[int, list] = {}
         self.doubtful = 0                      # poses written with doubts (posecam.analysis.doubts) ...
         self.doubts: dict[str, int] = {}       # ... and how often each doubt was raised
 
@@ -34,10 +36,13 @@ class InputSummary:
             self.doubtful += bool(p.doubts)
             for d in p.doubts:
                 self.doubts[d] = self.doubts.get(d, 0) + 1
-            totals = self.people.setdefault(p.id, [0, 0.0, 0.0, ""])
+            totals = self.people.setdefault(p.id, [0, 0.0, 0.0, "", 0.0, 0])
             totals[0] += 1
             totals[1] = totals[1] + p.root
             totals[2] += float(p.confidence.mean())
+            if np.isfinite(p.depth_sd):
+                totals[4] += p.depth_sd
+                totals[5] += 1
             if p.height_source:         # the latest: the track's scale as the video went on ("given, rank 2": given)
                 totals[3] = f"{p.height:.2f} {p.height_source.split(',')[0]}"
 
@@ -55,20 +60,20 @@ def print_summary(summaries: list[InputSummary], console, unreadable: int = 0) -
     table = Table(title=f"posecam: {name}{root} in camera coordinates (mm)")
     if several:
         table.add_column("input", overflow="fold")
-    for col in ("id", "frames", "x\nmm", "y\nmm", "z\nmm", "conf.", "height\nm"):
+    for col in ("id", "frames", "x\nmm", "y\nmm", "z\nmm", "±z\nmm", "conf.", "height\nm"):
         table.add_column(col, justify="right", no_wrap=True)
     for sm in summaries:
         first = (shown(Path(sm.rec.source).name),) if several else ()
-        for pid, (n, root_sum, conf_sum, height) in sorted(sm.people.items()):
-            table.add_row(*first, str(pid), str(n), *(f"{v:.0f}" for v in root_sum / n), f"{conf_sum / n:.2f}",
-                          height or "-")
+        for pid, (n, root_sum, conf_sum, height, sd_sum, sd_n) in sorted(sm.people.items()):
+            table.add_row(*first, str(pid), str(n), *(f"{v:.0f}" for v in root_sum / n),
+                          f"{sd_sum / sd_n:.0f}" if sd_n else "-", f"{conf_sum / n:.2f}", height or "-")
         if not sm.people:
-            table.add_row(*first, "-", str(sm.frames), "-", "-", "-", "-", "-")
+            table.add_row(*first, "-", str(sm.frames), "-", "-", "-", "-", "-", "-")
     console.print(table)
     console.print(f"frames: frames the person is in; x right, y down, z forward (depth): the mean of the person's "
-                  f"{root} position; conf.: mean joint confidence, 0 to 1; height: the one the person's scale was "
-                  "fixed with, given (--height), floor (the ground plane's) or model (the pose model's bone lengths)",
-                  style="dim")
+                  f"{root} position; ±z: its depth's standard uncertainty (depth_sd, the lens's included); conf.: "
+                  "mean joint confidence, 0 to 1; height: the one the person's scale was fixed with, given "
+                  "(--height), floor (the ground plane's) or model (the pose model's bone lengths)", style="dim")
     known = [sm.rec for sm in summaries if sm.rec.intrinsics]
     same = len({(r.intrinsics.fx, r.intrinsics.fy, r.intrinsics.cx, r.intrinsics.cy, r.intrinsics.distortion)
                 for r in known}) == 1
