@@ -53,6 +53,13 @@ THORAX = 8
 # that view (View_001.xml: focal 5.5549183034 mm, dpx 5.1273271277e-3 mm, dpy 4.65e-3 mm, sx
 # 1.0937855397) gives fx = focal sx / dpx and fy = focal / dpy in pixels
 VTEST_FX, VTEST_FY = 5.5549183034 * 1.0937855397 / 5.1273271277e-3, 5.5549183034 / 4.65e-3
+# ... and its whole Tsai calibration (the same file; mm and radians, world z up from the plaza's
+# ground): focal f, pixel pitch dpx, dpy, scale sx, image centre Cx, Cy (px), radial kappa1 (1/mm^2),
+# the rotation's angles Rx, Ry, Rz (R = Rz Ry Rx, Tsai's) and translation T (world to camera)
+PETS = {"f": 5.5549183034, "dpx": 5.1273271277e-3, "dpy": 4.65e-3, "sx": 1.0937855397, "Cx": 324.22149053,
+        "Cy": 282.56650051, "kappa1": 5.1113043639e-3, "R": (2.0405458695, -0.89337703748, -0.43056124791),
+        "T": (828.73214225, -3175.4796051, 35469.298547)}
+ANKLE_MM = 70.0             # the ankle keypoint's height above the ground (ANKLE_OF_STATURE of 1.7 m, rounded)
 MIN_TRACK_FRAMES = 20       # a track's frames with its stature measured, for the pose model's size
 EAR_OF_STATURE = 0.936      # the ears' height over the stature, upright (Drillis & Contini 1966, in Winter, fig. 4.1)
 
@@ -446,6 +453,65 @@ def vtest_bench(cache: Path, vtest: Path) -> None:
               f"5-95 % {np.percentile(hs, 5):.2f}-{np.percentile(hs, 95):.2f}, n={len(hs)}")
 
 
+def pets_ground_depth(uv: np.ndarray, height_mm: float = ANKLE_MM) -> float:
+    """The depth (mm, along the optical axis) of the point at `height_mm` above the plaza's ground
+    that pixel `uv` of vtest.avi sees, through PETS 2009's Tsai calibration of the camera."""
+    a, b, g = PETS["R"]
+    sa, ca, sb, cb, sg, cg = np.sin(a), np.cos(a), np.sin(b), np.cos(b), np.sin(g), np.cos(g)
+    rot = np.array([[cb * cg, cg * sa * sb - ca * sg, sa * sg + ca * cg * sb],
+                    [cb * sg, sa * sb * sg + ca * cg, ca * sb * sg - cg * sa],
+                    [-sb, cb * sa, ca * cb]])
+    t = np.array(PETS["T"])
+    xd = (uv[0] - PETS["Cx"]) * PETS["dpx"] / PETS["sx"]     # distorted sensor mm
+    yd = (uv[1] - PETS["Cy"]) * PETS["dpy"]
+    k = 1.0 + PETS["kappa1"] * (xd * xd + yd * yd)            # Tsai: undistorted = distorted (1 + kappa1 r^2)
+    ray = rot.T @ np.array([xd * k, yd * k, PETS["f"]])       # world direction
+    centre = -rot.T @ t
+    point = centre + (height_mm - centre[2]) / ray[2] * ray
+    return float((rot @ point + t)[2])
+
+
+def vtest_depth_bench(cache: Path, vtest: Path) -> None:
+    """vtest.avi against PETS 2009's calibration: each person's lower ankle, where both ankles are
+    seen (confidence 0.5) and the person stands upright in the image, is placed on the plaza's
+    ground through the calibration (the yardstick: the camera is 7.1 m above the ground, and the
+    people walk on it); its depth there against posecam's depth of that ankle, with the defaults
+    (no lens given) and through PETS's lens (pinhole part), and the share within 1 / 2 depth_sd."""
+    from posecam import EstimatorOptions, PoseEstimator, PredictOptions, read_poses, write_poses
+    from posecam.geometry.camera import Intrinsics
+    from posecam.scale.metric import scale_recording
+
+    pets = Intrinsics(VTEST_FX, VTEST_FY, PETS["Cx"], PETS["Cy"], "PETS 2009")
+    print("\n== vtest.avi against PETS 2009's calibration: the lower ankle's depth / its depth on the ground "
+          "(median, 25-75 %), mean error, within 1 / 2 depth_sd")
+    for label, name, lens in (("no lens given (defaults)", "vtest_default.json", None),
+                              ("PETS's lens (--fx --fy --cx --cy)", "vtest_pets.json", pets)):
+        path = cache / name
+        if not path.exists():
+            write_poses(path, [PoseEstimator(EstimatorOptions()).predict_file(
+                vtest, lens, options=PredictOptions(smooth=False, metric=None))])
+        rec = scale_recording(read_poses(path)[0])
+        left, right = rec.joints.index("l_ankle"), rec.joints.index("r_ankle")
+        head = rec.joints.index("head")
+        ratio, err, within = [], [], []
+        for f in rec.frames:
+            for p in f.people:
+                if min(p.confidence[left], p.confidence[right]) < 0.5 or not np.isfinite(p.depth_sd):
+                    continue
+                low = max((left, right), key=lambda j: p.keypoints_2d[j][1])
+                if p.keypoints_2d[head][1] > p.keypoints_2d[low][1] - 40:      # not upright in the image
+                    continue
+                truth = pets_ground_depth(p.keypoints_2d[low])
+                z = p.keypoints_3d[low][2]
+                ratio.append(z / truth)
+                err.append(abs(z - truth))
+                within.append(abs(z / truth - 1) / (p.depth_sd / abs(p.root[2])))
+        r, w = np.array(ratio), np.array(within)
+        print(f"  {label:36s} {np.median(r):.3f} ({np.percentile(r, 25):.3f}-{np.percentile(r, 75):.3f}), "
+              f"{np.mean(err):5.0f} mm; {100 * np.mean(w <= 1):3.0f} / {100 * np.mean(w <= 2):3.0f} % "
+              f"({len(r)} person-frames; lens {rec.intrinsics.source}, fx {rec.intrinsics.fx:.0f})")
+
+
 def model_size_bench(cache: Path, vtest: Path) -> None:
     """The pose model's one size (posecam.scale.metric.MODEL_STATURE): each vtest.avi track's median
     stature (tracks measured in MIN_TRACK_FRAMES frames and more), their median and spread, per
@@ -613,6 +679,7 @@ def main() -> None:
         take_bench(take, a.cache)
     if a.vtest:
         vtest_bench(a.cache, a.vtest)
+        vtest_depth_bench(a.cache, a.vtest)
         model_size_bench(a.cache, a.vtest)
     lens_bench(a.cache)
     default_lens_bench(a.cache)
