@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from posecam import PoseEstimator, PredictOptions
+from posecam import PredictOptions
 from posecam.io.calibration import read_qualisys
 from posecam.scale.heights import Heights
 from posecam.scale.metric import MetricOptions, scale_recording
