@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from conftest import DATA, run_posecam
-from posecam.geometry.camera import Intrinsics, project
+from posecam.geometry.camera import DEFAULT_FOCAL_SD, Intrinsics, project
 from posecam.geometry.lift import solve_root_translation
 from posecam.scale.heights import Heights
 from posecam.io.poses import read_poses, write_poses
@@ -313,6 +313,11 @@ def test_the_stage_takes_the_lens_from_the_people_in_place_of_the_default():
     assert out.intrinsics.source.startswith("people") and out.intrinsics.fx == pytest.approx(K.fx, rel=0.05)
     ratio = [p.root[2] / poses[(p.id, f.index)][0, 2] for f in out.frames for p in f.people]
     assert np.median(ratio) == pytest.approx(1.0, abs=0.05)
+    # the depth's spread: the people's lens's, far under the default lens's 30 % (kept, 50 % off here)
+    kept = scale_recording(rec, MetricOptions(floor=False, lens=False))
+    spread = {name: np.median([p.depth_sd / p.root[2] for f in r.frames for p in f.people])
+              for name, r in (("people", out), ("default", kept))}
+    assert spread["people"] < 0.15 < DEFAULT_FOCAL_SD < spread["default"], spread
 
 
 def test_frames_after_the_lens_is_decided_are_placed_through_it_too():
