@@ -34,6 +34,7 @@ class Detection:
     keypoints: np.ndarray          # (K, 2) image pixels, in the detector's `joints` order
     keypoint_scores: np.ndarray    # (K,) [0, 1]
     roi: Roi                       # the pose model's crop for this person
+    at_border: bool = False        # the box reaches the image's border, which may cut the person
 
 
 def ssd_anchors(size: int, strides: list[int], per_cell: list[int]) -> np.ndarray:
@@ -239,7 +240,7 @@ def _judged_in_view(d: Detection, width: int, height: int) -> Detection:
     gap = min(d.box[0], d.box[1], width - d.box[2], height - d.box[3])   # < 0: the box reaches beyond
     if gap > BORDER_GAP * float(np.max(d.box[2:] - d.box[:2])):
         return d
-    return replace(d, score=min(1.0, d.score / BORDER_SCORE))
+    return replace(d, score=min(1.0, d.score / BORDER_SCORE), at_border=True)
 
 
 def _merge(detections: list[Detection], iou: float = 0.5, same: float = 0.5) -> list[Detection]:

@@ -52,8 +52,9 @@ class Track:
         frame (more than TURNED from upright), the crop their own pose gave is kept as
         `own_roi`, for the pose model to try beside it. (A pose that turned on its own, of
         someone half hidden, is not offered.)"""
-        turned = self.lost == 0 and self.roi.oriented and abs(self.roi.angle) > TURNED
-        self.own_roi = self.roi if turned and self.turned and not d.roi.oriented else None
+        followed = self.lost == 0 and self.roi.oriented and not d.roi.oriented
+        turned = abs(self.roi.angle) > TURNED and self.turned
+        self.own_roi = self.roi if followed and (turned or d.at_border) else None
         self.turned = _told_turned(d.roi, self.turned)
         self.detection, self.roi, self.lost = d, d.roi, 0
         self.hits += 1
