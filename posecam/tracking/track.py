@@ -48,10 +48,12 @@ class Track:
         """This frame's detection of the person: their ROI, box and keypoints. Where the
         detection's ROI is an upright square about its box (`Roi.oriented`: the detector could
         not tell the body's axis, as one made for upright people cannot of someone lying or
-        upside down) and the person, whom the detector last saw turned, was followed so last
-        frame (more than TURNED from upright), the crop their own pose gave is kept as
-        `own_roi`, for the pose model to try beside it. (A pose that turned on its own, of
-        someone half hidden, is not offered.)"""
+        upside down, nor of someone the image's border cuts, whose keypoints past it it does
+        not trust) and the person was followed last frame by the crop their own pose gave, that
+        crop is kept as `own_roi`, for the pose model to try beside it: for someone whom the
+        detector last saw turned and who was followed so (more than TURNED from upright), and
+        for someone whose detection reaches the border (`Detection.at_border`). (A pose that
+        turned on its own, of someone half hidden, is not offered.)"""
         followed = self.lost == 0 and self.roi.oriented and not d.roi.oriented
         turned = abs(self.roi.angle) > TURNED and self.turned
         self.own_roi = self.roi if followed and (turned or d.at_border) else None
