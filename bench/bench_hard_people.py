@@ -1,19 +1,25 @@
 """The athlete through hard footage: edits of the single take's cam01 anyone can see, and on how
 many frames posecam keeps him (under one id).
 
-    python bench/bench_hard_people.py [--before CHECKOUT] [--clips backlit,border,...]
+    python bench/bench_hard_people.py [--before CHECKOUT] [--clips backlit,border,...] [--cuts]
 
 The clips (100 frames, 60 fps, written to --cache, .cache/bench_hard_people): `backlit` (frames 20-79
 darkened to 12 % under a low sun's glare over him), `backlit_all` (every frame so), `rot180`
-(turned 180 deg), `border` (cropped at x = 520: the left edge cuts him), `occluded` (a grey
+(turned 180 deg), `border` (cropped at x = 520: the left edge cuts him), `border_right` (the
+same, mirrored: the right edge cuts him), `border_bottom` (cropped at y = 1000: the bottom edge
+cuts his legs), `occluded` (a grey
 box over his body for frames 30-59), `lost_backlit` (hidden by a grey box for frames 30-49,
 then backlit), `turn90` (turned 90 deg: a phone held sideways), `spin` (turned about his own
 centre, a whole turn over the 100 frames) and `flip` (a whole turn over frames 35-64, half a
 second: a backflip's speed), the last two on a square canvas as wide as the frame's diagonal. Yardstick: his box on the plain clip (the tallest person of each frame: he is,
 by eye, on frames 0, 50 and 99), carried through each edit; a frame counts where he is in view
-(half of him or more for `border`, not hidden for `lost_backlit`). Found: frames with a person
+(half of him or more for the `border` clips, not hidden for `lost_backlit`). Found: frames with a person
 on his box (IoU > 0.3); one id: frames under his most frequent id. With --before the same runs
 of an older posecam/ (its folder first on the path, in a child process) come first.
+
+`--cuts`: the border clip's kin, so that no one cut is what the tracker is tuned to (CUTS: cam01
+from a start frame, its columns from x kept, mirrored or not, resized); per clip the frames with
+someone on them and the ids, as a string of ids a frame (`.`: nobody).
 """
 
 from __future__ import annotations
@@ -31,8 +37,14 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 SOURCE = REPO / "examples" / "demo" / "single" / "cam01.mp4"
 CUT_X = 520          # border: the columns kept start here
-CLIPS = ("backlit", "backlit_all", "rot180", "border", "occluded", "lost_backlit", "turn90", "spin", "flip")
+CUT_Y = 1000         # border_bottom: the rows kept end here
+CLIPS = ("backlit", "backlit_all", "rot180", "border", "border_right", "border_bottom", "occluded", "lost_backlit",
+         "turn90", "spin", "flip")
 FLIP = (35, 65)      # the frames over which `flip` turns him once
+CUTS = ((40, 520, 0.5, True), (30, 520, 0.5, True), (40, 520, 1.0, True), (0, 520, 0.5, True),   # --cuts: (start
+        (0, 520, 0.5, False), (40, 520, 0.5, False), (0, 480, 1.0, True), (0, 560, 1.0, True),      # frame, x, scale,
+        (20, 520, 1.0, True), (0, 480, 1.0, False), (0, 560, 1.0, False), (0, 520, 0.75, True),     # mirrored)
+        (0, 520, 0.75, False))
 
 
 def turn_deg(clip: str, i: int, n: int) -> float:
@@ -82,6 +94,8 @@ def make_clips(out_dir: Path) -> None:
         "backlit_all": [dark(f) for f in frames],
         "rot180": [f[::-1, ::-1] for f in frames],
         "border": [f[:, CUT_X:] for f in frames],
+        "border_right": [np.ascontiguousarray(f[:, CUT_X:][:, ::-1]) for f in frames],
+        "border_bottom": [f[:CUT_Y] for f in frames],
         "occluded": [box(f, 600, 1300, 250, 800) if 30 <= i < 60 else f for i, f in enumerate(frames)],
         "lost_backlit": [box(f, 300, 1500, 0, 1000) if 30 <= i < 50 else dark(f) if i >= 50 else f
                          for i, f in enumerate(frames)],
@@ -131,6 +145,8 @@ def measure(clips: list[str], out_dir: Path) -> dict:
 
     carry = {"rot180": lambda i, b: np.array([w - b[2], h - b[3], w - b[0], h - b[1]]),
              "border": lambda i, b: np.array([max(b[0] - CUT_X, 0), b[1], b[2] - CUT_X, b[3]]),
+             "border_right": lambda i, b: np.array([w - CUT_X - (b[2] - CUT_X), b[1], w - CUT_X - max(b[0] - CUT_X, 0), b[3]]),
+             "border_bottom": lambda i, b: np.array([b[0], b[1], b[2], min(b[3], CUT_Y)]),
              "turn90": lambda i, b: np.array([b[1], w - b[2], b[3], w - b[0]]),
              "spin": lambda i, b: turned("spin", i, b), "flip": lambda i, b: turned("flip", i, b)}
     out = {}
@@ -138,7 +154,9 @@ def measure(clips: list[str], out_dir: Path) -> dict:
         rec = est.predict_file(out_dir / f"{name}.mp4")
         ids, counted = [], 0
         for i, (f, b) in enumerate(zip(rec.frames, him)):
-            if (name == "border" and b[2] - CUT_X < 0.5 * (b[2] - b[0])) or (name == "lost_backlit" and 30 <= i < 50):
+            cut_off = {"border": 1 - (b[2] - CUT_X) / (b[2] - b[0]), "border_right": 1 - (b[2] - CUT_X) / (b[2] - b[0]),
+                       "border_bottom": 1 - (CUT_Y - b[1]) / (b[3] - b[1])}.get(name, 0.0)
+            if cut_off > 0.5 or (name == "lost_backlit" and 30 <= i < 50):
                 continue
             counted += 1
             want = carry.get(name, lambda i, b: b)(i, b)[None]
@@ -150,25 +168,69 @@ def measure(clips: list[str], out_dir: Path) -> dict:
     return out
 
 
+def cut_clip(out: Path, start: int, x: int, scale: float, mirrored: bool) -> Path:
+    """cam01 from frame `start`, its columns from `x` on, mirrored if asked, resized by `scale`."""
+    import cv2
+
+    cap, frames = cv2.VideoCapture(str(SOURCE)), []
+    while True:
+        ok, f = cap.read()
+        if not ok:
+            break
+        f = f[:, x:][:, ::-1] if mirrored else f[:, x:]
+        frames.append(cv2.resize(np.ascontiguousarray(f), None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA))
+    frames = frames[start:]
+    h, w = frames[0].shape[:2]
+    writer = cv2.VideoWriter(str(out), cv2.VideoWriter_fourcc(*"mp4v"), 60, (w, h))
+    for f in frames:
+        writer.write(f)
+    writer.release()
+    return out
+
+
+def cuts(out_dir: Path) -> dict:
+    """Per CUTS clip: a string of the id on each frame (`.`: nobody, `*`: several)."""
+    from posecam import PoseEstimator
+
+    est, out = PoseEstimator(), {}
+    out_dir.mkdir(parents=True, exist_ok=True)
+    for start, x, scale, mirrored in CUTS:
+        name = f"cut_{start}_{x}_{scale}_{'mirrored' if mirrored else 'plain'}"
+        path = out_dir / f"{name}.mp4"
+        if not path.exists():
+            cut_clip(path, start, x, scale, mirrored)
+        out[name] = "".join("." if not f.people else str(f.people[0].id) if len(f.people) == 1 else "*"
+                            for f in est.predict_file(path).frames)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--before", help="a folder with an older posecam/")
     ap.add_argument("--clips", default=",".join(CLIPS))
     ap.add_argument("--cache", type=Path, default=REPO / ".cache" / "bench_hard_people", help="where the clips are written")
+    ap.add_argument("--cuts", action="store_true", help="the border clip's kin instead (see above)")
     ap.add_argument("--json", action="store_true", help=argparse.SUPPRESS)   # a child's figures
     a = ap.parse_args()
     clips = a.clips.split(",")
     make_clips(a.cache)
     if a.json:
-        print(json.dumps(measure(clips, a.cache)))
+        print(json.dumps(cuts(a.cache) if a.cuts else measure(clips, a.cache)))
         return
     runs = {}
     if a.before:
         env = {**os.environ, "PYTHONPATH": str(Path(a.before).resolve())}
-        done = subprocess.run([sys.executable, __file__, "--json", "--clips", a.clips, "--cache", str(a.cache.resolve())],
-                              env=env, cwd="/",
+        done = subprocess.run([sys.executable, __file__, "--json", "--clips", a.clips, "--cache", str(a.cache.resolve()),
+                               *(["--cuts"] if a.cuts else [])], env=env, cwd="/",
                               capture_output=True, text=True, check=True)
         runs["before"] = json.loads(done.stdout.strip().splitlines()[-1])
+    if a.cuts:
+        runs["after"] = cuts(a.cache)
+        for name in runs["after"]:
+            for who, r in runs.items():
+                ids = r[name]
+                print(f"{name:28s} {who:6s} {sum(c != '.' for c in ids):3d} frames, {len(set(ids) - {'.'})} ids  {ids}")
+        return
     runs["after"] = measure(clips, a.cache)
     for name in clips:
         print(f"{name:14s}" + "  ".join(f"{who}: {json.dumps(r[name])}" for who, r in runs.items()))

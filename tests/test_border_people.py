@@ -69,16 +69,10 @@ def test_a_person_followed_at_the_border_keeps_their_own_crop_beside_a_detector_
         assert track.own_roi == (own if kept else None), (at_border, lost)
 
 
-@pytest.mark.demo
-def test_the_athlete_cut_by_the_border_keeps_one_id_and_his_skeleton(tmp_path):
-    """Pose2Sim's single take, cam01, cut at x = 520: the left edge cuts the athlete (by eye he
-    is the only person in view; from frame 60 on, half of him or more). On each of frames
-    60-99 he is found under one id, his skeleton reaching the edge and over 35 % of the width
-    (a skeleton on a strip of him, from the detector's crop of the part in view, was what
-    landed main gave on frames 65-73, and a new id after it lost him on frames 74-75)."""
+def _cut_take(tmp_path, rows: slice, cols: slice):
+    """Pose2Sim's single take, cam01 (1080 x 1920), cut to `rows` and `cols`, written to tmp_path
+    (skipped without the demo take)."""
     import cv2
-
-    from posecam import PoseEstimator
 
     source = EXAMPLES / "demo" / "single" / "cam01.mp4"
     if not source.exists():
@@ -89,13 +83,25 @@ def test_the_athlete_cut_by_the_border_keeps_one_id_and_his_skeleton(tmp_path):
         ok, frame = cap.read()
         if not ok:
             break
-        frame = np.ascontiguousarray(frame[:, 520:])
+        frame = np.ascontiguousarray(frame[rows, cols])
         if out is None:
             out = cv2.VideoWriter(str(cut), cv2.VideoWriter_fourcc(*"mp4v"), 60, frame.shape[1::-1])
         out.write(frame)
     out.release()
+    return cut
+
+
+@pytest.mark.demo
+def test_the_athlete_cut_by_the_left_edge_keeps_one_id_and_his_skeleton(tmp_path):
+    """Pose2Sim's single take, cam01, cut at x = 520: the left edge cuts the athlete (by eye he
+    is the only person in view; from frame 60 on, half of him or more). On each of frames
+    60-99 he is found under one id, his skeleton reaching the edge and over 35 % of the width
+    (a skeleton on a strip of him, from the detector's crop of the part in view, was what
+    landed main gave on frames 65-73, and a new id after it lost him on frames 74-75)."""
+    from posecam import PoseEstimator
+
     w = 1080 - 520
-    frames = PoseEstimator().predict_file(cut).frames[60:]
+    frames = PoseEstimator().predict_file(_cut_take(tmp_path, slice(None), slice(520, None))).frames[60:]
     assert len(frames) == 40
     ids = set()
     for f in frames:
@@ -104,3 +110,18 @@ def test_the_athlete_cut_by_the_border_keeps_one_id_and_his_skeleton(tmp_path):
         assert x0 <= 0.1 * w and x1 - max(x0, 0) >= 0.35 * w, f"frame {f.index}: his skeleton spans x {x0:.0f}-{x1:.0f}"
         ids.add(f.people[0].id)
     assert len(ids) == 1, ids
+
+
+@pytest.mark.demo
+def test_the_athlete_cut_by_the_bottom_edge_is_found_on_every_frame(tmp_path):
+    """The same take cut at y = 1000: the bottom edge cuts his legs on every frame (the bystander
+    at the left stays whole). The athlete, the person nearest the middle, is found on each of
+    the 100 frames under one id (landed main lost him on 4)."""
+    from posecam import PoseEstimator
+
+    frames = PoseEstimator().predict_file(_cut_take(tmp_path, slice(None, 1000), slice(None))).frames
+    assert len(frames) == 100
+    him = [min(f.people, key=lambda p: abs((p.bbox[0] + p.bbox[2]) / 2 - 540), default=None) for f in frames]
+    missing = [f.index for f, p in zip(frames, him) if p is None or not 200 < (p.bbox[0] + p.bbox[2]) / 2 < 900]
+    assert not missing, missing
+    assert len({p.id for p in him}) == 1, {p.id for p in him}
