@@ -320,10 +320,11 @@ class PoseEstimator:
     def _own_pose(self, image_rgb: np.ndarray, track: Track, c: PoseCandidate,
                   detections: list[Detection]) -> tuple[PoseCandidate, str | None]:
         """The pose of the track's own person, and why it is dropped (None: kept). Where the
-        detector gave an upright box for someone followed turned (`Track.own_roi`: lying,
-        upside down), the pose from the crop their own pose gave is tried too, and the one whose
-        joints fill the box better kept (`_box_fit`: the box's crop of someone turned gives a
-        skeleton on part of them). A pose the pose model doubts (presence below min_presence) or
+        detector gave an upright box for someone followed turned (lying, upside down) or cut
+        by the image's border (`Track.own_roi`), the pose from the crop their own pose gave is
+        tried too, and the one whose joints fill the box better kept (`_box_fit`: the box's
+        crop of someone turned, or of the part in view of someone cut, gives a skeleton on
+        part of them). A pose the pose model doubts (presence below min_presence) or
         with 3 or more joints on a neighbour is tried again: from an upright crop of the person's box,
         from one reaching past the image's border where it cuts the box (`past_border`), then
         from the detector's crop turned by 90, -90 and 180 degrees (people lying, upside down),
