@@ -22,10 +22,11 @@ equivalent, 15 % short of the lab's), its people matched to the lab-lens predict
 pelvis (the same detector and 2D): depth error and its coverage by depth_sd.
 
 Edited views (`--edits`): each camera's video darkened to a quarter of its light, turned by 180
-deg and by 90 deg (bench/bench_hard_views.py's videos), predicted through the lab's lens turned
-with it; a turn about the optical axis keeps every depth, so each person is scored against the
-plain views' DLT pelvis, matched by its projection (within GATE_PX of the person's pelvis turned
-back): mean depth error and how often it lies within 1 and 2 depth_sd.
+deg and by 90 deg, or cut below row 1000 (bench/bench_hard_views.py's videos), predicted through
+the lab's lens turned with it (a cut keeps the lens); a turn about the optical axis keeps every
+depth, so each person is scored against the plain views' DLT pelvis, matched by its projection
+(within GATE_PX of the person's pelvis turned back): mean depth error and how often it lies
+within 1 and 2 depth_sd (a person without one counts as outside).
 """
 
 from __future__ import annotations
@@ -671,7 +672,7 @@ def main() -> None:
                                                 "(git archive COMMIT posecam | tar -x -C DIR)")
     ap.add_argument("--vtest", type=Path, help="OpenCV's vtest.avi (apt-get download opencv-doc); "
                                                "without it its part is skipped")
-    ap.add_argument("--edits", default="dark,turn180,turn90",
+    ap.add_argument("--edits", default="dark,turn180,turn90,cut",
                     help="edited views to score (bench/bench_hard_views.py's edits; '' for none)")
     a = ap.parse_args()
     a.cache.mkdir(parents=True, exist_ok=True)
