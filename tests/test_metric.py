@@ -159,6 +159,57 @@ def test_tracks_with_nothing_else_to_scale_them_get_the_pose_models_size():
             assert r.height == pytest.approx(own, rel=1e-3) and r.root[2] == pytest.approx(p.root[2], rel=1e-3)
 
 
+def test_someone_never_seen_whole_keeps_the_models_size_and_its_spread():
+    """A person whose legs are never in view (framed from the waist up) has no stature to
+    measure: the skeleton the pose model gave them stays as it is, at the model's size, its
+    depth spread by that size's uncertainty (and an assumed lens's); a height given for them
+    scales it about the camera. Someone seen whole beside them is measured as before."""
+    import dataclasses
+
+    from posecam.geometry.camera import DEFAULT_FOCAL_SD
+    from posecam.scale.metric import GIVEN_SD, MODEL_SD
+
+    rec, _ = scene({0: 1700.0, 1: 1700.0}, frames=20)
+    rec = dataclasses.replace(rec, model="blazepose-full")
+    legs = [H36M_JOINTS.index(j) for j in ("r_knee", "r_ankle", "l_knee", "l_ankle")]
+    for f in rec.frames:
+        f.people[1].confidence[legs] = 0.05
+    size = MODEL_STATURE["blazepose-full"]
+    cases = [(K, Heights(), 1.0, "model", MODEL_SD),
+             (dataclasses.replace(K, source="default"), Heights(), 1.0, "model", np.hypot(MODEL_SD, DEFAULT_FOCAL_SD)),
+             (K, Heights.parse(["1=1.50"]), 1.50 / size, "given", GIVEN_SD)]
+    for lens, heights, scale, source, spread in cases:
+        out = scale_recording(dataclasses.replace(rec, intrinsics=lens), MetricOptions(floor=False, heights=heights))
+        for f, g in zip(rec.frames, out.frames):
+            whole, cut = g.people
+            assert whole.height_source == "model" and whole.depth_sd > 0
+            assert cut.height_source == source and cut.height == pytest.approx(size * scale)
+            assert np.allclose(cut.keypoints_3d, f.people[1].keypoints_3d * scale)
+            assert cut.depth_sd == pytest.approx(spread * cut.root[2], rel=1e-6)
+
+
+def test_a_track_measured_far_from_the_models_size_is_left_unmeasured():
+    """Two frames whose legs the pose model folded (a man cut at the knees) measure him 34 %
+    short; scaled up to the model's size they would put him a third too far. The model gives
+    everyone one size, so such a track is left as the model gave it."""
+    import dataclasses
+
+    rec, _ = scene({0: 1700.0}, frames=20)
+    rec = dataclasses.replace(rec, model="blazepose-full")
+    legs = [H36M_JOINTS.index(j) for j in ("r_knee", "r_ankle", "l_knee", "l_ankle")]
+    folded = [H36M_JOINTS.index(j) for j in ("r_ankle", "l_ankle")]
+    for f in rec.frames:
+        p = f.people[0]
+        if f.index in (5, 6):                       # legs folded up to the knees, confidently
+            knees = [H36M_JOINTS.index("r_knee"), H36M_JOINTS.index("l_knee")]
+            p.keypoints_3d[folded], p.keypoints_2d[folded] = p.keypoints_3d[knees], p.keypoints_2d[knees]
+        else:
+            p.confidence[legs] = 0.05
+    out = scale_recording(rec, MetricOptions(floor=False))
+    for f, g in zip(rec.frames, out.frames):
+        assert np.allclose(g.people[0].keypoints_3d, f.people[0].keypoints_3d)
+
+
 @pytest.mark.parametrize("why, make", [
     ("too few foot contacts", lambda: scene({0: 1700.0}, frames=1)[0]),
     ("a moving camera", lambda: scene({0: 1700.0, 1: 1600.0}, frames=60, climb=25.0)[0]),   # a moving camera

@@ -57,6 +57,12 @@ LENS_SAMPLES = 64               # per track: upright frames kept for the lens
 # brought to the model's size. bench/bench_depth.py measures it again (m; models not listed keep
 # their tracks' own sizes).
 MODEL_STATURE = {"blazepose-full": 1.678, "blazepose-lite": 1.647}
+# The pose model's skeletons have one size whoever the person (MODEL_STATURE): a track measured
+# further from it than this (relative) was measured on mis-posed frames, not on a person (legs out
+# of view, guessed or folded into it: 2 frames of a man cut at the knees measured 34 % short),
+# and is left unmeasured (`TrackScale.measured`). Whole people's tracks over both Pose2Sim takes' 40
+# views, plain and edited, lie within 3.3 % of it.
+SIZE_OFF = 2 * MODEL_SD
 LENS_DISAGREES = 2.0            # standard uncertainties between the default lens and the people's for a warning
 # The joints that move the most with the pose (the arms: elbows, wrists, hands) also move the
 # root's depth most when the pose model misplaces them in depth: jumping jacks on the spot swing
@@ -132,6 +138,7 @@ class TrackScale:
     estimated: float            # m: the height estimated without a given one (floor, else model)
     estimated_sd: float         # m
     relative_sd: float          # relative uncertainty of the scale used
+    measured: bool = True       # False: never seen whole enough to measure; `stature` is the pose model's size
 
 
 class MetricStage:
@@ -267,9 +274,9 @@ class MetricStage:
             return FloorFit(None, {}, {}, "nobody stands upright with the legs and head seen")
         vertical = np.median(downs, axis=0)
         vertical /= np.linalg.norm(vertical)
-        contacts = {}
+        contacts, measured = {}, self._measured()
         for tid, t in self._tracks.items():
-            if len(t.feet.rows) < MIN_TRACK_CONTACTS:
+            if len(t.feet.rows) < MIN_TRACK_CONTACTS or tid not in measured:
                 continue
             h_track = t.stature
             pts = []
@@ -279,6 +286,12 @@ class MetricStage:
             contacts[tid] = np.array(pts)
         return fit_floor(contacts, np.array(downs))
 
+    def _measured(self) -> dict[int, float]:
+        """The statures (mm) of the tracks measured so far: seen whole, and at the pose model's
+        size within SIZE_OFF where it is known."""
+        return {tid: t.stature for tid, t in self._tracks.items() if np.isfinite(t.stature)
+                and (not self._model_mm or abs(t.stature / self._model_mm - 1.0) <= SIZE_OFF)}
+
     def _scales(self) -> dict[int, TrackScale]:
         """Every track's scale, from the statistics so far."""
         fit = self._fit
@@ -286,11 +299,13 @@ class MetricStage:
             fit = self._fit = self._floor_fit()
             self._since_fit = 0
         on_floor = fit is not None and fit.floor is not None
-        stat = {tid: t.stature for tid, t in self._tracks.items() if np.isfinite(t.stature)}
+        measured = self._measured()
+        # people never measured (legs out of view): the skeleton the pose model gave, at its size
+        stat = {**dict.fromkeys(self._tracks, self._model_mm), **measured} if self._model_mm else measured
         # the pose model's scale: each track to the model's size (or, for a model not measured, its own)
         model = {tid: self._model_mm / h if self._model_mm else 1.0 for tid, h in stat.items()}
         # the floor's relative sizes; the adult-sized people at the pose model's size
-        relative = {tid: fit.scales[tid] for tid in stat if on_floor and tid in fit.scales}
+        relative = {tid: fit.scales[tid] for tid in measured if on_floor and tid in fit.scales}
         gauge = 1.0
         if relative:
             size = {tid: relative[tid] * stat[tid] for tid in relative}
@@ -318,7 +333,7 @@ class MetricStage:
                 scale, source, sd = relative[tid] * used_gauge, "floor", float(np.hypot(fit.scale_sd[tid], gauge_sd))
             else:
                 scale, source, sd = model[tid], "model", MODEL_SD
-            out[tid] = TrackScale(h, scale, source, estimated[tid], estimated[tid] * est_sd, sd)
+            out[tid] = TrackScale(h, scale, source, estimated[tid], estimated[tid] * est_sd, sd, tid in measured)
         if self.options.floor and fit is not None:
             self.floor = (dataclasses.replace(fit.floor, distance=fit.floor.distance * used_gauge,
                                               spread=fit.floor.spread * used_gauge) if on_floor else None)
@@ -353,9 +368,9 @@ class MetricStage:
             if ts is None:
                 people.append(p)
                 continue
-            h = float(stature(p.keypoints_3d, p.confidence, self.rec.joints))
+            h = float(stature(p.keypoints_3d, p.confidence, self.rec.joints)) if ts.measured else np.nan
             s = ts.scale * (ts.stature / h if np.isfinite(h) else 1.0)     # the track's height, then its scale
-            breathing = self._tracks[p.id].breathing
+            breathing = self._tracks[p.id].breathing if ts.measured else 0.0
             xyz = self._on_core(p.keypoints_3d * s, p)
             depth = float(p.skeleton.root_point(xyz)[2])
             people.append(dataclasses.replace(
