@@ -135,6 +135,7 @@ def _filestorage_yaml(path, width, height, k):
 @pytest.mark.parametrize("size, words", [
     ((1080, 1920), "is 1080x1920; the input is turned a quarter from the calibration"),   # portrait video
     ((1920, 1440), "is 1920x1440; give intrinsics for this size"),                        # a 4:3 mode
+    ((1000, 1080), "is 1000x1080; give intrinsics for this size"),       # cut at the side: not turned
 ])
 def test_a_file_for_another_shape_is_refused(tmp_path, kind, size, words):
     k = [[1400.0, 0, 960.0], [0, 1400.0, 540.0], [0, 0, 1]]

@@ -259,7 +259,8 @@ class CameraCalibration:
         by half the difference: Qualisys's 1088-px field for a 1080-px video); a size with the
         calibrated aspect is a resize (intrinsics scaled, with a warning: right for a video that
         is the calibrated picture at another resolution, wrong for a mode that crops the sensor);
-        anything else is refused, a portrait input for a landscape calibration named as such.
+        anything else is refused (a crop moves the principal point by what was cut), an input
+        whose sides swapped have the calibrated aspect named as turned a quarter.
         """
         cw, ch = self.size
         k = self.intrinsics
@@ -273,7 +274,7 @@ class CameraCalibration:
                  "(calibrate at this size if the camera crops its sensor for it)")
         dw, dh = width - cw, height - ch
         if abs(dw) > 0.02 * cw or abs(dh) > 0.02 * ch:
-            turned = (width - height) * (cw - ch) < 0
+            turned = abs(height / cw - width / ch) <= 0.02 * max(height / cw, width / ch)   # its sides swapped
             raise InputError(sizes + ("; the input is turned a quarter from the calibration: give intrinsics "
                                       "calibrated as it is recorded" if turned else "; give intrinsics for this size"))
         k = Intrinsics(k.fx, k.fy, k.cx + dw / 2, k.cy + dh / 2, k.source, k.distortion)
