@@ -189,9 +189,9 @@ def test_someone_never_seen_whole_keeps_the_models_size_and_its_spread():
 
 
 def test_a_track_measured_far_from_the_models_size_is_left_unmeasured():
-    """Two frames whose legs the pose model folded (a man cut at the knees) measure him 34 %
-    short; scaled up to the model's size they would put him a third too far. The model gives
-    everyone one size, so such a track is left as the model gave it."""
+    """Frames whose legs the pose model folded to the knees (a man cut there; half of his
+    frames) measure him 28 % short; scaled up to the model's size they would put him that much
+    too far. The model gives everyone one size, so such a track is left as the model gave it."""
     import dataclasses
 
     rec, _ = scene({0: 1700.0}, frames=20)
@@ -200,7 +200,7 @@ def test_a_track_measured_far_from_the_models_size_is_left_unmeasured():
     folded = [H36M_JOINTS.index(j) for j in ("r_ankle", "l_ankle")]
     for f in rec.frames:
         p = f.people[0]
-        if f.index in (5, 6):                       # legs folded up to the knees, confidently
+        if f.index < 10:                            # legs folded up to the knees, confidently
             knees = [H36M_JOINTS.index("r_knee"), H36M_JOINTS.index("l_knee")]
             p.keypoints_3d[folded], p.keypoints_2d[folded] = p.keypoints_3d[knees], p.keypoints_2d[knees]
         else:
@@ -208,6 +208,34 @@ def test_a_track_measured_far_from_the_models_size_is_left_unmeasured():
     out = scale_recording(rec, MetricOptions(floor=False))
     for f, g in zip(rec.frames, out.frames):
         assert np.allclose(g.people[0].keypoints_3d, f.people[0].keypoints_3d)
+
+
+def test_a_track_measured_on_a_few_of_its_frames_is_left_unmeasured_and_off_the_floor():
+    """Two people on a floor; the second's legs are out of view but on 6 frames of 60, where the
+    pose model put the ankles 30 % of the way up the shins (folded into view: 9 % short, within
+    the model's size). Measured there, the floor would place them 7 % off; measured on under a
+    quarter of their frames, they are left as the pose model gave them (within 1 %)."""
+    import dataclasses
+
+    rec, truth = scene({0: 1700.0, 1: 1700.0})
+    rec = dataclasses.replace(rec, model="blazepose-full")
+    legs = [H36M_JOINTS.index(j) for j in ("r_knee", "r_ankle", "l_knee", "l_ankle")]
+    knees = [H36M_JOINTS.index(j) for j in ("r_knee", "l_knee")]
+    ankles = [H36M_JOINTS.index(j) for j in ("r_ankle", "l_ankle")]
+    for f in rec.frames:
+        p = f.people[1]
+        if f.index in (10, 20, 30, 40, 50, 55):
+            for points in (p.keypoints_3d, p.keypoints_2d):
+                points[ankles] += 0.3 * (points[knees] - points[ankles])
+        else:
+            p.confidence[legs] = 0.05
+    out = scale_recording(rec)
+    assert out.floor is not None and out.floor.distance == pytest.approx(CAMERA_HEIGHT, rel=0.03)
+    for f, g in zip(rec.frames, out.frames):
+        cut = g.people[1]
+        assert cut.height_source == "model"
+        assert np.allclose(cut.keypoints_3d, f.people[1].keypoints_3d, atol=5.0)   # (placed on its core joints)
+        assert abs(cut.root[2] / truth[(f.index, 1)][0, 2] - 1) < 0.01
 
 
 @pytest.mark.parametrize("why, make", [
