@@ -74,9 +74,11 @@ LENS_DISAGREES = 2.0            # standard uncertainties between the default len
 # root's depth most when the pose model misplaces them in depth: jumping jacks on the spot swing
 # the root's depth with the arms. Each frame's root is placed again on the trunk and legs (the
 # CORE roles: the same landmarks in every skeleton, so both skeletons keep one root), where at
-# least CORE_JOINTS of them are confident.
+# least CORE_JOINTS of them are confident: the trunk's four corners, shoulders and hips, place it
+# alone for someone whose legs are out of view (the views of both takes cut at the knees: mean
+# depth error 188 -> 169 mm with 4 for 6, single take; every plain view within 1 mm).
 CORE = tuple(f"{side}_{joint}" for side in ("r", "l") for joint in ("shoulder", "hip", "knee", "ankle"))
-CORE_JOINTS = 6
+CORE_JOINTS = 4
 
 
 
