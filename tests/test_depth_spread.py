@@ -180,8 +180,8 @@ def test_the_depth_spread_holds_for_people_whose_legs_are_out_of_view(estimator,
     """The single take's four views cut below row 1000, the athlete's legs out of view (never
     measured in two views, on a few frames where the pose model folded them into view in the
     others), through the lab's lens (a cut from the bottom keeps it), the defaults: every person
-    has a depth_sd, and three depths in four and more lie within two of it from the pelvis the lab
-    calibration triangulates from the cut views (bench_depth.py: 82 %; before, 25 %, with no
+    has a depth_sd, and four depths in five and more lie within two of it from the pelvis the lab
+    calibration triangulates from the cut views (90 %; bench_depth.py: landed main 25 %, with no
     depth_sd where never measured and a floor from folded legs 1.2 m off)."""
     folder = DEMO / "single"
     if not folder.is_dir():
@@ -195,4 +195,4 @@ def test_the_depth_spread_holds_for_people_whose_legs_are_out_of_view(estimator,
     assert all(np.isfinite(p.depth_sd) for r in recs for f in r.frames for p in f.people)
     ratio = depth_errors_in_sd(cams, recs)
     assert len(ratio) >= 200
-    assert np.mean(ratio <= 2) >= 0.75, np.mean(ratio <= 2)
+    assert np.mean(ratio <= 2) >= 0.8, np.mean(ratio <= 2)
