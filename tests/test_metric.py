@@ -402,13 +402,13 @@ def test_the_stage_takes_the_lens_from_the_people_in_place_of_the_default():
 def test_frames_after_the_lens_is_decided_are_placed_through_it_too():
     """The lens is decided on the first `delay` frames; the frames that come after are solved
     through it as they come: every frame's people at their depth, not only the first ones, and
-    those whose legs are hidden from frame 30 (knees and ankles under MIN_CONFIDENCE: the
-    shoulders and hips alone are too few to place the root again) too."""
+    those whose legs and shoulders are hidden from frame 30 (under MIN_CONFIDENCE: the hips
+    alone are too few to place the root again) too."""
     rec, poses = _through_the_default_lens(60)
-    legs = [H36M_JOINTS.index(j) for j in ("r_knee", "r_ankle", "l_knee", "l_ankle")]
+    hidden = [H36M_JOINTS.index(j) for j in ("r_knee", "r_ankle", "l_knee", "l_ankle", "r_shoulder", "l_shoulder")]
     for f in rec.frames[30:]:
         for p in f.people:
-            p.confidence[legs] = 0.3
+            p.confidence[hidden] = 0.3
     out = scale_recording(rec, MetricOptions(floor=False, delay=15))
     assert out.intrinsics.source.startswith("people")
     per_frame = [np.median([p.root[2] / poses[(p.id, f.index)][0, 2] for p in f.people]) for f in out.frames]
