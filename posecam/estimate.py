@@ -32,7 +32,8 @@ from posecam.scale.metric import MetricOptions, MetricStage
 from posecam.geometry.boxes import box_iou, boxes_overlap
 from posecam.geometry.camera import Intrinsics
 from posecam.geometry.triangulate import MIN_CONFIDENCE
-from posecam.inference.detector import Detection, MoveNetDetector, detect_any_turn, load_detector, load_second_look
+from posecam.inference.detector import (Detection, MoveNetDetector, detect_any_turn, load_detector, load_second_look,
+                                         detect_in_the_dark)
 from posecam.inference.embedder import load_embedder
 from posecam.inference.pose_model import PoseCandidate, make_lifter, make_pose_model
 from posecam.inference.roi import Roi, past_border
@@ -290,6 +291,8 @@ class PoseEstimator:
                 detections = self.detector(image_rgb, tiles=search.regions, whole=search.whole)
             else:                  # nobody followed: every tile, and people in any orientation
                 detections = detect_any_turn(self.detector, image_rgb, person_px)
+                if not any(d.score >= self.detector.start_score for d in detections):   # nobody: in the dark?
+                    detections = detect_in_the_dark(self.detector, image_rgb, person_px) or detections
             if self.second_look is not None and due(tracker, run, tracker.fps):
                 tracker.looked_at = tracker.next_frame
                 detections = detections + second_look(self.second_look, self.detector, image_rgb, detections,
