@@ -32,9 +32,9 @@ from posecam.scale.metric import MetricOptions, MetricStage
 from posecam.geometry.boxes import box_iou, boxes_overlap
 from posecam.geometry.camera import Intrinsics
 from posecam.geometry.triangulate import MIN_CONFIDENCE
-from posecam.inference.detector import (Detection, MoveNetDetector, detect_any_turn, load_detector, load_second_look,
-                                         detect_in_the_dark)
+from posecam.inference.detector import Detection, MoveNetDetector, detect_any_turn, load_detector, load_second_look
 from posecam.inference.embedder import load_embedder
+from posecam.inference.light import equalised, under_exposed
 from posecam.inference.pose_model import PoseCandidate, make_lifter, make_pose_model
 from posecam.inference.roi import Roi, past_border
 from posecam.inference.session import load_model
@@ -282,6 +282,7 @@ class PoseEstimator:
         (their ids are numbered once the tracks are confirmed: `number_people`, `ConfirmedIds`),
         and the people left out, each with the stage that dropped them."""
         _check_image(image_rgb)
+        image_rgb = equalised(image_rgb) if under_exposed(image_rgb) else image_rgb   # dusk: posed in its light equalised
         h, w = image_rgb.shape[:2]
         detections, search, run = None, None, tracker.detector_run(w, h)
         if run is not None:
@@ -291,8 +292,6 @@ class PoseEstimator:
                 detections = self.detector(image_rgb, tiles=search.regions, whole=search.whole)
             else:                  # nobody followed: every tile, and people in any orientation
                 detections = detect_any_turn(self.detector, image_rgb, person_px)
-                if not any(d.score >= self.detector.start_score for d in detections):   # nobody: in the dark?
-                    detections = detect_in_the_dark(self.detector, image_rgb, person_px) or detections
             if self.second_look is not None and due(tracker, run, tracker.fps):
                 tracker.looked_at = tracker.next_frame
                 detections = detections + second_look(self.second_look, self.detector, image_rgb, detections,

@@ -141,8 +141,6 @@ WEAK_FRACTION = 1 / 3  # detections down to this fraction of the start score kee
 # within BORDER_GAP of its longer side to the border is judged on a score raised by 1 / BORDER_SCORE.
 BORDER_GAP = 0.1
 BORDER_SCORE = 0.6
-LOCAL_CONTRAST_CLIP = 3.0   # CLAHE's clip limit: how far a tile's histogram is stretched
-DARK_LIGHTNESS = 0.25       # someone whose box's median lightness is under this share of white stands in the dark
 
 
 class MoveNetDetector:
@@ -272,22 +270,6 @@ def detect_any_turn(detector: "Detector", image_rgb: np.ndarray, person_px: floa
             found.append(Detection(d.score, np.concatenate([corners.min(axis=0), corners.max(axis=0)]),
                                    back(d.keypoints), d.keypoint_scores, d.roi.moved(back)))
     return sorted(_merge(found), key=lambda d: -d.score)
-
-
-def detect_in_the_dark(detector: "Detector", image_rgb: np.ndarray, person_px: float | None = None) -> list[Detection]:
-    """People in the dark, most confident first: the detector run (any turn) on the image with
-    its lightness equalised tile by tile (CLAHE, 8 x 8 tiles), where under-exposed or backlit
-    people stand out of their surroundings, each kept if they stand in the dark (the median
-    lightness of their box under DARK_LIGHTNESS of 255): elsewhere the plain image showed them."""
-    lab = cv2.cvtColor(image_rgb, cv2.COLOR_RGB2LAB)
-    lightness = lab[..., 0].copy()
-    lab[..., 0] = cv2.createCLAHE(clipLimit=LOCAL_CONTRAST_CLIP, tileGridSize=(8, 8)).apply(lightness)
-    found = detect_any_turn(detector, cv2.cvtColor(lab, cv2.COLOR_LAB2RGB), person_px)
-    h, w = lightness.shape
-    x0, y0, x1, y1 = (np.clip(np.round([d.box for d in found]), 0, [w, h, w, h]).astype(int).T
-                      if found else np.zeros((4, 0), int))
-    return [d for d, a, b, c, e in zip(found, x0, y0, x1, y1)
-            if c > a and e > b and np.median(lightness[b:e, a:c]) < DARK_LIGHTNESS * 255]
 
 
 def turned_back(points: np.ndarray, turns: int, width: int, height: int) -> np.ndarray:
