@@ -4,7 +4,8 @@ many frames posecam keeps him (under one id).
     python bench/bench_hard_people.py [--before CHECKOUT] [--clips backlit,border,...] [--cuts]
 
 The clips (100 frames, 60 fps, written to --cache, .cache/bench_hard_people): `backlit` (frames 20-79
-darkened to 12 % under a low sun's glare over him), `backlit_all` (every frame so), `rot180`
+darkened to 12 % under a low sun's glare over him), `backlit_all` (every frame so), `dark_all` (every frame under-exposed, at 6 %: a dusk or
+night camera), `rot180`
 (turned 180 deg), `border` (cropped at x = 520: the left edge cuts him), `border_right` (the
 same, mirrored: the right edge cuts him), `border_bottom` (cropped at y = 1000: the bottom edge
 cuts his legs), `occluded` (a grey
@@ -38,7 +39,7 @@ REPO = Path(__file__).resolve().parent.parent
 SOURCE = REPO / "examples" / "demo" / "single" / "cam01.mp4"
 CUT_X = 520          # border: the columns kept start here
 CUT_Y = 1000         # border_bottom: the rows kept end here
-CLIPS = ("backlit", "backlit_all", "rot180", "border", "border_right", "border_bottom", "occluded", "lost_backlit",
+CLIPS = ("backlit", "backlit_all", "dark_all", "rot180", "border", "border_right", "border_bottom", "occluded", "lost_backlit",
          "turn90", "spin", "flip")
 FLIP = (35, 65)      # the frames over which `flip` turns him once
 CUTS = ((40, 520, 0.5, True), (30, 520, 0.5, True), (40, 520, 1.0, True), (0, 520, 0.5, True),   # --cuts: (start
@@ -92,6 +93,7 @@ def make_clips(out_dir: Path) -> None:
     edits = {
         "backlit": [dark(f) if 20 <= i < 80 else f for i, f in enumerate(frames)],
         "backlit_all": [dark(f) for f in frames],
+        "dark_all": [(f * 0.06).astype(np.uint8) for f in frames],
         "rot180": [f[::-1, ::-1] for f in frames],
         "border": [f[:, CUT_X:] for f in frames],
         "border_right": [np.ascontiguousarray(f[:, CUT_X:][:, ::-1]) for f in frames],

@@ -1,9 +1,9 @@
 """Fusing Pose2Sim's takes when one camera's video is hard: each camera in turn turned by 180 deg
 (mounted upside down), turned by 90 deg (a phone held sideways, its rotation flag not applied),
-darkened to a quarter of its light or cut below row 1000 of its 1920 (framed too high: the
+darkened to a quarter of its light, to 6 % (`night`: dusk, an under-exposed camera) or cut below row 1000 of its 1920 (framed too high: the
 people's legs, or more, out of view; its lens unchanged), the other three as filmed.
 
-    python bench/bench_hard_views.py [--before CHECKOUT] [--take single|multi|both] [--edits turn180,turn90,dark,cut]
+    python bench/bench_hard_views.py [--before CHECKOUT] [--take single|multi|both] [--edits turn180,turn90,dark,night,cut]
 
 Each edited video is written once to --cache (.cache/bench_hard_views) and predicted with the
 default `posecam predict`; the four views are fused as a new user does it (no calibration, the
@@ -35,9 +35,9 @@ import bench_fuse as bf  # noqa: E402  (the yardstick: lab rig, truth offsets, p
 ROOT = bf.ROOT
 # np.rot90 quarter turns of each edit, and the rotation it makes about the optical axis (x right,
 # y down): a turn of k quarters anticlockwise in the image maps camera axes by TURNS[k]
-QUARTERS = {"turn180": 2, "turn90": 1, "dark": 0, "cut": 0}
+QUARTERS = {"turn180": 2, "turn90": 1, "dark": 0, "night": 0, "cut": 0}
 TURNS = {0: np.eye(3), 1: np.array([[0.0, 1, 0], [-1, 0, 0], [0, 0, 1]]), 2: np.diag([-1.0, -1, 1])}
-DARK = 0.25          # the light left in a darkened video
+LIGHT = {"dark": 0.25, "night": 0.06}   # the light left in a darkened video
 CUT_ROWS = 1000      # a cut video keeps its top rows: the people's legs below them are out of view
 
 
@@ -54,7 +54,7 @@ def make_video(take: str, cam: str, edit: str, out: Path) -> None:
         if not ok:
             break
         f = np.rot90(f, QUARTERS[edit]) if QUARTERS[edit] else f
-        f = (f * DARK).astype(np.uint8) if edit == "dark" else f[:CUT_ROWS] if edit == "cut" else f
+        f = (f * LIGHT[edit]).astype(np.uint8) if edit in LIGHT else f[:CUT_ROWS] if edit == "cut" else f
         frames.append(np.ascontiguousarray(f))
     h, w = frames[0].shape[:2]
     tmp = out.with_suffix(".tmp.mp4")
