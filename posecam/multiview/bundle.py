@@ -26,8 +26,9 @@ residuals (reweighted 3 times) 8.3 / 6.6, worse: the residuals at the drifted ri
 without the hips and pelvis 4.0 / 4.6, and with soft-L1 at 1 sigma 3.5 / 4.1; what is kept (the
 hips out, soft-L1 graduated from 2 to 1 sigma) 4.0 / 4.9 (docs/benchmarks.md has the bench's figures). The
 hip joint centre lies inside the body, so a detector's hip keypoint is not one 3D point from
-every side: `left_out` keeps the hips out of the adjustment (they are fused as usual afterwards,
-and triangulated through the refined rig for its bone-length scale).
+every side, nor are the shoulder's and the knee's: `left_out` keeps them out of the adjustment
+(posecam.multiview.options.LEFT_OUT says what that gave; they are fused as usual afterwards, and
+triangulated through the refined rig for its bone-length scale).
 
 Optionally (`BundleOptions.refine_offsets`, with timed keypoints: posecam.multiview.observations.
 TimedKeypoints) each camera's time offset but the reference's is one more slot of its vector:

@@ -29,7 +29,7 @@ import numpy as np
 from posecam.errors import FusionError
 from posecam.geometry.camera import FOCAL_WIDTHS, CameraCalibration, Rig
 from posecam.multiview.associate import Association
-from posecam.multiview.bundle import CameraSpread, bundle_adjust
+from posecam.multiview.bundle import CameraSpread, bundle_adjust, left_out
 from posecam.multiview.consensus import ConsensusOptions, estimate_rig, stretch_residuals
 from posecam.multiview.observations import Observations, Take, TimedKeypoints
 from posecam.multiview.motion_sync import MIN_MOTION
@@ -333,13 +333,15 @@ def bootstrap_spreads(cameras: KeptCameras, people: list[Observations], joints: 
     boot = replace(opts.bundle_options, max_frames=BOOT_FRAMES, ftol=BOOT_FTOL)
     rng = np.random.default_rng(seed)
     n_j, n_f = len(joints), obs.conf.shape[1]
+    used = ~left_out(joints, opts.bundle_options.left_out)
     blocks = -(-n_f // BOOT_BLOCK)
     ref = rig.names.index(rig.reference) if rig.reference else 0
     centres = np.stack([c.centre for c in rig.cameras])
     baseline = np.linalg.norm(centres - centres[ref], axis=1).sum()
     rot, focal, centre = [], [], []
     for _ in range(BOOT_REPLICATES):
-        per_joint = rng.multinomial(n_j, np.full(n_j, 1 / n_j))
+        per_joint = np.zeros(n_j)                    # the joints the adjustment uses, resampled
+        per_joint[used] = rng.multinomial(used.sum(), np.full(used.sum(), 1 / used.sum()))
         per_block = np.repeat(rng.multinomial(blocks, np.full(blocks, 1 / blocks)), BOOT_BLOCK)[:n_f]
         try:
             fit = bundle_adjust(rig, obs.uv, obs.conf * per_block[None, :, None] * per_joint[None, None], None,

@@ -14,8 +14,13 @@ from posecam.scale.heights import Heights
 
 METHODS = ("average", "triangulate")    # FuseOptions.method: posecam.multiview.fuse_people
 # joint roles (posecam.skeleton.Skeleton.roles) kept out of the bundle adjustment: not one 3D point
-# from every side (posecam.multiview.bundle)
-LEFT_OUT = ("mid_hip", "r_hip", "l_hip")
+# from every side (posecam.multiview.bundle). The hips, shoulders and knees are keypoints on the
+# body's surface that faces the camera (the hip's and shoulder's outline, the kneecap), so two
+# cameras on opposite sides see two points a body's depth apart. Left out, the rig from Pose2Sim's
+# single take came 3.56 -> 2.29 deg (median pair) and 10.3 -> 3.9 % (worst focal length) nearer the
+# lab's, the two-person take 4.83 -> 2.91 deg and 14.1 -> 4.7 %, both takes as one session 3.51 ->
+# 1.90 deg; the elbows too changed little more (bench/bench_session.py, docs/benchmarks.md).
+LEFT_OUT = ("mid_hip", "r_hip", "l_hip", "r_shoulder", "l_shoulder", "r_knee", "l_knee")
 
 
 @dataclass
