@@ -70,18 +70,24 @@ def _table(title: str, columns: tuple[str, ...]):
     return table
 
 
+def camera_table(reports: list, title: str, offsets: bool = True):
+    """The cameras at a glance, 80 columns wide: offset (`offsets`), reprojection error, focal
+    length and, for an estimated rig, the spreads (posecam.multiview.report.CameraReport each)."""
+    estimated = any(rep.spread is not None for rep in reports)
+    table = _table(title, ("camera", *(("offset\nframes",) if offsets else ()), "reproj.\npx", "focal\npx",
+                           *(("±rot\ndeg", "±focal\n%", "±pos\nmm") if estimated else ())))
+    for rep in reports:
+        fx, fy = rep.intrinsics[:2]
+        table.add_row(shown(rep.name), *((_offset(rep, confidence=False),) if offsets else ()), _px(rep.reprojection_px),
+                      f"{fx:.0f}" if abs(fx - fy) < 0.5 else f"{fx:.0f}/{fy:.0f}", *(_spread(rep) if estimated else ()))
+    return table
+
+
 def print_report(result: FusionResult, console, verbose: bool = False) -> None:
     """The cameras at a glance (offset, reprojection error, focal length, the spreads of an
     estimated rig), 80 columns wide; `verbose`: a second table with the rest."""
     estimated = any(rep.spread is not None for rep in result.cameras)
-    table = _table(f"posecam fuse: cameras ({result.recording.frame_of_reference})",
-                   ("camera", "offset\nframes", "reproj.\npx", "focal\npx",
-                    *(("±rot\ndeg", "±focal\n%", "±pos\nmm") if estimated else ())))
-    for rep in result.cameras:
-        fx, fy = rep.intrinsics[:2]
-        table.add_row(shown(rep.name), _offset(rep, confidence=False), _px(rep.reprojection_px),
-                      f"{fx:.0f}" if abs(fx - fy) < 0.5 else f"{fx:.0f}/{fy:.0f}", *(_spread(rep) if estimated else ()))
-    console.print(table)
+    console.print(camera_table(result.cameras, f"posecam fuse: cameras ({result.recording.frame_of_reference})"))
     if verbose:
         details = _table("cameras: details", ("camera", "offset\nconf.", "joints\nused", "L/R\nswaps", "cx, cy\npx",
                                               "centre x, y, z\nm"))
@@ -141,7 +147,7 @@ def parse_offsets(text: str) -> list[float]:
               help="Average the monocular poses, or triangulate the 2D keypoints.")
 @click.option("--sync", type=click.Choice(["none", "auto"]),
               help="auto: estimate each video's frame offset against the first; none: the views started together. "
-                   "Default: auto, none with --calibration.")
+                   "Default: auto, none with a lab's --calibration (a rig `posecam calibrate` wrote: auto).")
 @click.option("--offsets", help="Frame offsets, one per view, e.g. 0,-1,4.5,0 (sub-frame allowed): view c's frame i+o "
                                 "shows the same instant as the first view's frame i.")
 @click.option("--max-offset", type=click.IntRange(0, MAX_OFFSET),
@@ -202,14 +208,11 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     check_output(viz, (*PICTURE_SUFFIXES, *VIDEO_SUFFIXES), "--viz")
     if offsets and sync == "auto":
         raise InputError("give either --offsets or --sync auto")
-    asked = None if sync is None else sync == "auto"
-    auto = finds_offsets(asked, bool(calibration), bool(offsets))
-    refuse_alone("max_offset", "--sync auto", auto)
+    if calibration:
+        check_input(calibration, "calibration")   # a pipe or a device would block the read
     refuse_alone("trc_y_up", "-o FILE.trc or FILE.c3d", bool(markers))
     refuse_alone("free_intrinsics", "cameras to estimate (no --calibration)", not calibration)
     offset_list = parse_offsets(offsets) if offsets else None
-    if calibration:
-        check_input(calibration, "calibration")   # a pipe or a device would block the read
     refuse_alone("out_format", "--out-dir", bool(out_dir))
     many = out_dir is not None or jobs > 1 or ray_address is not None
     if not many:
@@ -226,15 +229,18 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     selection = make_frame_selection(flags)
     if selection and many:
         raise InputError("--start, --end and --stride pick frames of one take; they do not go with --out-dir")
+    if calibration and (intrinsics.file or intrinsics.fx is not None or intrinsics.fy is not None):
+        raise InputError("--calibration gives every camera's intrinsics; it does not go with --intrinsics or --fx/--fy")
+    rig = read_calibration(calibration) if calibration else None
+    asked = None if sync is None else sync == "auto"
+    auto = finds_offsets(asked, rig is not None and rig.synchronised, bool(offsets))
+    refuse_alone("max_offset", "--sync auto", auto)
     if selection and selection.stride not in (None, "1") and (auto or any(offset_list or [])):
         raise InputError("--stride does not go with --sync auto or non-zero --offsets: the views' offsets would fall "
                          "between the frames kept; use --start/--end alone")
-    if calibration and (intrinsics.file or intrinsics.fx is not None or intrinsics.fy is not None):
-        raise InputError("--calibration gives every camera's intrinsics; it does not go with --intrinsics or --fx/--fy")
     staged = OutputSet([None if markers else output, save_calibration, viz, viz3d, plot],
                        [*inputs, calibration, intrinsics.file, estimator.model],
                        per_person=markers)  # every output checked before the work
-    rig = read_calibration(calibration) if calibration else None
     opts = FuseOptions(calibration=rig, method=method, offsets=offset_list, sync=asked,
                        max_offset=max_offset, heights=Heights.parse(heights), free_intrinsics=free_intrinsics)
     if many:
@@ -264,9 +270,14 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
         if viz3d:
             write_3d_view(staged.path(viz3d), fused, result.rig)
         if save_calibration:
-            write_toml(staged.path(save_calibration), result.rig.cameras,
-                       {"frame": result.recording.frame_of_reference,
-                        "offsets": ",".join(f"{result.offsets[v]:g}" for v in result.views)},
+            from posecam.multiview.fuse import floor_rig
+
+            saved, frame, lines = floor_rig(result)
+            for line in lines:
+                warn(line)
+            write_toml(staged.path(save_calibration), saved.cameras,
+                       {"frame": frame, "offsets": ",".join(f"{result.offsets[v]:g}" for v in result.views),
+                        "synchronised": not auto},
                        camera_comments(result))
         if viz:
             from posecam.viz.fusion_grid import write_grid

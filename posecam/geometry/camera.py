@@ -287,6 +287,10 @@ class Rig:
 
     cameras: list[CameraCalibration]
     reference: str | None = None           # None: a world frame from a calibration file
+    # whether the cameras record in step (a lab's rig); False for a rig posecam calibrated from
+    # takes whose cameras each started on their own (`posecam calibrate`): fusing a take through it
+    # finds the take's offsets
+    synchronised: bool = True
 
     @property
     def frame_of_reference(self) -> str:

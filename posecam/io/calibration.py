@@ -111,9 +111,13 @@ def is_calibration(path: str | os.PathLike, what: str = "intrinsics file") -> bo
 
 def read_calibration(path: str | os.PathLike) -> Rig:
     """The rig of a calibration file: Qualisys where `calibration_format` says so, else
-    anipose/Pose2Sim TOML."""
-    qualisys = calibration_format(path) == "qualisys"
-    return Rig(read_qualisys(path) if qualisys else read_toml(path), None)
+    anipose/Pose2Sim TOML (whose [metadata] `synchronised = false`, written by `posecam
+    calibrate`, says its cameras do not record in step: Rig.synchronised)."""
+    if calibration_format(path) == "qualisys":
+        return Rig(read_qualisys(path), None)
+    cameras = read_toml(path)
+    metadata = tomllib.loads(read_small(Path(path), "calibration").decode("utf-8")).get("metadata", {})
+    return Rig(cameras, None, metadata.get("synchronised", True) is not False)
 
 
 def _toml_key(name: str) -> str:

@@ -158,7 +158,7 @@ def _gate(rig: Rig, points: np.ndarray, errors: np.ndarray, obs: Observations, m
         angles = [np.degrees(np.median(np.arccos(cos[:, j]))) for j in range(len(centres)) if j != i]
         f, w = cam.intrinsics.fx, cam.size[0]
         if frames < MIN_FRAMES:
-            reasons.append(f"it sees the people in only {frames} usable frames")
+            reasons.append(f"it sees the people in only {frames} usable frames ({MIN_FRAMES} needed)")
         elif not np.isfinite(errors[i]) or errors[i] > MAX_ERROR_PX:
             reasons.append(f"its reprojection error is {errors[i]:.0f} px")
         elif np.mean(depth <= 0) > MAX_BEHIND:
@@ -203,7 +203,7 @@ def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations
     for v in list(views):
         if v != reference and usable[v] < MIN_FRAMES:
             warnings.append(f"camera {assumed[v].name} dropped: it sees people that another camera sees "
-                            f"in only {usable[v]} frames")
+                            f"in only {usable[v]} frames ({MIN_FRAMES} needed)")
             views.remove(v)
     while True:
         if len(views) < 2:

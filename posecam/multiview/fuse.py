@@ -42,6 +42,12 @@ from posecam.multiview.rig_scale import to_metric
 from posecam.multiview.coarse_sync import coarse_offsets
 from posecam.multiview.sync import SyncResult, synchronise
 from posecam.multiview.take_check import check_take
+from posecam.multiview.motion_sync import holds_still
+from posecam.multiview.world import below_floor, floor_world
+
+STILL_TAKE = ("nobody moves in this take (a static trial?): the people pin neither the cameras nor the views' offsets; "
+              "calibrate the cameras from the session's takes in which people move, this one among them (posecam "
+              "calibrate TAKE... -o rig.toml), and fuse it through that rig (--calibration rig.toml)")
 from posecam.results import Frame, Person, Recording
 from posecam.skeleton import skeleton_of
 
@@ -81,12 +87,13 @@ def given_cameras(take: Take, calibration: Rig) -> KeptCameras:
     return KeptCameras(Rig(cams, None), list(range(len(cams))), [note] if note else [])
 
 
-def _start(take: Take, opts: FuseOptions) -> list[float]:
-    """Where the offsets start: the ones given; to be found without a calibration, where the
-    views' bones move alike (posecam.multiview.coarse_sync.coarse_offsets); else zeros."""
+def start_offsets(take: Take, opts: FuseOptions) -> list[float]:
+    """Where the offsets start: the ones given; to be found without a calibration in step
+    (Rig.synchronised), where the views' bones move alike
+    (posecam.multiview.coarse_sync.coarse_offsets); else zeros."""
     if opts.offsets is not None:
         return list(opts.offsets)
-    if opts.sync and opts.calibration is None:
+    if opts.sync and not opts.synchronised_rig:
         return coarse_offsets(take, opts)
     return [0.0] * len(take.names)
 
@@ -122,7 +129,8 @@ def what_helps(take: Take, opts: FuseOptions) -> str:
     if len(take.names) < 4:
         helps.append("more cameras")
     helps.append("a longer take in which the people move about the scene")
-    return f"what would help: {', '.join(helps)}; or known cameras (--calibration)"
+    return (f"what would help: {', '.join(helps)}; or known cameras: --calibration FILE, or a rig calibrated from "
+            "every take of the session (posecam calibrate TAKE... -o rig.toml)")
 
 
 def _estimated(take: Take, association: Association, sync: SyncResult, opts: FuseOptions,
@@ -169,9 +177,15 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
     say = progress or (lambda _msg: None)
     take = check_take(recordings, opts)
     opts = opts.for_take(take)
+    still = opts.sync and holds_still(take, opts.min_conf)       # offsets to find, and nothing moves
+    if still and opts.calibration is None:
+        raise FusionError(STILL_TAKE)
+    if still:                                                   # through a rig: no offsets are needed
+        opts = replace(opts, sync=False, offsets=[0.0] * len(take.names))
+        take.warnings.append("nobody moves in this take: its views are fused at offset 0 (no sync is needed)")
     given = given_cameras(take, opts.calibration) if opts.calibration is not None else None
     rig = given.rig if given else None
-    start = _start(take, opts)
+    start = start_offsets(take, opts)
 
     say("associating people across views")
     association = associate_people(take, rig, start, opts)
@@ -210,3 +224,26 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
     recording.cameras = [r.to_dict() for r in reports]
     return FusionResult(recording, rig, sync.offsets, reports, views, list(dict.fromkeys(take.warnings + warnings)),
                         scale_source)
+
+
+def floor_rig(result: FusionResult) -> tuple[Rig, str, list[str]]:
+    """The rig to write with a fusion (`fuse --save-calibration`): an estimated rig moved into
+    the floor's world under the fused people (posecam.multiview.world: Z up, origin on the floor,
+    as Pose2Sim and OpenSim expect it); a given one as it is. With what frame it is in and the
+    warnings (no floor found: the reference camera's frame is kept)."""
+    rig = result.rig
+    if rig.reference is None:
+        return rig, result.recording.frame_of_reference, []
+    people = [p for f in result.recording.frames for p in f.people]
+    if not people:
+        return rig, rig.frame_of_reference, []
+    poses = np.stack([p.keypoints_3d for p in people])
+    conf = np.stack([p.confidence for p in people])
+    world = floor_world(rig, poses, np.where(np.isfinite(poses).all(axis=-1), conf, 0.0), result.recording.joints)
+    if isinstance(world, str):
+        return rig, rig.frame_of_reference, [f"the calibration is written in camera {rig.reference}'s frame, not the "
+                                             f"floor's: {world}"]
+    moved = world.rig(rig)
+    low = below_floor(moved)
+    lines = [f"camera {', '.join(low)} lies under the floor the people stand on: check the rig"] if low else []
+    return moved, "the floor under the people (Z up, metres in the TOML)", lines

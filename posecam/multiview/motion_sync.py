@@ -186,6 +186,17 @@ def shared_motion(take: Take, people: list[PersonTracks], v: int,
     return signals[0], signals[1], min(excursion)
 
 
+def holds_still(take: Take, min_conf: float) -> bool:
+    """Whether nobody moves in any view (a static trial): every track's joints move less than
+    MIN_MOTION about its root (`_excursion` of the joints as observed: a take too short to
+    low-pass is judged too). Nothing pins such a take's offsets, and nothing needs them."""
+    def excursion(xyz: np.ndarray, conf: np.ndarray) -> float:
+        seen = (conf >= min_conf) & (conf[:, :1] >= min_conf) & np.isfinite(xyz).all(axis=-1)
+        return _excursion(xyz - xyz[:, :1], seen)
+
+    return all(excursion(t.xyz, t.conf) < MIN_MOTION for tracks in take.tracks for t in tracks)
+
+
 def shared_excursion(take: Take, people: list[PersonTracks], v: int, min_conf: float) -> float | None:
     """`shared_motion`'s excursion alone (mm), without the signals; None when view v shares
     nobody with the reference."""

@@ -75,7 +75,12 @@ class FuseOptions:
     @property
     def finds_offsets(self) -> bool:
         """`sync` resolved (`finds_offsets`)."""
-        return finds_offsets(self.sync, self.calibration is not None, self.offsets is not None)
+        return finds_offsets(self.sync, self.synchronised_rig, self.offsets is not None)
+
+    @property
+    def synchronised_rig(self) -> bool:
+        """Whether a calibration is given whose cameras record in step (Rig.synchronised)."""
+        return self.calibration is not None and self.calibration.synchronised
 
     def for_take(self, take: Take) -> FuseOptions:
         """These options for one take, resolved once for every stage: `sync` a bool

@@ -66,10 +66,11 @@ def estimate_offsets(cams: list[CameraCalibration], uv: list[np.ndarray], conf: 
 
     Coordinate descent: each view's offset in turn is set to the one that minimises the error
     of the triangulation from all views, until a sweep changes nothing. A best offset at the
-    edge of the search range is no result: the view keeps its starting offset, with a warning.
+    edge of the search range (max_offset frames either way of where the view starts) is no
+    result: the view keeps its starting offset, with a warning.
     """
     offsets = list(start) if start is not None else [0] * len(cams)
-    candidates = range(-max_offset, max_offset + 1)
+    centres = [int(round(o)) for o in offsets]          # each view searched about where it starts
     confidence = [1.0] * len(cams)
     at_edge: dict[int, int] = {}
     for _ in range(sweeps):
@@ -77,13 +78,14 @@ def estimate_offsets(cams: list[CameraCalibration], uv: list[np.ndarray], conf: 
         for i in range(len(cams)):
             if i == reference:
                 continue
+            candidates = range(centres[i] - max_offset, centres[i] + max_offset + 1)
             errors = {o: rig_error(cams, uv, conf, offsets[:i] + [o] + offsets[i + 1:]) for o in candidates}
             best = min(errors, key=errors.get)
             if not np.isfinite(errors[best]):
                 raise FusionError(f"cannot synchronise {cams[i].name}: it shares too few confident "
                                   f"joints with the other views")
             confidence[i] = _confidence(errors, best)
-            if abs(best) == max_offset and max_offset > 0:
+            if abs(best - centres[i]) == max_offset and max_offset > 0:
                 at_edge[i] = best
                 continue
             at_edge.pop(i, None)

@@ -36,7 +36,7 @@ def check_lengths(names: list[str], lengths: list[int], opts: FuseOptions) -> st
     without a calibration) may differ by at most the search of a calibrated sync (`max_offset`):
     InputError past what they allow."""
     sync = opts.finds_offsets
-    if not lengths or max(lengths) == min(lengths) or (sync and opts.calibration is None):
+    if not lengths or max(lengths) == min(lengths) or (sync and not opts.synchronised_rig):
         return None
     shown = ", ".join(f"{n} {k}" for n, k in zip(names, lengths))
     if opts.offsets is not None and len(opts.offsets) == len(lengths):
