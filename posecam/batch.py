@@ -32,14 +32,12 @@ from posecam.io.atomic import (OutputSet, StagedOutputs, check_output, deferred_
                                tagged_staging)
 from posecam.io.intrinsics import IntrinsicsOptions
 from posecam.io.poses import PoseWriter, write_poses
-from posecam.io.media import VIDEO_SUFFIXES
 from posecam.options import EstimatorOptions, PredictOptions
 
 if TYPE_CHECKING:
     from posecam.multiview.options import FuseOptions
 
 RAY_HINT = "--ray needs Ray: pip install 'ray>=2.9' (or pip install -e '.[ray]' in a checkout)"
-TAKE_SUFFIXES = (*VIDEO_SUFFIXES, ".json")   # a take folder's views: videos, pose files
 
 
 @dataclass(frozen=True)
@@ -73,19 +71,17 @@ def plan_predictions(inputs: list[str], out_dir: str | os.PathLike, suffix: str)
 
 
 def plan_fusions(takes: list[str], out_dir: str | os.PathLike, suffix: str) -> list[Task]:
-    """One task per take folder (its videos or pose JSON files, sorted by name), named after
-    the folder in `out_dir`; takes whose output exists are skipped."""
-    views = []
-    for take in takes:
-        folder = Path(take)
-        if not folder.is_dir():
-            raise InputError(f"with --out-dir, each input of fuse is a take: a folder of views; {take} is not one")
-        files = sorted(str(p) for p in folder.iterdir() if p.is_file() and p.suffix.lower() in TAKE_SUFFIXES)
+    """One task per take (posecam.views.session_takes: a take folder of videos or pose JSON files,
+    or of videos/ inside it, or a session folder of such takes), named after its folder in
+    `out_dir`; takes whose output exists are skipped."""
+    from posecam.views import TAKE_SUFFIXES, session_takes   # the takes' reading: only where takes are fused
+
+    found = session_takes(takes)
+    for name, files in found.items():
         if len(files) < 2:
-            raise InputError(f"take {take} holds {len(files)} view(s); fusion needs two or more "
+            raise InputError(f"take {name} holds {len(files)} view(s); fusion needs two or more "
                              f"({', '.join(TAKE_SUFFIXES)} files)")
-        views.append(tuple(files))
-    return _plan([Path(t).resolve().name for t in takes], views, out_dir, suffix)
+    return _plan(list(found), [tuple(files) for files in found.values()], out_dir, suffix)
 
 
 def predict_task(task: Task, options: EstimatorOptions, intrinsics: IntrinsicsOptions | None = None,

@@ -19,6 +19,7 @@ import warnings
 import click
 
 from posecam._version import __version__
+from posecam.commands.calibrate import calibrate_command
 from posecam.commands.export import export_command
 from posecam.commands.fuse import fuse_command
 from posecam.commands.predict import predict_command
@@ -261,3 +262,4 @@ def main() -> None:
 main.add_command(predict_command, "predict")
 main.add_command(export_command, "export")
 main.add_command(fuse_command, "fuse")
+main.add_command(calibrate_command, "calibrate")

@@ -24,11 +24,14 @@ from posecam.geometry.lift import solve_root_translation
 from posecam.io.calibration import is_calibration, read_calibration
 from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
 from posecam.io.poses import read_poses
-from posecam.io.media import DEFAULT_FPS, FrameSelection, folder_holds, open_media
+from posecam.io.media import DEFAULT_FPS, VIDEO_SUFFIXES, FrameSelection, folder_holds, open_media
 from posecam.options import EstimatorOptions, PredictOptions
 from posecam.multiview.take_check import check_lengths
 from posecam.multiview.options import FuseOptions
 from posecam.results import Person, Recording
+
+TAKE_SUFFIXES = (*VIDEO_SUFFIXES, ".json")   # a take folder's views: videos, pose files
+TRIAL_VIEWS = "videos"                       # Pose2Sim's trial folder keeps its views in this subfolder
 
 # the landmark pose models' names (posecam.inference.pose_model.LandmarkPoseModel): their poses are
 # metric root-relative poses placed on their 2D keypoints, which any lens can place again
@@ -198,3 +201,51 @@ def check_views(inputs: list[str]) -> None:
     if len(inputs) == 1 and named and Path(inputs[0]).suffix.lower() != ".json":
         raise InputError(f"fusion needs two views or more, got 1 ({inputs[0]}): give every camera's video, image "
                          "folder or pose file")
+
+
+def take_files(folder: str | Path) -> list[str]:
+    """One take's views: the videos and pose JSON files of a take folder, sorted by name, or of
+    its TRIAL_VIEWS subfolder (Pose2Sim's trial layout); [] when it holds none."""
+    for where in (Path(folder), Path(folder, TRIAL_VIEWS)):
+        if where.is_dir():
+            files = sorted(str(p) for p in where.iterdir() if p.is_file() and p.suffix.lower() in TAKE_SUFFIXES)
+            if files:
+                return files
+    return []
+
+
+def session_takes(paths: list[str]) -> dict[str, list[str]]:
+    """A session's takes, name -> their views' files: each path a take folder (`take_files`) or
+    a session folder of take folders (Pose2Sim's batch layout, one folder per trial; folders
+    holding no views, its calibration/ among them, are left aside). A take is named after its
+    folder; InputError for a path that is neither, or two takes of one name."""
+    takes: dict[str, list[str]] = {}
+    for path in paths:
+        folder = Path(path)
+        if not folder.is_dir():
+            raise InputError(f"each take is a folder of one take's videos or pose JSON files; {path} is not one")
+        files = take_files(folder)
+        found = {folder.resolve().name: files} if files else {
+            sub.name: take_files(sub) for sub in sorted(folder.iterdir()) if sub.is_dir() and take_files(sub)}
+        if not found:
+            raise InputError(f"{path} holds no take: give folders of videos or pose JSON files (one folder per take, "
+                             f"or {TRIAL_VIEWS}/ inside it), or a session folder of them")
+        for name, views in found.items():
+            if name in takes:
+                raise InputError(f"two takes are named {name}: give take folders of different names")
+            takes[name] = views
+    return takes
+
+
+def load_session(paths: list[str], options: EstimatorOptions | None = None,
+                 intrinsics: IntrinsicsOptions | None = None, on_frame: OnFrame | None = None,
+                 chain: PredictOptions | None = None) -> dict[str, list[Recording]]:
+    """Every take of a session (`session_takes`), name -> its views' recordings, each take read
+    as `load_views` reads one (the models loaded once for every take)."""
+    takes = session_takes(paths)
+    estimator = None
+    if any(Path(f).suffix.lower() != ".json" for views in takes.values() for f in views):
+        estimator = shared_estimator(options)
+    return {name: load_views(views, options, intrinsics, on_frame=on_frame, estimator=estimator, chain=chain,
+                             fuse=FuseOptions(sync=True))
+            for name, views in takes.items()}
