@@ -368,6 +368,21 @@ MUTANTS = (
     Mutant("pose files: the observed keypoints not written", "posecam/io/poses.py",
            "    if p.observed_2d is not None:         #", "    if False:         #",
            ("tests/test_fuse_cmd.py::test_fusing_videos_is_fusing_the_pose_files_predict_writes_of_them",)),
+    # ---- a session of takes -------------------------------------------------------------------------
+    Mutant("session: a camera the takes place differently kept in them all", "posecam/multiview/session.py",
+           "inliers = [i for i, r in enumerate(qs) if turned(best, r) <= MISFIT_DEG]", "inliers = list(range(len(qs)))",
+           ("tests/test_session.py::test_own_rigs_that_place_a_camera_differently_disagree_on_it",
+            "tests/test_session.py::test_a_camera_misnamed_in_one_take_is_named_and_left_out")),
+    Mutant("session: the rig left in its first camera's frame", "posecam/multiview/session.py",
+           "        rig = world.rig(rig)\n", "        rig = rig\n",
+           ("tests/test_session.py::test_the_session_rig_matches_the_cameras_and_stands_on_the_floor",)),
+    Mutant("fuse: a take fused through an unsynchronised rig at offset 0", "posecam/multiview/options.py",
+           "return self.calibration is not None and self.calibration.synchronised",
+           "return self.calibration is not None",
+           ("tests/test_session.py::test_each_take_keeps_its_own_offsets_and_fuses_through_the_rig",)),
+    Mutant("fuse: a take in which nobody moves synchronised anyway", "posecam/multiview/fuse.py",
+           "still = opts.sync and holds_still(take, opts.min_conf)", "still = False",
+           ("tests/test_session.py::test_a_still_take_joins_the_session_and_alone_is_refused_with_what_helps",)),
 )
 
 
@@ -375,7 +390,7 @@ MUTANTS = (
 # all of them (first match wins).
 MULTIVIEW = (CONSENSUS, FUSION, "tests/test_schur_lm.py", "tests/test_sync.py", "tests/test_association.py",
              "tests/test_spreads.py", "tests/test_camera_gate.py", "tests/test_views.py", "tests/test_fuse_cmd.py",
-             "tests/test_turned_views.py")
+             "tests/test_turned_views.py", "tests/test_session.py")
 STAGES = (
     ("posecam/geometry/lift.py", (CAMERA, "tests/test_predict.py")),
     ("posecam/geometry/camera.py", (CAMERA, CALIB)),

@@ -30,18 +30,20 @@ def _rot(axis: str, angle: np.ndarray) -> np.ndarray:
     return np.moveaxis(np.array(m), (0, 1), (-2, -1))
 
 
-def skeleton_motion(n_frames: int, seed: int = 0, centre=(0.0, 0.0), walk=(0.0, 0.0), start: float = 0.0) -> np.ndarray:
+def skeleton_motion(n_frames: int, seed: int = 0, centre=(0.0, 0.0), walk=(0.0, 0.0), start: float = 0.0,
+                    lean: float = 0.15) -> np.ndarray:
     """(F, 17, 3) world joints (mm, z up) of a person walking a loop, swinging arms and legs,
     turning, bending and now and then raising an arm sideways; `walk` (mm/s) moves the loop
     across the scene (people whose paths cross); `start` (frames, may be fractional) shifts
-    the motion in time: frame i shows the instant i + start."""
+    the motion in time: frame i shows the instant i + start; `lean` (rad): how far the trunk
+    bends forward and back."""
     rng = np.random.default_rng(seed)
     t = (np.arange(n_frames) + start) / 30.0
     phase = 2 * np.pi * 0.9 * t + rng.uniform(0, 2 * np.pi)
     yaw = 0.6 * t + rng.uniform(0, 2 * np.pi)                      # slowly turning body
     root = np.stack([centre[0] + walk[0] * t + 700 * np.cos(0.35 * t), centre[1] + walk[1] * t + 500 * np.sin(0.5 * t),
                      950 + 30 * np.sin(2 * phase)], axis=-1)
-    lean = 0.15 * np.sin(0.7 * t)                                   # bending forward and back
+    lean = lean * np.sin(0.7 * t)                                   # bending forward and back
 
     def limb(start, swing, side, bend, lengths):
         """Two segments hanging from `start`, swung about x (forward) and y (sideways)."""
