@@ -70,10 +70,10 @@ def plan_predictions(inputs: list[str], out_dir: str | os.PathLike, suffix: str)
     return _plan(names, [(p,) for p in inputs], out_dir, suffix)
 
 
-def plan_fusions(takes: list[str], out_dir: str | os.PathLike, suffix: str) -> list[Task]:
+def plan_fusions(takes: list[str], out_dir: str | os.PathLike, suffix: str) -> tuple[list[Task], int]:
     """One task per take (posecam.views.session_takes: a take folder of videos or pose JSON files,
     or of videos/ inside it, or a session folder of such takes), named after its folder in
-    `out_dir`; takes whose output exists are skipped."""
+    `out_dir`; takes whose output exists are skipped. With the number of takes found."""
     from posecam.views import TAKE_SUFFIXES, session_takes   # the takes' reading: only where takes are fused
 
     found = session_takes(takes)
@@ -81,7 +81,7 @@ def plan_fusions(takes: list[str], out_dir: str | os.PathLike, suffix: str) -> l
         if len(files) < 2:
             raise InputError(f"take {name} holds {len(files)} view(s); fusion needs two or more "
                              f"({', '.join(TAKE_SUFFIXES)} files)")
-    return _plan(list(found), [tuple(files) for files in found.values()], out_dir, suffix)
+    return _plan(list(found), [tuple(files) for files in found.values()], out_dir, suffix), len(found)
 
 
 def predict_task(task: Task, options: EstimatorOptions, intrinsics: IntrinsicsOptions | None = None,

@@ -82,7 +82,7 @@ def calibrate_command(takes, output, free_intrinsics, heights, **flags) -> None:
     JSON files), or a videos/ folder with them (Pose2Sim's trials); or a session folder of
     such takes (Pose2Sim's batch layout). A camera is the same in every take by its file name
     (cam01.mp4 of each take); a take may lack one. Each take's offsets are found on their own.
-    Then fuse each take through the rig: posecam fuse TAKE/* --calibration FILE.toml.
+    Then fuse the takes through it: posecam fuse TAKE... --calibration FILE.toml --out-dir DIR.
     """
     from rich.console import Console
 
@@ -114,4 +114,5 @@ def calibrate_command(takes, output, free_intrinsics, heights, **flags) -> None:
         with stdout_report() as console:
             print_session(result, console)
             report_written([output], console)
-            console.print(f"fuse a take through it: posecam fuse TAKE/* --calibration {shown(output)}", style="dim")
+            console.print("fuse the takes through it: posecam fuse TAKE... --calibration "
+                          f"{shown(output)} --out-dir DIR", style="dim")

@@ -56,8 +56,8 @@ def fuse_many(takes: list[str], options, estimator, intrinsics, calibration: str
     from posecam.batch import fuse_task, plan_fusions, threads_per_worker
 
     _check_batch(out_dir, jobs, ray_address)
-    tasks = plan_fusions(takes, out_dir, suffix)
+    tasks, total = plan_fusions(takes, out_dir, suffix)
     estimator = threads_per_worker(estimator, jobs) if jobs > 1 else estimator
     work = partial(fuse_task, options=options, estimator=estimator, intrinsics=intrinsics, calibration=calibration,
                    chain=chain)
-    _run(tasks, len(takes), work, out_dir, jobs, ray_address, "takes")
+    _run(tasks, total, work, out_dir, jobs, ray_address, "takes")
