@@ -268,7 +268,8 @@ def session_figures(cache: Path, peer: bool) -> None:
         for cam, rot, rot_sd, foc, foc_sd in coverage(res.rig, res.cameras):
             total += 2 if np.isfinite(foc_sd) else 1
             within += int(rot <= 2 * rot_sd) + int(np.isfinite(foc_sd) and foc <= 2 * foc_sd)
-            print(f"  {name:22s} {cam}: rotation {rot:5.2f} deg (sd {rot_sd:4.2f}); focal {foc:4.1f} % (sd {foc_sd:4.1f})")
+            print(f"  {name:22s} {cam}: rotation {rot:5.2f} deg (sd {rot_sd:4.2f}); "
+                  f"focal {foc:4.1f} % (sd {foc_sd:4.1f})")
     print(f"  within 2 sd: {within} of {total}")
 
     print("\n== the world: the floor's vertical against the lab's, each camera's height (ours / the lab's, m)")
@@ -335,9 +336,9 @@ def speed(cache: Path, rounds: int) -> None:
             subprocess.run([sys.executable, "-m", "posecam", "predict", "--out-dir", str(scratch / take),
                             *[v for v in videos if f"/{take}/" in v]], check=True, env=env, stdout=subprocess.DEVNULL,
                            stderr=subprocess.DEVNULL)
-        subprocess.run([sys.executable, "-m", "posecam", "fuse", *[str(scratch / "single" / f"{n}.json") for n in NAMES],
-                        "-o", str(scratch / "fused.json")], check=True, env=env, stdout=subprocess.DEVNULL,
-                       stderr=subprocess.DEVNULL)
+        subprocess.run([sys.executable, "-m", "posecam", "fuse",
+                        *[str(scratch / "single" / f"{n}.json") for n in NAMES], "-o", str(scratch / "fused.json")],
+                       check=True, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         peer.append(time.perf_counter() - t0)
     print(f"\n== speed ({rounds} rounds alternated): posecam calibrate on the 8 videos {np.median(calibrating):.1f} s "
           f"(runs {', '.join(f'{x:.1f}' for x in calibrating)}); predict them + fuse the single take "
