@@ -58,9 +58,9 @@ from posecam.results import Recording
 
 # A take's camera disagrees with another take's when their own rigs, aligned, turn it by more than
 # MISFIT_DEG or put its centre MISFIT_SHIFT of the rig's size (the cameras' median distance from
-# their centroid) away (`disagreeing`). Each take's own rig is 3-5 deg off the lab's on Pose2Sim's
-# takes, so a camera that stayed put turns by up to about 6 deg between two of them
-# (bench/bench_session.py); a camera turned less than that is within what the people pin.
+# their centroid) away (`disagreeing`). Pose2Sim's two takes, each calibrated alone, turn a camera
+# by 0.7-2.1 deg and move it by 2-6 % of the rig against the other take (bench/bench_session.py);
+# a camera turned less than MISFIT_DEG is found only where the session's estimate cannot hold it.
 MISFIT_DEG = 10.0
 MISFIT_SHIFT = 0.3
 SIZE_TOLERANCE = 0.02           # a camera's image may differ by this between takes (a crop or pad)

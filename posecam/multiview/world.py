@@ -5,10 +5,10 @@ it in metres, posecam keeps millimetres).
 An estimated rig comes in its reference camera's frame (x right, y down, z forward). The people
 it triangulates say where up is and where the floor lies: the vertical is the median direction
 from the feet to the head of everyone standing upright (posecam.scale.stature.down_and_ankles),
-and the floor lies one ankle height (`ANKLE_HEIGHT` of the people's median stature) under the
-median lower foot. (The plane of the lower feet, where they cover the ground, was tried as the
-vertical and dropped: on Pose2Sim's takes it leaned 8-12 deg from the lab's floor, the people's
-vertical 2-3 deg: bench/bench_session.py.)
+and the floor lies one ankle height (posecam.scale.stature.ANKLE_OF_STATURE of the people's
+median stature) under the median lower foot. (The plane of the lower feet, where they cover the
+ground, was tried as the vertical and dropped: on Pose2Sim's takes it leaned 8-12 deg from the
+lab's floor, the people's vertical 2-3 deg: bench/bench_session.py.)
 """
 
 from __future__ import annotations
@@ -19,12 +19,8 @@ import numpy as np
 
 from posecam.geometry.camera import Rig
 from posecam.geometry.floor import MIN_UPRIGHT
-from posecam.scale.stature import down_and_ankles, stature
+from posecam.scale.stature import ANKLE_OF_STATURE, down_and_ankles, stature
 from posecam.skeleton import MIN_CONFIDENCE
-
-# the ankle joint's height above the sole as a fraction of stature (Drillis and Contini's
-# anthropometric table, 1966: 0.039 H, 67 mm for 1.72 m); the joint the skeleton calls ankle sits there
-ANKLE_HEIGHT = 0.039
 
 
 @dataclass(frozen=True)
@@ -59,7 +55,7 @@ def floor_world(rig: Rig, poses: np.ndarray, conf: np.ndarray, joints: tuple[str
     up /= np.linalg.norm(up)
     feet = np.array([ankles[np.argmin(ankles @ up)] for _, ankles in stances])     # the lower foot: standing
     heights = h[ok][np.isfinite(h[ok])]
-    level = float(np.median(feet @ up)) - ANKLE_HEIGHT * (float(np.median(heights)) if heights.size else 0.0)
+    level = float(np.median(feet @ up)) - ANKLE_OF_STATURE * (float(np.median(heights)) if heights.size else 0.0)
     centre = np.median(feet, axis=0)
     origin = centre - (centre @ up - level) * up
     ref = rig.cameras[rig.names.index(rig.reference)] if rig.reference else rig.cameras[0]
