@@ -226,7 +226,7 @@ def session_takes(paths: list[str]) -> dict[str, list[str]]:
             raise InputError(f"each take is a folder of one take's videos or pose JSON files; {path} is not one")
         files = take_files(folder)
         found = {folder.resolve().name: files} if files else {
-            sub.name: take_files(sub) for sub in sorted(folder.iterdir()) if sub.is_dir() and take_files(sub)}
+            sub.name: views for sub in sorted(folder.iterdir()) if sub.is_dir() for views in [take_files(sub)] if views}
         if not found:
             raise InputError(f"{path} holds no take: give folders of videos or pose JSON files (one folder per take, "
                              f"or {TRIAL_VIEWS}/ inside it), or a session folder of them")

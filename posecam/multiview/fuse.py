@@ -44,13 +44,14 @@ from posecam.multiview.sync import SyncResult, synchronise
 from posecam.multiview.take_check import check_take
 from posecam.multiview.motion_sync import holds_still
 from posecam.multiview.world import below_floor, floor_world
+from posecam.results import Frame, Person, Recording
+from posecam.skeleton import skeleton_of
 
+# why a take in which nobody moves is refused without a calibration, and what would fuse it
 STILL_TAKE = ("nobody moves in this take (a static trial?): nothing pins the views' offsets, and the cameras poorly; "
               "calibrate the cameras from the session's takes in which people move, this one among them (posecam "
               "calibrate TAKE... -o rig.toml), and fuse it through that rig (--calibration rig.toml); or give the "
               "views' --offsets to estimate the cameras from the still people alone")
-from posecam.results import Frame, Person, Recording
-from posecam.skeleton import skeleton_of
 
 
 @dataclass
