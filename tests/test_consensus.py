@@ -252,15 +252,21 @@ def test_camera_spread_counts_a_joint_bias_of_the_detector(estimated):
     spreads come from a bootstrap over joints and blocks of frames
     (posecam.multiview.calibrate.bootstrap_spreads), so they grow with such a bias (plain
     Gauss-Newton ones would shrink with the frames as if it averaged out) and are of the size of
-    the rotation error it causes (1.4-2.0 deg against 1.6-2.1 deg here)."""
-    cams, plain = estimated
+    the rotation error it causes (2.9-4.9 deg against 1.5-2.1 deg here). Measured on an adjustment
+    of 14 joints (the hips left out): with the default's 10 (posecam.multiview.options.LEFT_OUT)
+    this independent bias per joint gives spreads of 3.8-5.9 deg against errors of 0.8-3.3, 2.4x;
+    on Pose2Sim's takes, whose bias is not independent, they cover 103 of 112 errors within
+    2 sd at a median error of 0.88 sd (docs/benchmarks.md)."""
+    cams = estimated[0]
+    hips = BundleOptions(max_frames=150, left_out=("mid_hip", "r_hip", "l_hip"))
     recs = monocular_views(cams, skeleton_motion(150))
+    plain = fuse_recordings(recs, FuseOptions(sync=False, bundle_options=hips))
     bias = np.random.default_rng(7).normal(0.0, 8.0, (len(recs), len(recs[0].joints), 2))   # px
     for r, b in zip(recs, bias):
         for f in r.frames:
             for p in f.people:
                 p.keypoints_2d = p.keypoints_2d + b
-    biased = fuse_recordings(recs, FuseOptions(sync=False, bundle_options=BundleOptions(max_frames=150)))
+    biased = fuse_recordings(recs, FuseOptions(sync=False, bundle_options=hips))
     errors = [relative_rotation_error_deg(cams[0].rotation, true.rotation, np.eye(3), est.rotation)
               for true, est in zip(cams[1:], biased.rig.cameras[1:])]
     spreads = [rep.spread.rotation_deg for rep in biased.cameras[1:]]
