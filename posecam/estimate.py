@@ -28,6 +28,7 @@ import numpy as np
 from posecam.analysis.doubts import DoubtStage
 from posecam.errors import InputError, ModelError, warn
 from posecam.analysis.filters import StreamingSmoother
+from posecam.analysis.sides import SideStage
 from posecam.scale.metric import MetricOptions, MetricStage
 from posecam.geometry.boxes import box_iou, boxes_overlap
 from posecam.geometry.camera import Intrinsics
@@ -154,7 +155,8 @@ class FileStream:
     def poses(self, taps: Mapping[str, OnFrame | None] | None = None) -> Iterator[Frame]:
         """The input's frames through the rest of the chain (`options`): each frame's people
         have their doubts marked (posecam.analysis.doubts; a video's frames come JUMP_WINDOW s
-        late), then, with `options.metric`, each track's metric scale (posecam.scale.metric:
+        late), each track's frames whose sides the pose model swapped relabelled
+        (posecam.analysis.sides; LAG s late), then, with `options.metric`, each track's metric scale (posecam.scale.metric:
         `recording.intrinsics` is the lens the frames were solved with when the first comes out,
         `recording.floor` the ground plane at the end; what it warns of is in `notes` and is
         warned, as posecam.errors.warn does, once the last frame is out), then, with
@@ -169,6 +171,7 @@ class FileStream:
         images = _Images(self.media) if written else None
         frames: Iterator[Frame] = (frame for frame, _ in _tapped(self._doubted(), taps.get("confirm"), self.media,
                                                                  images))
+        frames = self._sided(frames)
         if self.options.metric:
             frames = self._scaled(frames, self.options.metric)
         if self.options.smooth and self.media.kind not in ("image", "stream"):
@@ -191,6 +194,14 @@ class FileStream:
         for frame, rgb in self.frames:
             yield from doubts.push(frame, (frame, rgb))
         yield from doubts.flush()
+
+    def _sided(self, frames: Iterator[Frame]) -> Iterator[Frame]:
+        """The sides stage: each track's frames whose sides the pose model swapped, relabelled
+        (posecam.analysis.sides; a video's frames come LAG s late)."""
+        sides: SideStage[Frame] = SideStage(self.recording, self.media.kind != "image")
+        for frame in frames:
+            yield from sides.push(frame, frame)
+        yield from sides.flush()
 
     def _scaled(self, frames: Iterator[Frame], options: MetricOptions) -> Iterator[Frame]:
         """The metric stage: frames at their tracks' metric scale."""

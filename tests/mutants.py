@@ -353,6 +353,16 @@ MUTANTS = (
     Mutant("doubts: the root tested votes for its own steady path", "posecam/analysis/doubts.py",
            "(times <= time + self.window + 1e-6) & others", "(times <= time + self.window + 1e-6)",
            ("tests/test_doubts.py::test_a_root_is_tested_against_a_path_drawn_without_it",)),
+    # ---- left and right along a track -----------------------------------------------------------
+    Mutant("sides: every frame as the pose model labels it", "posecam/analysis/sides.py",
+           "        if state:\n", "        if False:\n",
+           ("tests/test_sides.py::test_the_frames_the_lab_sees_swapped_are_relabelled_and_no_other",)),
+    Mutant("sides: a track relabelled however much it moves", "posecam/analysis/sides.py",
+           "STEP_OF_APART = 0.2\n", "STEP_OF_APART = 10.0\n",
+           ("tests/test_sides.py::test_pedestrians_at_ten_frames_a_second_are_left_as_labelled",)),
+    Mutant("sides: the stage left out of predict's chain", "posecam/estimate.py",
+           "        frames = self._sided(frames)\n", "",
+           ("tests/test_sides.py::test_predict_gives_the_labs_sides_on_a_clip_the_pose_model_swaps",)),
     # ---- views lined up by given offsets --------------------------------------------------------
     Mutant("fuse: frames shared at given offsets counted from the wrong side", "posecam/multiview/take_check.py",
            "max(0.0, o_ref - o)", "max(0.0, o - o_ref)",
@@ -403,6 +413,7 @@ STAGES = (
     ("posecam/tracking/", (TRACKING, "tests/test_embedder.py", "tests/test_reid.py", "tests/test_reid_gate.py",
                            "tests/test_turned_views.py", "tests/test_lost_people.py")),
     ("posecam/analysis/doubts.py", ("tests/test_doubts.py",)),
+    ("posecam/analysis/sides.py", ("tests/test_sides.py",)),
 )
 
 
