@@ -9,7 +9,13 @@ import numpy as np
 
 from posecam.geometry.camera import Intrinsics
 from posecam.geometry.floor import Floor
-from posecam.skeleton import H36M, Skeleton, skeleton_of
+from posecam.skeleton import H36M, MIN_CONFIDENCE, Skeleton, skeleton_of
+
+# Cut off at the waist, BlazePose still draws a whole body into the picture: the hips (the root) at
+# full confidence on its lower part, the legs folded under them at a low one (scikit-image's
+# astronaut; examples/balance.jpg cut at the waist). So the hips count as seen only with a knee.
+HIP_ROLES = ("mid_hip", "r_hip", "l_hip")       # Skeleton.roles
+KNEE_ROLES = ("r_knee", "l_knee")
 
 
 @dataclass
@@ -54,6 +60,23 @@ class Person:
         """(J, 2) pixels and (J, 3) mm as observed, before any smoothing."""
         return (self.keypoints_2d if self.observed_2d is None else self.observed_2d,
                 self.keypoints_3d if self.observed_3d is None else self.observed_3d)
+
+    def seen(self, image_size: tuple[int, int] | None) -> np.ndarray:
+        """(J,) bool: the joints the pose model saw, as the pose files and the drawings say: a
+        confidence of MIN_CONFIDENCE or more and, where `image_size` (width, height) is given, the
+        2D keypoint on that image; the hips (the root) only with a knee seen too (HIP_ROLES).
+        The others (off the picture, hidden, invented) are guesses."""
+        seen = np.asarray(self.confidence, dtype=float) >= MIN_CONFIDENCE
+        if image_size is not None:
+            (width, height), (u, v) = image_size, np.asarray(self.keypoints_2d, dtype=float).T
+            seen &= (u >= 0) & (u < width) & (v >= 0) & (v < height)
+        if not seen[self._joints_of(KNEE_ROLES)].any():
+            seen[self._joints_of(HIP_ROLES)] = False
+        return seen
+
+    def _joints_of(self, roles: tuple[str, ...]) -> list[int]:
+        """The indices of the joints that play these roles in the person's skeleton (Skeleton.roles)."""
+        return [i for role in roles for i in self.skeleton.role(role)]
 
     @property
     def root(self) -> np.ndarray:
@@ -101,6 +124,13 @@ class Recording:
     frame_of_reference: str = "camera"   # "camera", "reference camera NAME" or "world"
     floor: Floor | None = None           # the ground plane under the people (posecam.scale.metric), camera frame
     cameras: list[dict] = field(default_factory=list)   # fused: what fusion says of each input camera
+
+    @property
+    def view_size(self) -> tuple[int, int] | None:
+        """(width, height) of the one image its people's joints were seen in (Person.seen); None
+        for fused poses, whose joints several cameras saw (one off the reference camera's image
+        may be in another's)."""
+        return (self.width, self.height) if self.frame_of_reference == "camera" else None
 
     @property
     def root_joint(self) -> str:

@@ -13,8 +13,9 @@ import numpy as np
 
 from posecam.errors import InputError
 
-# A pose model's joint counts (measures a skeleton, is triangulated, weighs, bounds a crop) from
-# this confidence up.
+# A pose model's joint counts (measures a skeleton, is triangulated, weighs, bounds a crop, is
+# written seen: posecam.results.Person.seen) from this confidence up: BlazePose gives the joints it
+# sees mostly 0.8 to 1, those it invents (hidden, out of the picture) mostly under 0.5.
 MIN_CONFIDENCE = 0.5
 
 # The 33 BlazePose landmarks, in model output order.

@@ -158,6 +158,7 @@ def test_a_closed_pipe_ends_quietly(tmp_path):
     read, write = os.pipe()
     os.close(read)                           # the reader left before the first byte
     r = subprocess.run([sys.executable, "-m", "posecam", "predict", DATA / "messi5.jpg", "--model", "lite",
+                        "--fx", "418",         # a lens given: no warning of an assumed one
                         "-o", tmp_path / "p.json"], stdout=write, stderr=subprocess.PIPE, text=True, timeout=300)
     os.close(write)
     assert r.returncode in (0, 141) and r.stderr == "", (r.returncode, r.stderr)

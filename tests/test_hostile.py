@@ -371,7 +371,8 @@ def test_a_signal_after_the_outputs_are_written_names_them(tmp_path, sig, code, 
     as the process ends): the signal ends it at once, with its code and the files it wrote."""
     flag, output = tmp_path / "ended", tmp_path / "p.json"
     proc = subprocess.Popen([sys.executable, "-c", _AFTER_THE_END, flag, "predict", DATA / "messi5.jpg",
-                             "--model", "lite", "-o", output], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                             "--model", "lite", "--fx", "418",   # a lens given: no warning of an assumed one
+                             "-o", output], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 120
     while time.time() < deadline and not flag.exists() and proc.poll() is None:
         time.sleep(0.05)
@@ -430,8 +431,8 @@ def _closed(redirect: str, *args, env: dict | None = None) -> subprocess.Complet
 @pytest.mark.parametrize("output", [(), ("-o", "p.json")], ids=["report-only", "with-file"])
 def test_a_closed_stdout_is_one_line_and_exit_4(tmp_path, output):
     """The report is an output: it cannot be printed, so nothing is written (as on a full disk)."""
-    r = _closed(">&-", "predict", DATA / "messi5.jpg", "--model", "lite", *(tmp_path / o if o.endswith(".json") else o
-                                                                             for o in output))
+    r = _closed(">&-", "predict", DATA / "messi5.jpg", "--model", "lite", "--fx", "418",   # no assumed lens to warn of
+                *(tmp_path / o if o.endswith(".json") else o for o in output))
     assert r.returncode == 4 and r.stderr.strip() == "posecam: error: cannot write to standard output: it is closed", r
     assert list(tmp_path.iterdir()) == []
 

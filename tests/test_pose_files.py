@@ -41,7 +41,7 @@ def test_csv_header_and_rows(tmp_path):
     path = tmp_path / "out.csv"
     write_poses(path, [_recording()])
     rows = list(csv.reader(path.open()))
-    assert rows[0] == list(CSV_HEADER) == "source,frame,person,joint,u,v,x,y,z,confidence,height,height_source,depth_sd,doubts".split(",")
+    assert rows[0] == list(CSV_HEADER) == "source,frame,person,joint,u,v,x,y,z,confidence,height,height_source,depth_sd,doubts,seen".split(",")
     assert len(rows) == 1 + 17 * 3
     assert rows[1][3] == "pelvis" and rows[18][2] == "1"
 

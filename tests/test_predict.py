@@ -57,7 +57,7 @@ def test_lab_intrinsics_put_the_subject_where_the_lab_sees_him(tmp_path):
     r = run_posecam("predict", EXAMPLES / "balance.jpg", "--intrinsics", EXAMPLES / "cam01_intrinsics.json", "-o", out)
     assert r.returncode == 0, r.stderr
     rows = list(csv.reader(out.open()))
-    assert rows[0] == "source,frame,person,joint,u,v,x,y,z,confidence,height,height_source,depth_sd,doubts".split(",")
+    assert rows[0] == "source,frame,person,joint,u,v,x,y,z,confidence,height,height_source,depth_sd,doubts,seen".split(",")
     pelvises = [r for r in rows[1:] if r[3] == "pelvis"]
     assert len(pelvises) == 2 and len(rows) == 1 + 2 * 17     # the man on the board, a bystander at the left edge
     pelvis = max(pelvises, key=lambda r: float(r[4]))          # the man: right of the bystander

@@ -1,7 +1,8 @@
 """Where the camera intrinsics come from: flags, a file, the photo's EXIF, or a default.
 
 Order: explicit `fx/fy/cx/cy` > `--intrinsics FILE` > EXIF FocalLengthIn35mmFilm > default
-(28 mm-equivalent lens, principal point at the image centre). `Intrinsics.source` records it.
+(28 mm-equivalent lens, principal point at the image centre; for a photo, with a warning).
+`Intrinsics.source` records it.
 """
 
 from __future__ import annotations
@@ -13,8 +14,8 @@ import re
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from posecam.geometry.camera import CameraCalibration, Intrinsics, distortion_tuple
-from posecam.errors import InputError
+from posecam.geometry.camera import DEFAULT_FOCAL_35MM, CameraCalibration, Intrinsics, distortion_tuple
+from posecam.errors import InputError, warn
 from posecam.io.calibration import is_calibration, is_filestorage, read_calibration
 from posecam.io.exif import focal_length_35mm
 from posecam.io.validate import MAX_PIXEL, Field, read_small, shown_value
@@ -250,4 +251,16 @@ def _resolve(opts: IntrinsicsOptions, width: int, height: int, image_path: str |
         f35 = focal_length_35mm(image_path)
         if f35:
             return Intrinsics.from_focal_35mm(f35, width, height, source="exif")
+        return _assumed_for_photo(image_path, width, height)
     return Intrinsics.default(width, height)
+
+
+def _assumed_for_photo(image_path: str | Path, width: int, height: int) -> Intrinsics:
+    """The default lens for a photo that names none, with a warning: a photo's people cannot
+    pin the focal length (posecam.scale.lens needs someone at two places), so its distances
+    are the default lens's, as far off as it is."""
+    k = Intrinsics.default(width, height)
+    warn(f"{image_path}: no lens given and no EXIF focal length: a {DEFAULT_FOCAL_35MM:g} mm-equivalent lens "
+         f"assumed (fx = {k.fx:.0f} px), and the absolute depth scales with it; give the lens with --intrinsics "
+         "FILE or --fx (--cx, --cy)")
+    return k

@@ -2,7 +2,7 @@
 
 JSON: {"posecam", "model", "joints", "root_joint", "inputs": [{"source", "width", "height", "frame",
 "intrinsics": {"fx", "fy", "cx", "cy", "source"[, "distortion"]}, "fps", "frames": [{"index", "time",
-"people": [{"id", "score", "bbox", "keypoints_2d", "keypoints_3d", "confidence", "root"[, "height",
+"people": [{"id", "score", "bbox", "keypoints_2d", "keypoints_3d", "confidence", "root", "unseen"[, "height",
 "height_source", "height_estimated", "height_sd", "depth_sd"][, "doubts"][, "views"][, "observed_2d", "observed_3d"]}], "dropped": [{"stage", "score",
 "bbox"}]}][, "floor": {"normal", "distance", "spread", "contacts", "tracks"}]}]}. The height fields (m; depth_sd in mm) are there when the
 person's metric scale was fixed (posecam.scale.metric); "floor" when a ground plane was fitted (camera
@@ -10,11 +10,14 @@ frame, mm). "doubts" lists, for a person whose pose may not be theirs, the check
 (posecam.analysis.doubts: "off_body", "root_jump", "bones"); absent for a sound pose. "views" (fused
 poses) is how many cameras were fused into the person in that frame: 1 is one camera's pose placed through
 the rig, not fused. Files without them (older posecam) read as before.
+"unseen" names the joints the pose model did not see (posecam.results.Person.seen: under MIN_CONFIDENCE,
+or off the image; fused poses: by confidence alone), [] when it saw all: guesses, whatever their
+place. Like "root" it follows from the other fields, so it is written, never read back.
 "observed_2d" and "observed_3d" are a smoothed person's keypoints as observed, before smoothing:
 what `posecam fuse` estimates the cameras, offsets and fused poses from, so that fusing the file
 is fusing the videos.
 CSV: one row per joint, header exactly CSV_HEADER (height and depth_sd empty where unknown;
-doubts the person's doubts joined by ";", empty for a sound pose).
+doubts the person's doubts joined by ";", empty for a sound pose; seen 1, or 0 for a joint in "unseen").
 With angles (`posecam predict --angles`, posecam.analysis.angles) each person also holds "angles": {name:
 degrees}, and the CSV gains one column per angle after CSV_HEADER's (the person's angles in that
 frame, repeated on each of its joint rows).
@@ -49,7 +52,7 @@ from posecam.skeleton import skeleton_of
 
 POSE_SUFFIXES = (".json", ".csv")   # the pose files posecam writes (and reads, .json)
 CSV_HEADER = ("source", "frame", "person", "joint", "u", "v", "x", "y", "z", "confidence", "height", "height_source",
-              "depth_sd", "doubts")
+              "depth_sd", "doubts", "seen")
 
 
 def _round(a: np.ndarray, digits: int) -> list:
@@ -67,7 +70,10 @@ def _csv_number(x: float, digits: int) -> str:
     return f"{x:.{digits}f}" if np.isfinite(x) else ""
 
 
-def person_to_dict(p: Person) -> dict:
+def person_to_dict(p: Person, view_size: tuple[int, int] | None) -> dict:
+    """One person as the JSON holds it; `view_size`: the image its joints were seen in
+    (Recording.view_size), which "unseen" is judged against."""
+    seen = p.seen(view_size)
     out = {
         "id": int(p.id),
         "score": _number(p.score, 4),
@@ -76,6 +82,7 @@ def person_to_dict(p: Person) -> dict:
         "keypoints_3d": _round(p.keypoints_3d, 1),
         "confidence": _round(p.confidence, 3),
         "root": _round(p.root, 1),
+        "unseen": [p.skeleton.joints[j] for j in np.flatnonzero(~seen)],
         **({"angles": {k: _number(v, 1) for k, v in p.angles.items()}} if p.angles is not None else {}),
     }
     if p.height_source:
@@ -103,8 +110,8 @@ def _header(r: Recording) -> dict:
     }
 
 
-def frame_to_dict(f: Frame) -> dict:
-    return {"index": f.index, "time": _number(f.time, 4), "people": [person_to_dict(p) for p in f.people],
+def frame_to_dict(f: Frame, view_size: tuple[int, int] | None) -> dict:
+    return {"index": f.index, "time": _number(f.time, 4), "people": [person_to_dict(p, view_size) for p in f.people],
             "dropped": [{"stage": d.stage, "score": _number(d.score, 4), "bbox": _round(d.bbox, 1)} for d in f.dropped]}
 
 
@@ -156,17 +163,19 @@ class PoseWriter:
         r = self._rec
         self._header_once()
         if self.fmt == "json":
-            self.out.write(("," if self._frames else "") + "\n   " + _dumps(frame_to_dict(f)))
+            self.out.write(("," if self._frames else "") + "\n   " + _dumps(frame_to_dict(f, r.view_size)))
         else:
             for p in f.people:
                 angles = tuple(_csv_number((p.angles or {}).get(a, np.nan), 1) for a in self.angles)
+                seen = p.seen(r.view_size)
                 for j, name in enumerate(r.joints):
                     u, v = p.keypoints_2d[j]
                     x, y, z = p.keypoints_3d[j]
                     self._csv.writerow((r.source, f.index, p.id, name, _csv_number(u, 2), _csv_number(v, 2),
                                         _csv_number(x, 1), _csv_number(y, 1), _csv_number(z, 1),
                                         _csv_number(p.confidence[j], 3), _csv_number(p.height, 3),
-                                        p.height_source, _csv_number(p.depth_sd, 1), ";".join(p.doubts)) + angles)
+                                        p.height_source, _csv_number(p.depth_sd, 1), ";".join(p.doubts),
+                                        int(seen[j])) + angles)
         self._frames += 1
 
     def close(self) -> None:

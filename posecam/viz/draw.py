@@ -10,6 +10,10 @@ from posecam.skeleton import skeleton_of
 
 LEFT, RIGHT, CENTRE = (66, 135, 245), (245, 130, 48), (60, 200, 90)  # RGB
 DOUBTED = (150, 150, 150)   # a pose with doubts (posecam.analysis.doubts): grey, its label marked "?"
+# a joint the pose model did not see (Person.seen: hidden, invented, off the picture) and its bones:
+# a hollow ring and thin dashes, light grey, so that a guess never looks like what was seen
+UNSEEN = (200, 200, 200)
+DASH = 3                    # an unseen bone's dashes and the gaps between them, in a seen bone's widths
 
 
 def _side_colour(name: str) -> tuple[int, int, int]:
@@ -55,27 +59,57 @@ def place_labels(sizes: list[tuple[int, int]], anchors: list[tuple[float, float]
     return corners
 
 
+def _pixel(uv: np.ndarray) -> tuple[int, int]:
+    return tuple(np.round(uv).astype(int))
+
+
+def _dashed_line(image: np.ndarray, a: np.ndarray, b: np.ndarray, colour: tuple[int, int, int], width: int,
+                 dash: int) -> None:
+    """A line from pixel a to pixel b in dashes `dash` px long, as far apart."""
+    length = float(np.linalg.norm(b - a))
+    for start in np.arange(0.0, length, 2 * dash):
+        end = min(start + dash, length)
+        cv2.line(image, _pixel(a + (b - a) * start / length), _pixel(a + (b - a) * end / length), colour, width,
+                 cv2.LINE_AA)
+
+
+def _label(p: Person, seen: np.ndarray) -> str:
+    """"#ID z=D m": the id ("?" after it: a pose with doubts) and the root's depth, which is a
+    guess where the pose model did not see the root ("root unseen")."""
+    root_unseen = not seen[list(p.skeleton.root_indices)].all()
+    return f"#{p.id}{'?' if p.doubts else ''} z={p.root[2] / 1000:.2f} m{', root unseen' if root_unseen else ''}"
+
+
 def draw_people(image_rgb: np.ndarray, people: list[Person], joints: tuple[str, ...],
                 min_confidence: float = 0.3) -> np.ndarray:
     """A copy of the image with each person's skeleton, id and root depth drawn on it; the
     labels stay inside the image and do not overlap. A pose with doubts is drawn grey, its
-    label "#ID? ..."."""
+    label "#ID? ..."; joints the pose model did not see (Person.seen) and their bones are drawn
+    UNSEEN, those under `min_confidence` not at all."""
     out = image_rgb.copy()
     skeleton = skeleton_of(joints)
     scale = max(out.shape[:2]) / 1000
     thick = max(1, round(3 * scale))
     font = 0.5 * scale + 0.15
-    for p in people:
+    seen_of = [p.seen((out.shape[1], out.shape[0])) for p in people]
+    for p, seen in zip(people, seen_of):
         uv = p.keypoints_2d
-        ok = p.confidence >= min_confidence
+        drawn = (p.confidence >= min_confidence) & np.isfinite(uv).all(axis=1)
         line = int(np.clip(round((p.bbox[3] - p.bbox[1]) / 40), 1, thick))   # a small person's joints stay apart
         for a, b in skeleton.bone_indices:
-            if ok[a] and ok[b]:
-                cv2.line(out, tuple(np.round(uv[a]).astype(int)), tuple(np.round(uv[b]).astype(int)),
-                         DOUBTED if p.doubts else _side_colour(joints[b]), line, cv2.LINE_AA)
-        for j in np.flatnonzero(ok):
-            cv2.circle(out, tuple(np.round(uv[j]).astype(int)), line + 1, (255, 255, 255), -1, cv2.LINE_AA)
-    labels = [f"#{p.id}{'?' if p.doubts else ''} z={p.root[2] / 1000:.2f} m" for p in people]
+            if not (drawn[a] and drawn[b]):
+                continue
+            if seen[a] and seen[b]:
+                cv2.line(out, _pixel(uv[a]), _pixel(uv[b]), DOUBTED if p.doubts else _side_colour(joints[b]), line,
+                         cv2.LINE_AA)
+            else:
+                _dashed_line(out, uv[a], uv[b], UNSEEN, max(1, line // 2), DASH * line)
+        for j in np.flatnonzero(drawn):
+            if seen[j]:
+                cv2.circle(out, _pixel(uv[j]), line + 1, (255, 255, 255), -1, cv2.LINE_AA)
+            else:
+                cv2.circle(out, _pixel(uv[j]), line + 2, UNSEEN, max(1, line // 2), cv2.LINE_AA)
+    labels = [_label(p, seen) for p, seen in zip(people, seen_of)]
     sizes, baselines = [], []
     for label in labels:
         (w, h), base = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, font, thick + 2)
