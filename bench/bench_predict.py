@@ -7,7 +7,7 @@
    single take's 100-frame 1080x1920 clip (`--camera`, cam01), and of MediaPipe 0.10.21's
    Python pose solution (same BlazePose network family, `model_complexity=1` = the full
    model) on the same clip. MediaPipe runs in a throwaway virtual environment
-   (.cache/mediapipe-venv, made on first use); each run is a fresh process, alternating the
+   (bench/mediapipe_peer.py: .cache/mediapipe-venv, made on first use); each run is a fresh process, alternating the
    two, and medians are printed.
 2. Accuracy: for each of the 4 demo cameras, with the lab calibration's intrinsics, the mean
    distance between posecam's root (pelvis) and the pelvis triangulated from all 4 views
@@ -37,8 +37,9 @@ import tempfile
 import time
 from pathlib import Path
 
+import mediapipe_peer  # the peer's side venv (bench/)
+
 REPO = Path(__file__).resolve().parent.parent
-MP_VENV = REPO / ".cache" / "mediapipe-venv"
 CAMERAS = ("cam01", "cam02", "cam03", "cam04")
 OFFSETS = {"cam01": 0, "cam02": -1, "cam03": 4, "cam04": 0}   # frames, vs cam01 (export/ASSETS.md)
 
@@ -75,15 +76,6 @@ def child_mediapipe(video: str) -> dict:
     return {"frames": frames, "seconds": seconds, "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}
 
 
-def ensure_mediapipe_venv() -> Path:
-    python = MP_VENV / "bin" / "python"
-    if not python.exists():
-        print("making the throwaway MediaPipe environment (once) ...", flush=True)
-        subprocess.run([sys.executable, "-m", "venv", str(MP_VENV)], check=True)
-        subprocess.run([str(python), "-m", "pip", "install", "-q", "mediapipe==0.10.21"], check=True)
-    return python
-
-
 def run_child(python: str, mode: str, *args: str, code: Path | None = None) -> dict:
     """A child process's figures; `code`: a checkout whose posecam/ it imports instead of this one."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(code), str(REPO)])} if code else None
@@ -92,7 +84,7 @@ def run_child(python: str, mode: str, *args: str, code: Path | None = None) -> d
 
 
 def speed(video: Path, runs: int, model: str, detector: str, others: dict[str, Path], before: Path | None = None) -> None:
-    mp_python = str(ensure_mediapipe_venv())
+    mp_python = str(mediapipe_peer.ensure_venv())
     codes = {"": None, " before": before} if before else {"": None}
     clips = {"posecam": video, **others}
     results: dict[str, list[dict]] = {"mediapipe": [], **{n + c: [] for n in clips for c in codes}}
