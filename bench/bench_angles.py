@@ -121,7 +121,7 @@ def cost(video: Path, runs: int) -> None:
     base = statistics.median(times["plain cv2 loop (before)"])
     for label, ts in times.items():
         print(f"{label:28s}{statistics.median(ts) * 1000:8.0f} ms  {100 * (statistics.median(ts) / base - 1):+6.1f} %")
-    rec = read_poses(REPO / ".cache" / "bench_smooth" / "Demo_SinglePerson" / "cam01_full.json")[0]
+    rec = read_poses(video.parent.parent / "cam01_full.json")[0]
     t = time.perf_counter()
     for _ in range(10):
         for f in rec.frames:

@@ -31,7 +31,7 @@ from posecam.results import Frame, Person, Recording
 from posecam.skeleton import MIN_CONFIDENCE, skeleton_of
 
 # Holding a frame back this long lets its track show whether a swap ends. The swaps of the
-# Pose2Sim takes' 24 views (60 frames/s) last 1-18 frames; a longer one costs more than the two
+# Pose2Sim takes' 8 views (60 frames/s) last 1-18 frames; a longer one costs more than the two
 # jumps it saves only past ~1-2 s (RELABEL_MM_S), so a longer wait would not undo more.
 LAG = 1.0                       # s
 # The price of relabelling one second of a track against the pose model, in mm of mean joint motion.
