@@ -220,7 +220,7 @@ def main() -> None:
     from export.assets import pose2sim_demo_path
 
     videos = {c: pose2sim_demo_path(f"videos/{c}.mp4") for c in CAMERAS}
-    others = {"two-person cam03": pose2sim_demo_path("videos/cam03.mp4").parents[2] / "Demo_MultiPerson/videos/cam03.mp4"}
+    others = {"two-person cam03": REPO / "examples" / "demo" / "multi" / "cam03.mp4"}   # examples/fetch_demo.py
     if a.vtest:
         others["vtest.avi"] = Path(a.vtest)
     speed(videos[a.camera], a.runs, a.model, a.detector, others, Path(a.before).resolve() if a.before else None)

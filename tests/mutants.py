@@ -363,6 +363,16 @@ MUTANTS = (
     Mutant("sides: the stage left out of predict's chain", "posecam/estimate.py",
            "        frames = self._sided(frames)\n", "",
            ("tests/test_sides.py::test_predict_gives_the_labs_sides_on_a_clip_the_pose_model_swaps",)),
+    # ---- what the pose model did not see --------------------------------------------------------
+    Mutant("unseen: the hips seen without a knee", "posecam/results.py",
+           "        if not seen[self._joints_of(KNEE_ROLES)].any():\n", "        if False:\n",
+           ("tests/test_unseen.py::test_joints_off_the_picture_or_invented_are_unseen_in_the_json",)),
+    Mutant("unseen: a joint off the picture seen", "posecam/results.py",
+           "            seen &= (u >= 0) & (u < width) & (v >= 0) & (v < height)\n", "            pass\n",
+           ("tests/test_unseen.py::test_joints_off_the_picture_or_invented_are_unseen_in_the_json",)),
+    Mutant("intrinsics: a photo's assumed lens not warned of", "posecam/io/intrinsics.py",
+           "        return _assumed_for_photo(image_path, width, height)\n", "",
+           ("tests/test_unseen.py::test_a_photo_without_exif_or_lens_warns_once_that_the_lens_is_assumed",)),
     # ---- views lined up by given offsets --------------------------------------------------------
     Mutant("fuse: frames shared at given offsets counted from the wrong side", "posecam/multiview/take_check.py",
            "max(0.0, o_ref - o)", "max(0.0, o - o_ref)",

@@ -110,7 +110,9 @@ def test_a_photo_without_exif_or_lens_warns_once_that_the_lens_is_assumed(tmp_pa
     run = run_posecam("predict", photo, "-o", out)
     assert run.returncode == 0, run.stderr
     k = json.loads(out.read_text())["inputs"][0]["intrinsics"]
-    (line,) = _lens_lines(run.stderr)
+    lines = _lens_lines(run.stderr)
+    assert len(lines) == 1, run.stderr
+    line = lines[0]
     assert line.startswith(f"posecam: warning: {photo}: ") and k["source"] == "default"
     assert "28 mm-equivalent" in line and f"fx = {k['fx']:.0f} px" in line and "--intrinsics" in line
 
