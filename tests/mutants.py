@@ -355,7 +355,7 @@ MUTANTS = (
            ("tests/test_doubts.py::test_a_root_is_tested_against_a_path_drawn_without_it",)),
     # ---- left and right along a track -----------------------------------------------------------
     Mutant("sides: every frame as the pose model labels it", "posecam/analysis/sides.py",
-           "        if state:\n", "        if False:\n",
+           "        if entry.doubted or not track.given:\n", "        if True:\n",
            ("tests/test_sides.py::test_the_frames_the_lab_sees_swapped_are_relabelled_and_no_other",)),
     Mutant("sides: a track relabelled however much it moves", "posecam/analysis/sides.py",
            "STEP_OF_APART = 0.2\n", "STEP_OF_APART = 10.0\n",
