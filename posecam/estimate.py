@@ -33,7 +33,7 @@ from posecam.scale.metric import MetricOptions, MetricStage
 from posecam.geometry.boxes import box_iou, boxes_overlap
 from posecam.geometry.camera import Intrinsics
 from posecam.geometry.triangulate import MIN_CONFIDENCE
-from posecam.inference.detector import Detection, MoveNetDetector, detect_any_turn, load_detector, load_second_look
+from posecam.inference.detector import Detection, detect_any_turn, load_detector
 from posecam.inference.embedder import load_embedder
 from posecam.inference.light import equalised, under_exposed
 from posecam.inference.pose_model import PoseCandidate, make_lifter, make_pose_model
@@ -45,7 +45,6 @@ from posecam.options import EstimatorOptions, PredictOptions
 from posecam.results import Dropped, Frame, Person, Recording
 from posecam.skeleton import BLAZEPOSE33, BLAZEPOSE_LANDMARKS, H36M_JOINTS, SKELETONS, blazepose_to_h36m, skeleton_of
 from posecam.tracking import ConfirmedIds, Track, Tracker, TrackerOptions, foreign_joints, number_people, oks
-from posecam.tracking.second_look import due, second_look
 
 MIN_PERSON_PX = 40    # the detector searches for people at least this tall (image pixels)
 # the presence a pose needs where the pose model looks again for someone lost (Tracker.probes):
@@ -241,9 +240,6 @@ class PoseEstimator:
         self.detector = load_detector(opts.detector, opts.threads, opts.min_detection_score, opts.detector_size,
                                       opts.device)
         self.min_detection_score = self.detector.start_score
-        # the second look for the people MoveNet misses (MoveNet reads the people it finds)
-        self.second_look = load_second_look(opts.threads, opts.device) \
-            if opts.second_look and isinstance(self.detector, MoveNetDetector) else None
         self.embedder = load_embedder(threads=opts.threads, device=opts.device) if opts.appearance else None
         pose = load_model(opts.model, opts.threads, device=opts.device)
         if pose.contract.kind in ("detector", "embedder"):
@@ -303,10 +299,6 @@ class PoseEstimator:
                 detections = self.detector(image_rgb, tiles=search.regions, whole=search.whole)
             else:                  # nobody followed: every tile, and people in any orientation
                 detections = detect_any_turn(self.detector, image_rgb, person_px)
-            if self.second_look is not None and due(tracker, run, tracker.fps):
-                tracker.looked_at = tracker.next_frame
-                detections = detections + second_look(self.second_look, self.detector, image_rgb, detections,
-                                                      [t.box for t in tracker.active()])
         tracks = tracker.begin_frame(detections, image_rgb, search)
         probes = tracker.probes(w, h)   # people just lost, looked for again where their motion puts them
         if not tracks and not probes:

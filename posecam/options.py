@@ -32,7 +32,6 @@ class EstimatorOptions:
     min_presence: float = 0.5           # drop a person whose pose model presence falls below
     redetect_every: int = 15            # frames between detector runs while nobody may be missing
     appearance: bool = True             # re-identify people by their looks (the bundled embedder); False: ids from motion alone
-    second_look: bool = False           # look again with NanoDet where someone followed is lost (no gain measured yet: off)
     threads: int | None = None
     device: str = "cpu"                 # "cpu" or "cuda" (onnxruntime-gpu's CUDA provider)
 

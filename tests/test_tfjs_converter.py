@@ -210,22 +210,3 @@ def test_quantised_weights_are_read_as_tfjs_reads_them(node_modules, tmp_path):
         np.testing.assert_array_equal(ours[name], r, err_msg=name)
 
 
-def test_nanodet_matches_tfjs(node_modules, tmp_path):
-    """NanoDet (the second look's detector) on a real photo, normalised as its training was
-    (BGR, ImageNet mean and std): the bundled ONNX file's six outputs are TF.js's to 1e-4."""
-    rgb = cv2.cvtColor(cv2.imread(str(DATA / "basketball2.png")), cv2.COLOR_BGR2RGB)
-    bgr = cv2.resize(rgb, (416, 416), interpolation=cv2.INTER_AREA)[..., ::-1].astype(np.float32)
-    x = ((bgr - [103.53, 116.28, 123.675]) / [57.375, 57.12, 58.395]).astype(np.float32).transpose(2, 0, 1)[None]
-    graph, _ = build.tfjs_sources("nanodet")
-    ref = run_tfjs(node_modules, graph, {"photo": np.ascontiguousarray(x)}, tmp_path)["photo"]
-    sess = ort.InferenceSession(str(build.MODELS_DIR / "nanodet_people.onnx"), providers=["CPUExecutionProvider"])
-    ours = dict(zip([o.name for o in sess.get_outputs()], sess.run(None, {"input_1": np.ascontiguousarray(x)})))
-    assert sorted(ref) == sorted(ours) and len(ours) == 6
-    assert max(ref[k][0, :, 0].max() for k in ("Identity", "Identity_1", "Identity_2")) > 0.5   # a person is found
-    for name, want in ref.items():
-        np.testing.assert_allclose(ours[name], want, rtol=0, atol=1e-4)
-
-
-def test_nanodet_rebuilds_the_bundled_file(tmp_path):
-    rebuilt = build.build("nanodet", tmp_path)
-    assert_same_onnx_model(rebuilt, build.MODELS_DIR / "nanodet_people.onnx")

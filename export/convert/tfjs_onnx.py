@@ -283,11 +283,6 @@ class _Builder:
             result = np.stack(args, axis=_attr(node, "axis", 0))
         elif op == "Reshape":
             result = args[0].reshape(args[1].astype(np.int64))
-        elif op == "SparseToDense":   # indices, dense shape, values, default
-            result = np.full(args[1].astype(np.int64), args[3], args[2].dtype)
-            index = args[0].astype(np.int64)
-            rows = index.reshape(-1, 1) if index.ndim < 2 else index      # (N, rank)
-            result[tuple(rows.T)] = args[2]
         else:
             return False
         self.known[f"{node['name']}:0"] = np.asarray(result)

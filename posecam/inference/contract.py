@@ -20,11 +20,6 @@ Every model is recognised from its `metadata_props`, never from its file name. K
     detector, movenet_multipose: "people" [1, P, 3 * K + 5]: per candidate K x (y, x, score) then
                                  ymin, xmin, ymax, xmax, score, all normalised to the input;
                                  ``posecam.joints`` names the K keypoints
-    detector, nanodet_gfl:       per stride s of 8, 16, 32 "scores_s" [1, C_s, 80] (COCO class
-                                 probabilities, person first) and "boxes_s" [1, C_s, 4 * B] (the
-                                 distances left, top, right, bottom from each cell's centre as
-                                 distributions over B bins of s px), cells row by row; the
-                                 input's channels are BGR; ``posecam.anchors`` {"strides", "bins"}
     landmarks:  "landmarks" [N, L*5], "presence" [N, 1], "world" [N, L*3]
     root_depth: "uv" [N, J, 2] crop pixels, "depth" [N, J] mm relative to the root,
                 "z_root" [N, 1] mm, "confidence" [N, J] in [0, 1]; a second input
@@ -50,13 +45,11 @@ CONTRACT_VERSION = "1"
 POSE_MODELS = {"lite": "blazepose_lite.onnx", "full": "blazepose_full.onnx", "heavy": "blazepose_heavy.onnx"}
 DETECTORS = {"movenet": "movenet_multipose.onnx", "blazepose": "blazepose_detector.onnx"}
 EMBEDDERS = {"mobilenetv2": "appearance_mobilenetv2.onnx"}
-SECOND_LOOKS = {"nanodet": "nanodet_people.onnx"}   # a general object detector's boxes of people (no keypoints)
 ON_REQUEST = ("heavy",)
 KINDS = ("detector", "landmarks", "root_depth", "embedder")
 DECODERS = {  # detector decoders and the outputs each needs
     "blazepose_ssd": ("boxes", "scores"),
     "movenet_multipose": ("people",),
-    "nanodet_gfl": tuple(f"{part}_{stride}" for stride in (8, 16, 32) for part in ("scores", "boxes")),
 }
 REQUIRED_OUTPUTS = {
     "landmarks": ("landmarks", "presence", "world"),

@@ -8,9 +8,6 @@ The decoder comes from the model's contract metadata (``posecam.decoder``), neve
 - ``blazepose_ssd`` (BlazePose's detector): a letterboxed square; each anchor regresses a box
   (about the head) and 4 keypoints: hip centre, full-body scale point, shoulder centre,
   upper-body scale point. The body ROI comes from the first two. Made for one near person.
-- ``nanodet_gfl`` (NanoDet, COCO's 80 classes: `NanoDetDetector`): a letterboxed square gives
-  boxes of people alone, no keypoints; not a detector for the tracker but a second look for the
-  people MoveNet misses (posecam.inference.second_look).
 """
 
 from __future__ import annotations
@@ -23,8 +20,7 @@ import numpy as np
 from posecam.errors import ModelError
 from posecam.geometry.boxes import box_area, box_iou
 from posecam.inference.roi import Roi, body_roi
-from posecam.inference.contract import SECOND_LOOKS
-from posecam.inference.session import MODELS_DIR, Model, load_model, to_input_tensor
+from posecam.inference.session import Model, load_model, to_input_tensor
 
 
 @dataclass(eq=False)
@@ -311,71 +307,6 @@ def oks(points_a: np.ndarray, conf_a: np.ndarray, points_b: np.ndarray, conf_b: 
 Detector = BlazePoseDetector | MoveNetDetector
 
 
-@dataclass(frozen=True)
-class PersonBox:
-    score: float
-    box: np.ndarray                # (4,) x0, y0, x1, y1 in image pixels
-
-
-class NanoDetDetector:
-    """NanoDet's boxes of people (its class 0): the image letterboxed into its square input
-    (centred, the padding at the input's mean), each cell's four side distances read as the
-    mean of their distributions over `bins` bins of its stride, one box kept per person (NMS)."""
-
-    def __init__(self, model: Model, min_score: float = 0.35, nms_iou: float = 0.5):
-        self.model = model
-        self.min_score, self.nms_iou = min_score, nms_iou
-        self.size = int(model.contract.input.size[0])
-        self.strides = [int(s) for s in model.contract.anchors["strides"]]
-        self.bins = int(model.contract.anchors["bins"])
-
-    def __call__(self, image_rgb: np.ndarray) -> list[PersonBox]:
-        h, w = image_rgb.shape[:2]
-        scale = self.size / max(h, w)
-        pad = (self.size - np.array([w, h]) * scale) / 2
-        m = np.array([[scale, 0, pad[0]], [0, scale, pad[1]]])
-        spec = self.model.contract.input
-        mean = tuple(float(v) * 255 for v in spec.mean)
-        bgr = cv2.warpAffine(np.ascontiguousarray(image_rgb[..., ::-1]), m, (self.size, self.size),
-                             flags=cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR, borderValue=mean)
-        out = self.model.run({spec.name: to_input_tensor(bgr[None], spec)})
-        scores, boxes = [], []
-        for stride in self.strides:
-            cells = self.size // stride
-            self.model.check_shapes(out, {f"scores_{stride}": (1, cells * cells, None),
-                                          f"boxes_{stride}": (1, cells * cells, 4 * self.bins)})
-            score = out[f"scores_{stride}"][0, :, 0].astype(np.float64)
-            keep = np.flatnonzero(score >= self.min_score)
-            if not len(keep):
-                continue
-            logits = out[f"boxes_{stride}"][0, keep].astype(np.float64).reshape(-1, 4, self.bins)
-            p = np.exp(logits - logits.max(axis=-1, keepdims=True))
-            dist = (p / p.sum(axis=-1, keepdims=True)) @ np.arange(self.bins) * stride
-            centre = (np.stack([keep % cells, keep // cells], axis=1) + 0.5) * stride
-            boxes.append(np.concatenate([centre - dist[:, :2], centre + dist[:, 2:]], axis=1))
-            scores.append(score[keep])
-        if not scores:
-            return []
-        score, box = np.concatenate(scores), (np.concatenate(boxes) - np.tile(pad, 2)) / scale
-        kept: list[int] = []
-        for i in np.argsort(-score):
-            if not kept or box_iou(box[i], box[kept])[0].max() <= self.nms_iou:
-                kept.append(int(i))
-        return [PersonBox(float(score[i]), box[i]) for i in kept]
-
-
-def load_second_look(threads: int | None = None, device: str = "cpu") -> NanoDetDetector:
-    """The bundled general detector (contract.SECOND_LOOKS) whose people are a second look."""
-    path = MODELS_DIR / SECOND_LOOKS["nanodet"]
-    if not path.exists():
-        raise ModelError(f"the second look's detector is not built in this install ({path}); "
-                         "build it with: python -m export.convert.build_models nanodet")
-    model = load_model(str(path), threads, kind="detector", device=device)
-    if model.contract.decoder != "nanodet_gfl":
-        raise ModelError(f"{path} is not a nanodet_gfl detector")
-    return NanoDetDetector(model)
-
-
 def load_detector(name_or_path: str, threads: int | None = None, min_score: float | None = None,
                   input_size: int | None = None, device: str = "cpu") -> Detector:
     """A bundled detector by name (see contract.DETECTORS) or a detector .onnx file, decoded as its
@@ -383,8 +314,6 @@ def load_detector(name_or_path: str, threads: int | None = None, min_score: floa
     `default_score`, kept as its `start_score`); MoveNet's detections down to WEAK_FRACTION of
     it are kept too (they keep tracks alive), BlazePose's from it (`min_score` of each)."""
     model = load_model(name_or_path, threads, kind="detector", device=device)
-    if model.contract.decoder == "nanodet_gfl":
-        raise ModelError(f"{model.path} finds boxes of people without keypoints: not a detector posecam tracks from")
     if model.contract.decoder == "movenet_multipose":
         return MoveNetDetector(model, MoveNetDetector.default_score if min_score is None else min_score, input_size)
     return BlazePoseDetector(model, BlazePoseDetector.default_score if min_score is None else min_score)

@@ -41,7 +41,6 @@ class Tracker:
         self.refused: list[Dropped] = []     # this frame's confident detections over max_people
         self._smallest: float | None = None  # height (px) of the smallest confirmed person so far
         self._lost_now: set[int] = set()     # ids of people followed whom the pose model lost since the last detector run
-        self.looked_at: int | None = None    # the last frame with a second look (posecam.tracking.second_look)
 
     def detector_run(self, width: int, height: int) -> DetectorRun | None:
         """Whether to run the detector on this frame (a `width` x `height` image), and for
