@@ -27,7 +27,6 @@ from typing import TYPE_CHECKING
 
 from posecam.errors import InputError, OutputError, PosecamError, Terminated, last_signal, note_signal
 from posecam.estimate import shared_estimator
-from posecam.analysis.filters import smooth_recording
 from posecam.io.atomic import (OutputSet, StagedOutputs, check_output, deferred_commit, remove_run_staging,
                                tagged_staging)
 from posecam.io.intrinsics import IntrinsicsOptions
@@ -104,7 +103,7 @@ def fuse_task(task: Task, options: FuseOptions, estimator: EstimatorOptions | No
               intrinsics: IntrinsicsOptions | None = None, calibration: str | None = None,
               chain: PredictOptions | None = None) -> str:
     """Fuse one take's views into its output, as `posecam fuse` does (`chain`: what the
-    videos' chain does; its `smooth` smooths the fused poses too)."""
+    videos' chain does)."""
     chain = chain or PredictOptions()
     from posecam.multiview.fuse import fuse_recordings   # scipy: only where fusion runs
     from posecam.views import load_views
@@ -114,7 +113,7 @@ def fuse_task(task: Task, options: FuseOptions, estimator: EstimatorOptions | No
                             chain=chain)
     fused = fuse_recordings(recordings, options).recording
     with OutputSet([task.output], task.inputs) as staged:
-        write_poses(staged.path(task.output), [smooth_recording(fused) if chain.smooth else fused])
+        write_poses(staged.path(task.output), [fused])
     return task.output
 
 

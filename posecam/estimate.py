@@ -40,7 +40,7 @@ from posecam.inference.pose_model import PoseCandidate, make_lifter, make_pose_m
 from posecam.inference.roi import Roi, past_border
 from posecam.inference.session import load_model
 from posecam.io.intrinsics import IntrinsicsOptions, resolve_intrinsics
-from posecam.io.media import DEFAULT_FPS, Media, open_media
+from posecam.io.media import DEFAULT_FPS, Media, expand_inputs, open_media
 from posecam.options import EstimatorOptions, PredictOptions
 from posecam.results import Dropped, Frame, Person, Recording
 from posecam.skeleton import BLAZEPOSE33, BLAZEPOSE_LANDMARKS, H36M_JOINTS, SKELETONS, blazepose_to_h36m, skeleton_of
@@ -478,6 +478,12 @@ class PoseEstimator:
         stream = self.stream_file(path, intrinsics, options)
         stream.recording.frames = list(stream.poses({"written": on_frame}))
         return stream.recording
+
+    def predict_files(self, paths: list[str | Path], intrinsics: IntrinsicsSource = None,
+                      options: PredictOptions | None = None) -> list[Recording]:
+        """`predict_file` of each input, a folder of photos taken as its photos, each its own
+        input (as `posecam predict photos/` takes it; a photo that cannot be read raises)."""
+        return [self.predict_file(p, intrinsics, options) for p in expand_inputs(paths)[0]]
 
 
 def _lens(intrinsics: IntrinsicsSource, width: int, height: int, image_path: Path | None = None) -> Intrinsics:

@@ -78,18 +78,25 @@ def load_views(inputs: list[str], options: EstimatorOptions | None = None, intri
     fusing them is fusing the pose files `posecam predict -o` writes of them. `on_frame(frame,
     rgb, media)` sees every frame as its ids are confirmed (progress bars). `chain.frames`: the
     part of every view to fuse (a pose file's frames are picked by their source index)."""
-    chain = chain or PredictOptions()
+    chain, fuse = chain or PredictOptions(), fuse or FuseOptions(calibration=rig)
     frames = chain.frames
+    check_lenses(calibration or rig, intrinsics)
+    if frames and frames.stride not in (None, "1") and (fuse.finds_offsets or any(fuse.offsets or [])):
+        raise InputError("--stride does not go with --sync auto or non-zero --offsets: the views' offsets would fall "
+                         "between the frames kept; use --start/--end alone")
     videos = [p for p in inputs if Path(p).suffix.lower() != ".json"]
     media = {p: open_media(p, frames) for p in videos}
     poses = {p: [select_frames(r, frames) for r in read_poses(p)] for p in inputs if p not in media}
     # every view's lens by one policy: a video's is predicted with, a pose file's lifted again through
     # (a calibration's camera re-lifts the poses it can; the flags and --intrinsics refuse the others)
     views = [v for path in inputs for v in ([(path, None)] if path in media else [(path, r) for r in poses[path]])]
-    if rig is not None and not calibration:     # a Rig without its file: the pose files keep their poses
-        views = [(path, r) for path, r in views if r is None]
-    lenses = view_intrinsics([path if r is None else r.source for path, r in views], intrinsics, calibration, rig,
-                             say_match=False)     # fuse's given cameras say it, once
+    sources = [path if r is None else r.source for path, r in views]
+    if rig is not None and not calibration:     # a Rig without its file: each view's camera sized to its images
+        sizes = [(media[path].width, media[path].height) if r is None else (r.width, r.height) for path, r in views]
+        names = rig.match_names([Path(p).stem for p in sources])[0]
+        lenses = [_rig_lens(rig, name, w, h) for name, (w, h) in zip(names, sizes)]
+    else:                                       # fuse's given cameras say how they matched, once
+        lenses = view_intrinsics(sources, intrinsics, calibration, rig, say_match=False)
     ks = {path: k for (path, r), k in zip(views, lenses) if r is None}
     relift = [r is not None and _gives_lens(k) and (rig is None or not unliftable(r)) for (_, r), k in zip(views, lenses)]
     if any(relift):
@@ -101,7 +108,7 @@ def load_views(inputs: list[str], options: EstimatorOptions | None = None, intri
         counts = [len(media[path].selected)] if path in media else [len(r.frames) for r in poses[path]]
         names += [Path(path).name] * len(counts)
         lengths += counts
-    check_lengths(names, lengths, fuse or FuseOptions())   # refused before any prediction; the fuse warns
+    check_lengths(names, lengths, fuse)   # refused before any prediction; the fuse warns
     if videos and estimator is None:
         estimator = shared_estimator(options)
     recordings = []
@@ -110,7 +117,19 @@ def load_views(inputs: list[str], options: EstimatorOptions | None = None, intri
     return recordings
 
 
-def _gives_lens(opts: IntrinsicsOptions) -> bool:
+def check_lenses(calibration: str | Rig | None, intrinsics: IntrinsicsOptions | None) -> None:
+    """Refuse a lens given twice: a calibration gives every view's, so no --intrinsics or --fx/--fy."""
+    if calibration is not None and intrinsics is not None and _gives_lens(intrinsics):
+        raise InputError("--calibration gives every camera's intrinsics; it does not go with --intrinsics or --fx/--fy")
+
+
+def _rig_lens(rig: Rig, camera: str, width: int, height: int) -> Intrinsics:
+    """The lens of `rig`'s camera `camera` for a view of this size (a Rig given without its file)."""
+    k = rig.camera_for(camera, width, height).intrinsics
+    return dataclasses.replace(k, source=f"calibration#{camera}")
+
+
+def _gives_lens(opts: IntrinsicsOptions | Intrinsics) -> bool:
     """Whether these options give a lens (flags, a file, a calibration's camera)."""
     return opts.fx is not None or opts.fy is not None or bool(opts.file)
 

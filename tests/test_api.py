@@ -138,3 +138,48 @@ def test_an_input_without_anyone_is_a_warning_to_an_api_caller_too(estimator, tm
                                                               f"above --min-detection-score {estimator.min_detection_score:g}"] * 2
     run = run_posecam("predict", photo, "-o", tmp_path / "f.json")
     assert [line for line in run.stderr.splitlines() if "no person" in line] == [f"posecam: warning: {lines[1]}"], run.stderr
+
+
+def test_fuse_recordings_with_its_defaults_is_the_fuse_command(tmp_path):
+    """The two-person take's four pose files (50 frames): `posecam fuse` with its defaults and
+    `fuse_recordings(read_poses(...), FuseOptions())` give the same fused joints (to the JSON's
+    rounding, angles included) and the same warnings."""
+    from posecam import FuseOptions, fuse_recordings
+
+    views = [DATA / "two_people_50f" / f"cam0{i}.json" for i in (1, 2, 3, 4)]
+    run = run_posecam("fuse", *views, "--angles", "-o", tmp_path / "fused.json")
+    assert run.returncode == 0, run.stderr
+    command = read_poses(tmp_path / "fused.json")[0]
+    result = fuse_recordings([read_poses(v)[0] for v in views], FuseOptions(angles=True))
+    assert _farthest(result.recording, command) <= TOLERANCE_MM
+    assert sum(len(f.people) for f in command.frames) >= 60
+    for fa, fb in zip(result.recording.frames, command.frames):
+        for p in fa.people:
+            q = next(q for q in fb.people if q.id == p.id)
+            assert p.angles.keys() == q.angles.keys() and p.angles
+            assert max(abs(p.angles[k] - q.angles[k]) for k in p.angles if np.isfinite(p.angles[k])) < 0.1
+    said = [line.removeprefix("posecam: warning: ") for line in run.stderr.splitlines() if "warning" in line]
+    assert said == result.warnings
+
+
+def test_predict_files_takes_a_folder_of_photos_as_the_command_does(estimator, tmp_path):
+    """`predict_files(["photos/"])` gives one recording per photo, as `posecam predict photos/ -o`
+    writes them; `predict_file("photos/")` refuses the folder and says why."""
+    from posecam.errors import InputError
+
+    folder = tmp_path / "photos"
+    folder.mkdir()
+    for name in ("messi5.jpg", "basketball2.png"):
+        (folder / name).write_bytes((DATA / name).read_bytes())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        recs = estimator.predict_files([folder])
+    run = run_posecam("predict", folder, "-o", tmp_path / "photos.json")
+    assert run.returncode == 0, run.stderr
+    command = read_poses(tmp_path / "photos.json")
+    assert [Path(r.source).name for r in recs] == [Path(r.source).name for r in command] == ["basketball2.png", "messi5.jpg"]
+    for r, c in zip(recs, command):
+        assert len(r.frames[0].people) == len(c.frames[0].people) >= 1
+        assert _farthest(r, c) <= TOLERANCE_MM
+    with pytest.raises(InputError, match="give each photo as an input"):
+        estimator.predict_file(folder)

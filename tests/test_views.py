@@ -149,3 +149,53 @@ def test_fuse_views_are_predicted_with_the_options_given(estimator):
     assert max(len(f.people) for f in default[1].frames) == 2
     assert max(len(f.people) for r in one for f in r.frames) == 1
     assert shared_estimator(EstimatorOptions(max_people=1)) is shared_estimator(EstimatorOptions(max_people=1))
+
+
+def test_a_rig_given_without_its_file_lifts_the_pose_files_as_its_file_does():
+    """load_views(rig=Rig) relifts each pose file through its camera, as the calibration's file
+    does: before, a Rig alone left the poses where the default lens had put them."""
+    from posecam.io.calibration import read_calibration
+
+    calib = DATA / "pose2sim_Calib_scene.toml"
+    views = [str(DATA / "two_people_50f" / f"cam0{i}.json") for i in (1, 2)]
+    rig = read_calibration(calib)
+    by_file = load_views(views, calibration=str(calib), rig=rig)
+    by_rig, as_read = load_views(views, rig=rig), load_views(views)
+    for f, r, a in zip(by_file, by_rig, as_read):
+        assert (r.intrinsics.fx, r.intrinsics.cx) == (f.intrinsics.fx, f.intrinsics.cx)
+        pairs = [(p, q, s) for fp, fq, fs in zip(f.frames, r.frames, a.frames)
+                 for p, q, s in zip(fp.people, fq.people, fs.people)]
+        assert len(pairs) >= 50
+        assert max(abs(p.keypoints_3d - q.keypoints_3d).max() for p, q, _ in pairs) < 1e-6
+        assert max(abs(p.keypoints_3d - s.keypoints_3d).max() for p, _, s in pairs) > 50   # the lens moved them
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    ({"intrinsics": IntrinsicsOptions(fx=1500.0)}, "--calibration gives every camera's intrinsics"),
+    ({"chain": "stride", "fuse": FuseOptions(sync=True)}, "--stride does not go with --sync auto"),
+])
+def test_the_library_refuses_what_the_command_refuses(kwargs, words):
+    """The checks between options live in load_views, which the command and the API both call."""
+    from posecam.io.calibration import read_calibration
+    from posecam.io.media import FrameSelection
+    from posecam.options import PredictOptions
+
+    views = [str(DATA / "two_people_50f" / f"cam0{i}.json") for i in (1, 2)]
+    if kwargs.get("chain") == "stride":
+        kwargs = {**kwargs, "chain": PredictOptions(frames=FrameSelection(stride="2"))}
+    else:
+        kwargs = {**kwargs, "rig": read_calibration(DATA / "pose2sim_Calib_scene.toml")}
+    with pytest.raises(InputError, match=words):
+        load_views(views, **kwargs)
+
+
+def test_a_camera_name_not_in_the_calibration_is_named_with_the_closest(tmp_path):
+    """--camera cam01 on a calibration naming cam_01: the error names the flag's value and suggests."""
+    text = (DATA / "pose2sim_Calib_scene.toml").read_text().replace("int_cam01_img", "cam_01")
+    calib = tmp_path / "calib.toml"
+    calib.write_text(text)
+    run = run_posecam("predict", EXAMPLES / "balance.jpg", "--intrinsics", calib, "--camera", "cam01")
+    assert run.returncode != 0
+    assert run.stderr.strip().splitlines()[-1] == (
+        "posecam: error: --camera cam01: the calibration has no camera 'cam01' (its cameras: cam_01, int_cam02_img, "
+        "int_cam03_img, int_cam04_img); did you mean cam_01?")

@@ -15,6 +15,7 @@ from posecam.commands.common import (ESTIMATOR_FLAGS, angle_options, check_angle
                                      height_option, refuse_alone, refuse_typed, report_written, smooth_option,
                                      stdout_report, shown, warn)
 from posecam.errors import InputError
+from posecam.multiview.options import METHODS, FuseOptions
 
 if TYPE_CHECKING:
     from posecam.multiview.fuse import FusionResult
@@ -143,7 +144,7 @@ def parse_offsets(text: str) -> list[float]:
 @click.option("--calibration", type=click.Path(),
               help="Known cameras: an anipose/Pose2Sim calibration TOML or a Qualisys .qca.txt.")
 @click.option("--save-calibration", type=click.Path(), help="Write the cameras to FILE.toml (anipose/Pose2Sim).")
-@click.option("--method", type=click.Choice(["average", "triangulate"]), default="average", show_default=True,
+@click.option("--method", type=click.Choice(METHODS), default=FuseOptions.method, show_default=True,
               help="Average the monocular poses, or triangulate the 2D keypoints.")
 @click.option("--sync", type=click.Choice(["none", "auto"]),
               help="auto: estimate each video's frame offset against the first; none: the views started together. "
@@ -184,18 +185,17 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     from posecam.io.atomic import OutputSet
     from posecam.io.media import check_input
     from posecam.io.calibration import read_calibration, write_toml
-    from posecam.analysis.filters import smooth_recording
     from posecam.io.poses import POSE_SUFFIXES, write_poses
     from posecam.io.markers import MARKER_SUFFIXES, check_markers_output, write_markers
     from posecam.io.media import VIDEO_SUFFIXES
     from posecam.viz.sinks import PICTURE_SUFFIXES
     from posecam.scale.heights import Heights
     from posecam.multiview.fuse import fuse_recordings
-    from posecam.multiview.options import FuseOptions, finds_offsets
+    from posecam.multiview.options import finds_offsets
     from posecam.viz.render3d import VIEW3D_SUFFIXES, write_3d_view
     from posecam.analysis.angles import angle_names
     from posecam.options import PredictOptions
-    from posecam.views import check_views, load_views
+    from posecam.views import check_lenses, check_views, load_views
 
     err = Console(stderr=True, highlight=False)
     check_output(output, (*POSE_SUFFIXES, *MARKER_SUFFIXES), "output")
@@ -229,20 +229,17 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     selection = make_frame_selection(flags)
     if selection and many:
         raise InputError("--start, --end and --stride pick frames of one take; they do not go with --out-dir")
-    if calibration and (intrinsics.file or intrinsics.fx is not None or intrinsics.fy is not None):
-        raise InputError("--calibration gives every camera's intrinsics; it does not go with --intrinsics or --fx/--fy")
+    check_lenses(calibration, intrinsics)
     rig = read_calibration(calibration) if calibration else None
     asked = None if sync is None else sync == "auto"
     auto = finds_offsets(asked, rig is not None and rig.synchronised, bool(offsets))
     refuse_alone("max_offset", "--sync auto", auto)
-    if selection and selection.stride not in (None, "1") and (auto or any(offset_list or [])):
-        raise InputError("--stride does not go with --sync auto or non-zero --offsets: the views' offsets would fall "
-                         "between the frames kept; use --start/--end alone")
     staged = OutputSet([None if markers else output, save_calibration, viz, viz3d, plot],
                        [*inputs, calibration, intrinsics.file, estimator.model],
                        per_person=markers)  # every output checked before the work
-    opts = FuseOptions(calibration=rig, method=method, offsets=offset_list, sync=asked,
-                       max_offset=max_offset, heights=Heights.parse(heights), free_intrinsics=free_intrinsics)
+    opts = FuseOptions(calibration=rig, method=method, offsets=offset_list, sync=asked, max_offset=max_offset,
+                       heights=Heights.parse(heights), free_intrinsics=free_intrinsics, smooth=smooth,
+                       angles=bool(angles or plot))
     if many:
         from posecam.commands.many import fuse_many
 
@@ -257,12 +254,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
         result = fuse_recordings(recordings, opts, progress=lambda msg: status.update(msg))
     for line in result.warnings:
         warn(line)
-    fused = smooth_recording(result.recording) if smooth else result.recording
-    if angles or plot:
-        from posecam.analysis.angles import add_angles
-
-        for frame in fused.frames:
-            add_angles(frame, fused)
+    fused = result.recording
     with staged:  # every output or none
         written = write_markers(markers, fused, trc_y_up, staged) if markers else [output]
         if output and not markers:

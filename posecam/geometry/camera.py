@@ -5,6 +5,7 @@ Camera coordinates: millimetres, camera at the origin, x right, y down, z forwar
 
 from __future__ import annotations
 
+import difflib
 import re
 from dataclasses import asdict, dataclass, field, replace
 
@@ -315,7 +316,9 @@ class Rig:
         """The calibration's camera for one input (see `match`), sized to its images."""
         cam = self._named(name)
         if cam is None:
-            raise InputError(f"the calibration's cameras ({', '.join(self.names)}) do not match input {name!r}")
+            close = difflib.get_close_matches(name, self.names, n=1, cutoff=0.6)
+            raise InputError(f"the calibration has no camera {name!r} (its cameras: {', '.join(self.names)})"
+                             + (f"; did you mean {close[0]}?" if close else ""))
         return cam.for_image(name, width, height)
 
     def match_names(self, names: list[str]) -> tuple[list[str], str | None]:

@@ -217,7 +217,10 @@ def _from_toml(path: Path, camera: str | None, width: int, height: int) -> Intri
             raise InputError(f"{path} holds several cameras ({names}); choose one with --camera NAME")
         camera = rig.names[0]
     # the one policy posecam fuse uses too: name match, then crop/pad or resize to this input
-    cam = rig.camera_for(camera, width, height)
+    try:
+        cam = rig.camera_for(camera, width, height)
+    except InputError as exc:
+        raise InputError(f"--camera {camera}: {exc}") from None
     k = cam.intrinsics
     return Intrinsics(k.fx, k.fy, k.cx, k.cy, f"file:{path.name}#{camera}", distortion_tuple(cam.distortion))
 

@@ -44,6 +44,8 @@ from posecam.multiview.sync import SyncResult, synchronise
 from posecam.multiview.take_check import check_take
 from posecam.multiview.motion_sync import holds_still
 from posecam.multiview.world import below_floor, floor_world
+from posecam.analysis.angles import add_angles
+from posecam.analysis.filters import smooth_recording
 from posecam.results import Frame, Person, Recording
 from posecam.skeleton import skeleton_of
 
@@ -224,6 +226,10 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
         rep.unpinned = why
     recording = _to_recording(fused, rig, views.index(take.reference), recordings[take.reference])
     recording.cameras = [r.to_dict() for r in reports]
+    recording = smooth_recording(recording) if opts.smooth else recording
+    if opts.angles:
+        for frame in recording.frames:
+            add_angles(frame, recording)
     return FusionResult(recording, rig, sync.offsets, reports, views, list(dict.fromkeys(take.warnings + warnings)),
                         scale_source)
 

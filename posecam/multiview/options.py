@@ -10,6 +10,7 @@ from posecam.errors import InputError
 from posecam.geometry.camera import Rig
 from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.multiview.observations import Take
+from posecam.options import PredictOptions
 from posecam.scale.heights import Heights
 
 METHODS = ("average", "triangulate")    # FuseOptions.method: posecam.multiview.fuse_people
@@ -67,6 +68,9 @@ class FuseOptions:
     # estimate the intrinsics of the views whose poses were made with given ones (flags, a file, a
     # calibration: Intrinsics.given) too; by default those are held and only the cameras' poses estimated
     free_intrinsics: bool = False
+    # smooth each fused person's joints over time (zero-phase Butterworth, as PredictOptions.smooth)
+    smooth: bool = PredictOptions.smooth
+    angles: bool = False                   # give each fused person its joint angles (Person.angles)
 
     def __post_init__(self) -> None:
         if self.method not in METHODS:
