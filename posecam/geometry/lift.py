@@ -1,4 +1,4 @@
-"""Lifting a person into camera space: back-projection with known depths (paper eq. 4) and the
+"""Lifting a person into camera space: back-projection with known depths (paper eq. 3) and the
 closed-form root translation of a root-relative metric pose.
 
 Camera coordinates: millimetres, camera at the origin, x right, y down, z forward.
@@ -12,7 +12,7 @@ from posecam.geometry.camera import Intrinsics, undistort_pixels
 
 
 def back_project(uv: np.ndarray, z: np.ndarray, k: Intrinsics) -> np.ndarray:
-    """(..., 2) pixels and (...) depths -> (..., 3) camera-space points (paper eq. 4); the
+    """(..., 2) pixels and (...) depths -> (..., 3) camera-space points (paper eq. 3); the
     pixels are the image's, their lens distortion (k.distortion) undone first."""
     uv = undistort_pixels(uv, k)
     x = (uv[..., 0] - k.cx) * z / k.fx

@@ -5,7 +5,7 @@ kind's lifter places that output in camera space through a lens (`make_lifter`).
 - `LandmarkPoseModel` (kind "landmarks", BlazePose GHUM 3D): 2D landmarks in the crop plus a
   metric root-relative pose; `LandmarkLifter` solves the root translation from the pinhole model.
 - `RootDepthPoseModel` (kind "root_depth", the paper's ResNet-U): (u, v), relative depth d_i
-  and absolute root depth z_a; `RootDepthLifter`: z_i = d_i + z_a, then back-projection (paper eq. 4).
+  and absolute root depth z_a; `RootDepthLifter`: z_i = d_i + z_a, then back-projection (paper eq. 3).
 """
 
 from __future__ import annotations
@@ -121,7 +121,7 @@ class LandmarkLifter:
 class RootDepthLifter:
     """Kind "root_depth": z_i = d_i + z_a, z_a rescaled from the training camera's lens to this
     one by the focal length in image widths (z_a was learned for one camera), then each joint
-    back-projected (paper eq. 4)."""
+    back-projected (paper eq. 3)."""
 
     def __init__(self, contract: ModelContract):
         self.train_focal_widths = contract.train_focal / contract.train_image_width
