@@ -5,9 +5,9 @@ options of predict cost.
 
 1. Accuracy: every demo camera is predicted once with the lab calibration's intrinsics (the
    cached JSON that bench_smooth.py makes) and smoothed as `posecam predict` smooths it. The
-   yardstick: all 17 joints triangulated from the 4 views through the lab's Qualisys
-   calibration (a confidence-weighted DLT, the videos' offsets as measured), smoothed the same
-   way, and their angles in the calibration's Z-up world. Per angle: the median over frames of
+   yardstick (bench/yardsticks.py's `lab_joints`): all 17 joints triangulated from the 4 views
+   through the lab's Qualisys calibration (a confidence-weighted DLT, the videos' offsets as
+   measured), smoothed the same way, and their angles in the calibration's Z-up world. Per angle: the median over frames of
    |monocular - triangulated|, for each camera (camera frame: a level camera assumed) and for
    `posecam fuse` with the lab calibration; "+floor": the camera's poses with the vertical
    taken from the ground plane posecam fits under the feet (`angles_of(..., up=-floor.normal)`). The reference shares the 2D keypoints of the same
@@ -31,21 +31,15 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_predict import OFFSETS, _first_person  # noqa: E402
-from bench_smooth import lab_joints as lab_smooth_joints, predictions, take_file  # noqa: E402
+from common import take_file, wheel_predictions  # noqa: E402
+from yardsticks import OFFSETS, first_person, lab_joints  # noqa: E402
 
 from posecam.analysis.angles import angle_names, angles_of  # noqa: E402
-from posecam.analysis.filters import butterworth, smooth_recording  # noqa: E402
+from posecam.analysis.filters import smooth_recording  # noqa: E402
 from posecam.scale.metric import MetricOptions, scale_recording  # noqa: E402
 from posecam.skeleton import H36M_JOINTS  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
-
-
-def lab_joints(cams, recs) -> tuple[np.ndarray, int]:
-    """bench_smooth's lab triangulation of all 17 joints, smoothed at 6 Hz as posecam smooths."""
-    world, n = lab_smooth_joints(cams, recs)
-    return butterworth(world, 60.0), n
 
 
 def accuracy(cams, recs) -> None:
@@ -53,14 +47,14 @@ def accuracy(cams, recs) -> None:
     from posecam.multiview.fuse import fuse_recordings
     from posecam import FuseOptions
 
-    world, n = lab_joints(cams, recs)
+    world, n = lab_joints(cams, recs, smooth=True)
     want = angles_of(world, H36M_JOINTS, "world")
     names = angle_names(H36M_JOINTS)
     rows = {}
     floors = []
     for cam, rec in zip(cams, recs):
         start = OFFSETS[cam.name] - min(OFFSETS.values())
-        xyz = _first_person(smooth_recording(rec).frames[start:start + n], "keypoints_3d", (17, 3))
+        xyz = first_person(smooth_recording(rec).frames[start:start + n], "keypoints_3d", (17, 3))
         rows[f"{cam.name} alone"] = angles_of(xyz, H36M_JOINTS, "camera")
         floor = scale_recording(rec, MetricOptions()).floor      # the ground plane posecam fits
         floors.append((cam.name, xyz, floor))
@@ -72,7 +66,7 @@ def accuracy(cams, recs) -> None:
     fused = fuse_recordings(recs, FuseOptions(calibration=Rig(cams), offsets=[OFFSETS[c.name] for c in cams])).recording
     start = -min(OFFSETS.values())
     rows["fused (lab calibration)"] = angles_of(
-        _first_person(smooth_recording(fused).frames[start:start + n], "keypoints_3d", (17, 3)), H36M_JOINTS, "world")
+        first_person(smooth_recording(fused).frames[start:start + n], "keypoints_3d", (17, 3)), H36M_JOINTS, "world")
     print(f"\n== angles against the 4 views triangulated through the lab calibration ({n} frames): "
           "median |error| in degrees")
     print(f"{'angle':22s}" + "".join(f"{k[:12]:>13s}" for k in rows))
@@ -150,7 +144,7 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--cache", type=Path, default=REPO / ".cache" / "bench_smooth")
     a = ap.parse_args()
-    cams, recs = predictions("Demo_SinglePerson", 1, a.model, a.cache)
+    cams, recs = wheel_predictions("Demo_SinglePerson", 1, a.model, a.cache)
     accuracy(cams, recs)
     cost(take_file("Demo_SinglePerson", "videos/cam01.mp4", a.cache), a.runs)
 

@@ -8,10 +8,10 @@ default pipeline and the lab's intrinsics (cached as posecam JSON, unsmoothed), 
 - after: `posecam.scale.metric` with its defaults (one scale per track, the floor), then without the
   floor, then with `--height 1.72,1.21` (the heights of Pose2Sim's configuration of the takes);
   each unsmoothed and then smoothed as `posecam predict` does by default.
-Yardstick: the pelvis triangulated from the 4 views through the lab's Qualisys calibration with a
-plain DLT written here (undistorted points; the people of each view grouped across views, for
-each synchronised frame, as the sets of one person per view whose DLT reprojects within
-GATE_PX in every member view, most views and then lowest error first). Root error: mean 3D
+Yardstick (bench/yardsticks.py's `lab_people`): the pelvis triangulated from the 4 views through
+the lab's Qualisys calibration with a plain DLT (undistorted points; the people of each view
+grouped across views, for each synchronised frame, as the sets of one person per view whose DLT
+reprojects within GATE_PX in every member view, most views and then lowest error first). Root error: mean 3D
 distance (mm, each camera's frame) between posecam's root and that pelvis, over every person of
 every camera matched to a group. Heights: each track's estimated height against 1.72 / 1.21 m
 (who is who: the group's triangulated head-to-ankle length, adult above 1.25 m). vtest.avi
@@ -22,7 +22,7 @@ equivalent, 15 % short of the lab's), its people matched to the lab-lens predict
 pelvis (the same detector and 2D): depth error and its coverage by depth_sd.
 
 Edited views (`--edits`): each camera's video darkened to a quarter of its light, turned by 180
-deg and by 90 deg, or cut below row 1000 (bench/bench_hard_views.py's videos), predicted through
+deg and by 90 deg, or cut below row 1000 (bench_hard_views's videos: common.make_video), predicted through
 the lab's lens turned with it (a cut keeps the lens); a turn about the optical axis keeps every
 depth, so each person is scored against the plain views' DLT pelvis, matched by its projection
 (within GATE_PX of the person's pelvis turned back): mean depth error and how often it lies
@@ -32,24 +32,18 @@ within 1 and 2 depth_sd (a person without one counts as outside).
 from __future__ import annotations
 
 import argparse
-import itertools
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parent.parent
-CAMERAS = ("cam01", "cam02", "cam03", "cam04")
-OFFSETS = {"cam01": 0, "cam02": -1, "cam03": 4, "cam04": 0}   # frames, vs cam01 (bench_people.py)
+from common import QUARTERS, lab_predictions as predictions, make_video
+from yardsticks import (CAMERAS, GATE_PX, HEAD, OFFSETS, PELVIS, REPO, bone_chain, lab_cameras,
+                        lab_people)
+
 HEIGHTS = {"single": ("1.72",), "multi": ("1.72,1.21",)}   # as first assumed (the second person's measured one is added)
 TRUTH_M = {"adult": 1.72, "child": 1.21}
 ADULT_MM = 1720.0           # the adult's height (both takes), which the lab's statures are scaled by
-GATE_PX = 40.0
-LINK_MM = 400.0             # a person's pelvis moves less than this between synchronised frames
-PELVIS, HEAD, ANKLES = 0, 10, (3, 6)       # posecam's 17 joints
-LEGS = ((1, 2, 3), (4, 5, 6))              # hip, knee, ankle per side
-THORAX = 8
 # vtest.avi is View_001 of PETS 2009 (S2.L1: 768x576, 795 frames); the dataset's Tsai calibration of
 # that view (View_001.xml: focal 5.5549183034 mm, dpx 5.1273271277e-3 mm, dpy 4.65e-3 mm, sx
 # 1.0937855397) gives fx = focal sx / dpx and fy = focal / dpy in pixels
@@ -63,99 +57,6 @@ PETS = {"f": 5.5549183034, "dpx": 5.1273271277e-3, "dpy": 4.65e-3, "sx": 1.09378
 ANKLE_MM = 70.0             # the ankle keypoint's height above the ground (ANKLE_OF_STATURE of 1.7 m, rounded)
 MIN_TRACK_FRAMES = 20       # a track's frames with its stature measured, for the pose model's size
 EAR_OF_STATURE = 0.936      # the ears' height over the stature, upright (Drillis & Contini 1966, in Winter, fig. 4.1)
-
-
-def lab_cameras(take: str):
-    import cv2
-
-    from posecam.io.calibration import read_qualisys
-
-    folder = REPO / "examples" / "demo" / take
-    widths = {c: int(cv2.VideoCapture(str(folder / f"{c}.mp4")).get(cv2.CAP_PROP_FRAME_WIDTH)) for c in CAMERAS}
-    return read_qualisys(folder / "Calib.qca.txt", image_widths=widths)
-
-
-def predictions(take: str, cams, cache: Path):
-    """Per camera, posecam's unsmoothed recording with the lab intrinsics (default options)."""
-    from posecam import PoseEstimator, PredictOptions, read_poses, write_poses
-
-    recs = []
-    for cam in cams:
-        path = cache / f"{take}_{cam.name}_lab.json"
-        if not path.exists():
-            video = REPO / "examples" / "demo" / take / f"{cam.name}.mp4"
-            write_poses(path, [PoseEstimator().predict_file(video, cam.intrinsics, PredictOptions(smooth=False, metric=None))])
-        recs.append(read_poses(path)[0])
-    return recs
-
-
-def dlt(cams, members: list[tuple[int, np.ndarray]]) -> np.ndarray:
-    """One world point from (camera index, pixel) pairs: undistort, then the homogeneous DLT."""
-    rows = []
-    for c, uv in members:
-        x, y = cams[c].normalise(np.asarray(uv, float))
-        p = np.hstack([cams[c].rotation, cams[c].translation[:, None]])
-        rows += [x * p[2] - p[0], y * p[2] - p[1]]
-    _, _, vt = np.linalg.svd(np.array(rows))
-    return vt[-1, :3] / vt[-1, 3]
-
-
-def lab_people(cams, recs, take: str) -> list[dict]:
-    """The people of the 4 views grouped per synchronised frame (see the module's docstring) and
-    followed from frame to frame in the lab by their pelvis (the nearest within LINK_MM):
-    one dict per group, {"frame", "person" (a lab track, 0, 1, ...), "who", "members" [(camera
-    index, frame index, Person)], "world" {joint index: DLT point (lab mm, z up from the floor)}}.
-    Who is who (multi take): the person whose triangulated bone chain (ankle-knee-hip,
-    pelvis-thorax-ears, whatever the pose) is the longer, median over their frames, is the adult."""
-    lo = min(OFFSETS.values())
-    n = min(len(r.frames) for r in recs) - max(OFFSETS.values()) + lo
-    out = []
-    for i in range(n):
-        views = []
-        for c, (cam, rec) in enumerate(zip(cams, recs)):
-            f = rec.frames[OFFSETS[cam.name] - lo + i]
-            views.append([(c, f.index, p) for p in f.people if p.confidence[PELVIS] >= 0.3])
-        groups = []
-        for combo in itertools.product(*[[None, *v] for v in views]):
-            members = [m for m in combo if m is not None]
-            if len(members) < 3:
-                continue
-            world = dlt(cams, [(c, p.keypoints_2d[PELVIS]) for c, _, p in members])
-            err = [np.linalg.norm(cams[c].project(world) - p.keypoints_2d[PELVIS]) for c, _, p in members]
-            if max(err) < GATE_PX and all(cams[c].to_camera(world)[2] > 0 for c, _, _ in members):
-                groups.append((-len(members), float(np.mean(err)), members, world))
-        used = set()
-        for _, _, members, world in sorted(groups, key=lambda g: g[:2]):
-            keys = [(c, fi, p.id) for c, fi, p in members]
-            if used.intersection(keys):
-                continue
-            used.update(keys)
-            joints = {j: dlt(cams, [(c, p.keypoints_2d[j]) for c, _, p in members]) for j in range(len(members[0][2].confidence))}
-            out.append({"frame": i, "members": members, "world": joints})
-    tracks: list[tuple[int, np.ndarray]] = []       # (last frame, last pelvis) per lab track
-    for i in range(n):
-        here = [g for g in out if g["frame"] == i]
-        pairs = sorted((np.linalg.norm(g["world"][PELVIS] - last), k, t) for k, g in enumerate(here)
-                       for t, (f, last) in enumerate(tracks) if i - f <= 10)
-        for dist, k, t in pairs:
-            if dist < LINK_MM and "person" not in here[k] and tracks[t][0] < i:
-                here[k]["person"], tracks[t] = t, (i, here[k]["world"][PELVIS])
-        for g in here:
-            if "person" not in g:
-                g["person"] = len(tracks)
-                tracks.append((i, g["world"][PELVIS]))
-    chain = {t: np.median([bone_chain(g["world"]) for g in out if g["person"] == t]) for t in range(len(tracks))}
-    for g in out:
-        g["who"] = "adult" if take == "single" or chain[g["person"]] >= 0.9 * max(chain.values()) else "child"
-    return out
-
-
-def bone_chain(world: dict) -> float:
-    """The bone chain of one triangulated pose (mm): mean leg (hip-knee + knee-ankle),
-    pelvis-thorax, thorax-ears."""
-    length = lambda a, b: float(np.linalg.norm(world[a] - world[b]))   # noqa: E731
-    leg = np.mean([length(h, k) + length(k, a) for h, k, a in LEGS])
-    return leg + length(PELVIS, THORAX) + length(THORAX, HEAD)
 
 
 def reference(people: list[dict]) -> dict:
@@ -612,9 +513,6 @@ def unturned(uv: np.ndarray, width: int, height: int, quarters: int) -> np.ndarr
 def edited_bench(cache: Path, edits: list[str]) -> None:
     import cv2
 
-    sys.path.insert(0, str(REPO / "bench"))
-    import bench_hard_views as hv   # the edited videos
-
     from posecam import PoseEstimator, PredictOptions, read_poses, write_poses
     from posecam.scale.heights import Heights
     from posecam.scale.metric import MetricOptions, scale_recording
@@ -629,14 +527,14 @@ def edited_bench(cache: Path, edits: list[str]) -> None:
         people = lab_people(cams, plain, take)
         lo = min(OFFSETS.values())
         for edit in ["plain", *edits]:
-            quarters = hv.QUARTERS.get(edit, 0)
+            quarters = QUARTERS.get(edit, 0)
             recs = []
             for cam in cams:
                 if edit == "plain":
                     recs = plain
                     break
                 video = REPO / ".cache" / "videos" / take / edit / f"{cam.name}.mp4"
-                hv.make_video(take, cam.name, edit, video)
+                make_video(take, cam.name, edit, video)
                 path = cache / f"{take}_{cam.name}_{edit}_lab.json"
                 if not path.exists():
                     cap = cv2.VideoCapture(str(REPO / "examples" / "demo" / take / f"{cam.name}.mp4"))

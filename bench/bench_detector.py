@@ -9,7 +9,7 @@ frame of the ONNX model alone (median over the frames, onnxruntime on --threads 
 --repeat N times the models only, interleaved, N runs each (min / p25 / median): the numbers
 to quote from a machine that other work shares.
 --draw writes every --draw-every-th frame with the boxes and keypoints drawn, to look at.
---hand-counts (with vtest.avi as --video): on the 14 frames counted by hand in bench_people.py
+--hand-counts (with vtest.avi as --video): on the 14 frames counted by hand in bench/yardsticks.py
 (VTEST_PEOPLE, every person at least 40 px tall), the people found (a detection at posecam's
 start score whose box centre lies within half the person's height of the mark, Hungarian) and
 the milliseconds of the search, --repeat times interleaved (medians): posecam's search (the
@@ -150,7 +150,7 @@ def hand_counts(video: str, sizes: list[int], repeat: int) -> None:
     from scipy.optimize import linear_sum_assignment
 
     sys.path.insert(0, str(REPO / "bench"))
-    from bench_people import VTEST_MATCH, VTEST_PEOPLE
+    from yardsticks import VTEST_MATCH, VTEST_PEOPLE
     from posecam.inference.detector import load_detector
 
     clip = {k: cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB) for k, bgr in frames(video, 0, 1) if k in VTEST_PEOPLE}

@@ -8,8 +8,8 @@ people's legs, or more, out of view; its lens unchanged), the other three as fil
 Each edited video is written once to --cache (.cache/bench_hard_views) and predicted with the
 default `posecam predict`; the four views are fused as a new user does it (no calibration, the
 defaults) and through the lab's Qualisys calibration (`--sync auto`). The yardstick is
-bench/bench_fuse.py's (the lab rig, the truth offsets, a plain DLT of the pelvis; its predictions
-of the plain videos cached in --fuse-cache): a turned camera's estimated rotation and position
+bench_fuse's (bench/yardsticks.py's `Truth`: the lab rig, the truth offsets, a plain DLT of the
+pelvis; its predictions of the plain videos cached in --fuse-cache): a turned camera's estimated rotation and position
 are turned back before they are scored (the turn is a rotation about its optical axis), and so
 is the fused pelvis when the turned camera is the reference. Per case: the cameras kept, the
 median and worst rotation against the lab's, the worst focal length error, the fused pelvis
@@ -30,50 +30,21 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import bench_fuse as bf  # noqa: E402  (the yardstick: lab rig, truth offsets, plain DLT)
+from common import QUARTERS, make_video, predict_take, written_pelvis  # noqa: E402
+from yardsticks import CAMERAS, REPO as ROOT, Truth, lab_calibration  # noqa: E402
 
-ROOT = bf.ROOT
-# np.rot90 quarter turns of each edit, and the rotation it makes about the optical axis (x right,
+# each edit's np.rot90 quarter turns (QUARTERS) make a rotation about the optical axis (x right,
 # y down): a turn of k quarters anticlockwise in the image maps camera axes by TURNS[k]
-QUARTERS = {"turn180": 2, "turn90": 1, "dark": 0, "night": 0, "cut": 0}
 TURNS = {0: np.eye(3), 1: np.array([[0.0, 1, 0], [-1, 0, 0], [0, 0, 1]]), 2: np.diag([-1.0, -1, 1])}
-LIGHT = {"dark": 0.25, "night": 0.06}   # the light left in a darkened video
-CUT_ROWS = 1000      # a cut video keeps its top rows: the people's legs below them are out of view
-
-
-def make_video(take: str, cam: str, edit: str, out: Path) -> None:
-    import cv2
-
-    if out.exists():
-        return
-    out.parent.mkdir(parents=True, exist_ok=True)
-    cap = cv2.VideoCapture(str(ROOT / bf.TAKES[take][0] / f"{cam}.mp4"))
-    fps, frames = cap.get(cv2.CAP_PROP_FPS), []
-    while True:
-        ok, f = cap.read()
-        if not ok:
-            break
-        f = np.rot90(f, QUARTERS[edit]) if QUARTERS[edit] else f
-        f = (f * LIGHT[edit]).astype(np.uint8) if edit in LIGHT else f[:CUT_ROWS] if edit == "cut" else f
-        frames.append(np.ascontiguousarray(f))
-    h, w = frames[0].shape[:2]
-    tmp = out.with_suffix(".tmp.mp4")
-    writer = cv2.VideoWriter(str(tmp), cv2.VideoWriter_fourcc(*"mp4v"), fps, (w, h))
-    for f in frames:
-        writer.write(f)
-    writer.release()
-    tmp.rename(out)
 
 
 def fuse_case(jsons: list[Path], lab: bool) -> dict:
     """One fuse of the four pose JSON with this process's posecam: the figures bench_fuse scores."""
     from posecam import FuseOptions, fuse_recordings, read_poses
     from posecam.errors import PosecamError
-    from posecam.io.calibration import read_calibration
 
     recs = [read_poses(p)[0] for p in jsons]
-    kw = {"calibration": read_calibration(ROOT / "examples/demo" / jsons[0].parent.name / "Calib.qca.txt"),
-          "sync": True} if lab else {}
+    kw = {"calibration": lab_calibration(jsons[0].parent.name), "sync": True} if lab else {}
     try:
         res = fuse_recordings(recs, FuseOptions(**kw))
     except PosecamError as exc:
@@ -82,7 +53,7 @@ def fuse_case(jsons: list[Path], lab: bool) -> dict:
     return {"frame": "world" if lab else "camera", "cameras_names": [c.name for c in cams],
             "R": [c.rotation.tolist() for c in cams], "t": [c.translation.tolist() for c in cams],
             "fx": [c.intrinsics.fx for c in cams], "offsets_kept": [res.offsets[v] for v in res.views],
-            "warnings": res.warnings, "pelvis": bf.written_pelvis(res),
+            "warnings": res.warnings, "pelvis": written_pelvis(res),
             "spreads": [[r.spread.rotation_deg, r.spread.focal_pct] if r.spread is not None else None
                         for r in res.cameras],
             "pinned": [r.unpinned is None for r in res.cameras]}
@@ -92,7 +63,7 @@ def run_cases(takes: list[str], edits: list[str], cache: Path, fuse_cache: Path)
     """Predict every edited video and fuse each case, with this process's posecam."""
     out = {}
     for take in takes:
-        for cam in bf.NAMES:
+        for cam in CAMERAS:
             for edit in edits:
                 video = cache.parent / "videos" / take / edit / f"{cam}.mp4"      # one set for every code
                 make_video(take, cam, edit, video)
@@ -103,11 +74,11 @@ def run_cases(takes: list[str], edits: list[str], cache: Path, fuse_cache: Path)
                 # the fuse reads the take's folder name for its calibration: link the plain views beside
                 folder = cache / "fuse" / take / edit / cam / take
                 folder.mkdir(parents=True, exist_ok=True)
-                for n in bf.NAMES:
+                for n in CAMERAS:
                     link = folder / f"{n}.json"
                     link.unlink(missing_ok=True)
                     link.symlink_to(poses if n == cam else fuse_cache / take / f"{n}.json")
-                jsons = [folder / f"{n}.json" for n in bf.NAMES]
+                jsons = [folder / f"{n}.json" for n in CAMERAS]
                 out[f"{take} {edit} {cam}"] = {"defaults": fuse_case(jsons, False), "lab": fuse_case(jsons, True)}
     return out
 
@@ -127,7 +98,7 @@ def turned_back(run: dict, cam: str, edit: str) -> dict:
     return run
 
 
-def show(runs: dict[str, dict], truths: dict[str, bf.Truth]) -> None:
+def show(runs: dict[str, dict], truths: dict[str, Truth]) -> None:
     for case in next(iter(runs.values())):
         take, edit, cam = case.split()
         print(f"-- {case}")
@@ -144,7 +115,7 @@ def show(runs: dict[str, dict], truths: dict[str, bf.Truth]) -> None:
                       + "".join(f"\n      warning: {w}" for w in r["warnings"]))
 
 
-def coverage(runs: dict, truth: dict[str, bf.Truth]) -> None:
+def coverage(runs: dict, truth: dict[str, Truth]) -> None:
     """Whether the spreads posecam reports cover the errors on these cases (the defaults' estimated
     rigs): per camera but the reference, its rotation relative to the reference's against the
     lab's, and its focal length where estimated, each within 2 reported standard deviations;
@@ -191,7 +162,7 @@ def main() -> None:
         a.json.write_text(json.dumps(run_cases(takes, edits, cache, fuse_cache)))
         return
     for take in takes:
-        bf.predict(fuse_cache, take)
+        predict_take(fuse_cache, take)
     runs = {}
     for code, path in ([("before", a.before.resolve())] if a.before else []) + [("after", ROOT)]:
         out = cache / f"runs_{code}.json"
@@ -200,7 +171,7 @@ def main() -> None:
             subprocess.run([sys.executable, str(Path(__file__).resolve()), "--json", str(out), "--take", a.take, "--edits", a.edits,
                            "--cache", str(cache / code), "--fuse-cache", str(fuse_cache)], env=env, check=True, cwd=path)
         runs[code] = json.loads(out.read_text())
-    truths = {take: bf.Truth(take, fuse_cache) for take in takes}
+    truths = {take: Truth(take, fuse_cache) for take in takes}
     show(runs, truths)
     for code, res in runs.items():
         if any("spreads" in r["defaults"] for r in res.values()):

@@ -10,8 +10,9 @@
    the lab's Qualisys calibration), each camera run with the lab intrinsics. The reference
    for camera C comes from the OTHER three cameras only: MoveNet MultiPose keypoints of every
    person in each view (at a larger input, 384 px), associated across views by triangulation
-   through the lab calibration (a set of detections, one per view, whose triangulated joints
-   reproject within a gate), then the pelvis (hip midpoint) triangulated from the other views.
+   through the lab calibration (bench/yardsticks.py's `weighted_dlt`; a set of detections, one
+   per view, whose triangulated joints reproject within a gate), then the pelvis (hip midpoint)
+   triangulated from the other views.
    A person is visible in C when that pelvis projects inside C's image. Per camera:
    - recall: visible reference people matched by a posecam person (2D pelvis within 10 % of the
      image height of the projected reference pelvis, Hungarian), over visible reference people;
@@ -22,7 +23,7 @@
    The videos are not frame-synchronised: the offsets (frames vs cam01) are checked here, from
    the reprojection error of the cross-view association for each candidate offset.
 2. OpenCV's vtest.avi (768x576 pedestrians, 795 frames, `apt-get download opencv-doc`), against
-   counts by hand (VTEST_PEOPLE below: on 14 frames spread over the clip, every person at least
+   counts by hand (bench/yardsticks.py's VTEST_PEOPLE: on 14 frames spread over the clip, every person at least
    40 px tall, its centre and height, read off the frames written out as pictures):
    - found: hand-counted people matched by a posecam person (its box centre within half the
      person's height of the hand-marked centre, Hungarian), over those in view;
@@ -69,38 +70,14 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import linear_sum_assignment
 
+from yardsticks import (CAMERAS, OFFSETS, VTEST_DISTINCT, VTEST_MATCH, VTEST_PEOPLE, read_lab, reprojection_px,
+                        weighted_dlt)
+
 REPO = Path(__file__).resolve().parent.parent
-CAMERAS = ("cam01", "cam02", "cam03", "cam04")
-OFFSETS = {"cam01": 0, "cam02": -1, "cam03": 4, "cam04": 0}   # frames, vs cam01
 DEMO = "Pose2Sim/Demo_MultiPerson"
 REFERENCE_SIZE = 384
 GATE_PX = 40.0          # mean reprojection error (px) for detections of one person across views
 MATCH = 0.10            # posecam-to-reference 2D match gate, in image heights
-
-# vtest.avi, counted by hand: frame -> people at least 40 px tall, each (x, y) the centre of the
-# body and its height, in pixels.
-VTEST_PEOPLE = {
-    0: [(267, 265, 88), (515, 195, 75), (663, 280, 80)],
-    60: [(374, 205, 65), (388, 222, 75), (412, 225, 70), (485, 245, 85), (517, 240, 80), (632, 285, 105)],
-    100: [(362, 237, 75), (392, 218, 75), (437, 220, 75), (506, 185, 70), (528, 185, 65), (603, 195, 75)],
-    180: [(213, 195, 65), (378, 250, 80), (515, 265, 85), (605, 262, 90), (600, 165, 70), (688, 128, 55),
-          (711, 130, 50)],
-    240: [(50, 210, 65), (250, 193, 75), (465, 300, 100), (627, 238, 80), (683, 325, 105), (653, 148, 55),
-          (675, 150, 55)],
-    300: [(201, 197, 75), (255, 190, 60), (311, 193, 70), (330, 255, 85), (597, 197, 75), (630, 197, 70)],
-    360: [(386, 212, 65), (455, 215, 70), (550, 240, 85), (450, 288, 95), (717, 290, 95), (747, 285, 95)],
-    420: [(308, 250, 85), (563, 177, 65), (762, 345, 85)],
-    480: [(418, 255, 70), (482, 285, 95), (595, 295, 90), (627, 330, 115)],
-    540: [(172, 203, 70), (452, 225, 80), (625, 220, 80), (658, 340, 105), (262, 455, 140), (308, 450, 135)],
-    600: [(198, 180, 70), (582, 243, 90), (687, 257, 90), (475, 360, 115), (655, 358, 110), (305, 505, 140)],
-    660: [(192, 188, 70), (285, 190, 75), (476, 243, 80), (631, 218, 80), (705, 350, 110), (322, 420, 130)],
-    720: [(145, 222, 70), (75, 292, 90), (275, 222, 80), (315, 205, 75), (478, 245, 95), (508, 230, 75),
-          (574, 245, 90), (567, 155, 60)],
-    780: [(247, 205, 75), (330, 208, 60), (325, 243, 60), (370, 312, 100), (585, 295, 95), (627, 250, 95),
-          (676, 168, 65)],
-}
-VTEST_DISTINCT = 12     # people told apart by their clothes on the frames above
-VTEST_MATCH = 0.5       # a posecam person's box centre within this many heights of the hand mark
 FALSE_START = 10        # frames: an id seen on fewer is a false start (--ids-table)
 SLID = 5                # frames: an id that ends this soon after another is born on its person slid off them
 BACK, WALK = 100, 0.05  # frames, heights a frame: an id that ended this long before, within 1 + WALK * gap heights
@@ -163,13 +140,11 @@ def reference_detections(frames: dict[str, list[np.ndarray]], detector: str) -> 
 
 
 def _triangulate(cams, members: list[tuple[int, np.ndarray, np.ndarray]]):
-    from posecam.geometry.triangulate import reprojection_errors, triangulate
-
     sub = [cams[v] for v, _, _ in members]
     uv = np.stack([kp for _, kp, _ in members])[:, None]
     conf = np.stack([sc for _, _, sc in members])[:, None]
-    world = triangulate(sub, uv, conf, min_conf=0.3)
-    err = reprojection_errors(sub, world, uv, conf, min_conf=0.3)
+    world = weighted_dlt(sub, uv, conf, min_conf=0.3)
+    err = reprojection_px(sub, world, uv, conf, min_conf=0.3)
     return world[0], float(np.nanmean(err)) if np.isfinite(err).any() else np.inf
 
 
@@ -330,12 +305,10 @@ def embedder_ms(est, frames: int) -> float:
 
 
 def two_person(args) -> dict:
-    from posecam.io.calibration import read_qualisys
-
     videos = {c: demo_path(f"videos/{c}.mp4") for c in CAMERAS}
     frames = {c: read_frames(v) for c, v in videos.items()}
     sizes = {c: (fs[0].shape[1], fs[0].shape[0]) for c, fs in frames.items()}
-    cams = read_qualisys(demo_path("calibration/Calib.qca.txt"), image_widths={c: s[0] for c, s in sizes.items()})
+    cams = read_lab(demo_path("calibration/Calib.qca.txt"), {c: s[0] for c, s in sizes.items()})
     cache = REPO / ".cache" / f"bench_people_reference_{REFERENCE_SIZE}.npy"
     if cache.exists():
         dets = np.load(cache, allow_pickle=True).item()

@@ -9,7 +9,7 @@ checkout (`--before DIR`: a folder holding an older `posecam/`, run the same way
 both the smoothed poses and the raw ones (`observed_3d`).
 
 Yardstick (built here, outside the code under test): for every synchronised frame, the people of
-the 4 views grouped and followed as bench/bench_depth.py's `lab_people` does (their pelvis
+the 4 views grouped and followed as bench/yardsticks.py's `lab_people` does (their pelvis
 triangulated through the lab's Qualisys calibration), then each group's 12 limb joints (hips,
 knees, ankles, shoulders, elbows, wrists) triangulated by a plain DLT, each view's sides relabelled
 by reprojection (a view whose left and right reproject better swapped is swapped; twice), and the
@@ -41,9 +41,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import bench_depth as bd  # noqa: E402
+from common import lab_predictions  # noqa: E402
+from yardsticks import CAMERAS, REPO, dlt_point, lab_cameras, lab_people  # noqa: E402
 
-REPO = Path(__file__).resolve().parent.parent
 TAKES = ("single", "multi")
 GATE_PX = 20.0              # a view's median limb reprojection over this is left out of the yardstick
 MIN_CONF = 0.3              # a joint's 2D confidence for the DLT
@@ -63,7 +63,7 @@ BONES = ((0, 1), (1, 2), (3, 4), (4, 5), (6, 7), (7, 8), (9, 10), (10, 11))
 def predict(take: str, checkout: Path, folder: Path) -> dict[str, dict]:
     """Per camera, `posecam predict` of `checkout` with the lab's lens and the defaults (cached)."""
     out = {}
-    for cam in bd.CAMERAS:
+    for cam in CAMERAS:
         path = folder / f"{take}_{cam}.json"
         if not path.exists():
             folder.mkdir(parents=True, exist_ok=True)
@@ -86,7 +86,7 @@ def relabelled(cams, members: list[tuple[int, np.ndarray, np.ndarray]]) -> dict[
         for j in LIMB:
             seen = [(c, uv[j]) for c, uv, conf in vs if conf[j] >= MIN_CONF]
             if len(seen) >= 2:
-                out[j] = bd.dlt(cams, seen)
+                out[j] = dlt_point(cams, seen)
         return out
 
     def error(c: int, uv: np.ndarray, conf: np.ndarray, world: dict) -> float:
@@ -108,12 +108,12 @@ def relabelled(cams, members: list[tuple[int, np.ndarray, np.ndarray]]) -> dict[
 
 
 def yardstick(take: str, cache: Path) -> tuple[list[dict], list]:
-    """Per group (bench_depth.lab_people): frame, lab person, who, members, and "limbs" (12, 3) lab
+    """Per group (yardsticks.lab_people): frame, lab person, who, members, and "limbs" (12, 3) lab
     mm; and the lab's cameras."""
-    cams = bd.lab_cameras(take)
-    recs = bd.predictions(take, cams, cache)
+    cams = lab_cameras(take)
+    recs = lab_predictions(take, cams, cache)
     out = []
-    for g in bd.lab_people(cams, recs, take):
+    for g in lab_people(cams, recs, take):
         world = relabelled(cams, [(c, p.keypoints_2d, p.confidence) for c, _, p in g["members"]])
         if world is not None:
             out.append({**g, "limbs": np.array([world[j] for j in LIMB])})

@@ -38,10 +38,9 @@ import time
 from pathlib import Path
 
 import mediapipe_peer  # the peer's side venv (bench/)
+from yardsticks import CAMERAS
 
 REPO = Path(__file__).resolve().parent.parent
-CAMERAS = ("cam01", "cam02", "cam03", "cam04")
-OFFSETS = {"cam01": 0, "cam02": -1, "cam03": 4, "cam04": 0}   # frames, vs cam01 (export/ASSETS.md)
 
 
 def child_posecam(video: str, model: str, detector: str) -> dict:
@@ -157,36 +156,20 @@ def stages(clips: dict[str, Path], model: str, detector: str) -> None:
         print(f"{label:22s}{cells}{1000 * (total - sum(spent.values())) / n:8.1f}{n / total:7.1f}")
 
 
-def _first_person(frames: list, attr: str, shape: tuple[int, ...]):
-    """One array over frames of the first person's `attr`, NaN where nobody was found."""
-    import numpy as np
-
-    return np.stack([getattr(f.people[0], attr) if f.people else np.full(shape, np.nan) for f in frames])
-
-
 def accuracy(videos: dict[str, Path], calib_path: Path, model: str, detector: str) -> None:
-    import cv2
     import numpy as np
 
     from posecam import EstimatorOptions, PoseEstimator, PredictOptions
-    from posecam.io.calibration import read_qualisys
-    from posecam.geometry.triangulate import reprojection_errors, triangulate
+    from yardsticks import lab_joints, read_lab, reprojection_px, synchronised, video_widths
 
-    widths = {c: int(cv2.VideoCapture(str(v)).get(cv2.CAP_PROP_FRAME_WIDTH)) for c, v in videos.items()}
-    cams = read_qualisys(calib_path, image_widths=widths)
-    n = 100 - max(OFFSETS.values()) + min(OFFSETS.values())
-    uv, conf, roots = [], [], []
+    cams = read_lab(calib_path, video_widths(videos))
     estimator = PoseEstimator(EstimatorOptions(model=model, detector=detector, max_people=1))
-    for cam in cams:
-        rec = estimator.predict_file(videos[cam.name], cam.intrinsics, PredictOptions(smooth=False, metric=None))
-        start = OFFSETS[cam.name] - min(OFFSETS.values())
-        frames = rec.frames[start:start + n]
-        uv.append(_first_person(frames, "keypoints_2d", (17, 2)))
-        conf.append(_first_person(frames, "confidence", (17,)))
-        roots.append(_first_person(frames, "keypoints_3d", (17, 3))[:, 0])
-    uv, conf = np.stack(uv), np.stack(conf)
-    world = triangulate(cams, uv, conf)
-    reproj = reprojection_errors(cams, world, uv, conf)
+    recs = [estimator.predict_file(videos[cam.name], cam.intrinsics, PredictOptions(smooth=False, metric=None))
+            for cam in cams]
+    world, n = lab_joints(cams, recs)
+    uv, conf = synchronised(cams, recs, "keypoints_2d", (17, 2)), synchronised(cams, recs, "confidence", (17,))
+    roots = synchronised(cams, recs, "keypoints_3d", (17, 3))[:, :, 0]
+    reproj = reprojection_px(cams, world, uv, conf)
     print(f"\nAccuracy on the 4 demo cameras ({n} synchronised frames, model {model}, lab intrinsics):")
     print(f"  triangulation from all 4 views reprojects with a median error of {np.nanmedian(reproj):.1f} px")
     print(f"{'camera':10s}{'mean root error (mm)':>22s}{'median (mm)':>13s}{'root depth (m)':>16s}")

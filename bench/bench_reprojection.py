@@ -42,9 +42,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from yardsticks import CAMERAS as NAMES
+
 ROOT = Path(__file__).resolve().parents[1]
 TAKES = {"single": ROOT / "examples/demo/single", "multi": ROOT / "examples/demo/multi"}
-NAMES = ("cam01", "cam02", "cam03", "cam04")
 MIN_CONF = 0.5           # a keypoint counts as seen (posecam's MIN_CONFIDENCE too)
 GATE_PX = 80.0           # median distance under which a view's person is the fused one
 TARGET = 1.3             # reported / yardstick, either way

@@ -1,6 +1,7 @@
 """What limits the rig posecam estimates from the people (no calibration), per take and per keypoint
-set, on Pose2Sim's two demo takes (bench/bench_fuse.py describes them and its yardstick: the
-lab's Qualisys rig, the truth offsets from the bench's own scan, a plain DLT).
+set, on Pose2Sim's two demo takes (bench/bench_fuse.py describes them and its yardstick,
+bench/yardsticks.py's `Truth`: the lab's Qualisys rig, the truth offsets from its own scan, a
+plain DLT).
 
 Keypoint sets: the default predictions (BlazePose full), BlazePose heavy (`--model PATH`: built
 with `python -m export.convert.build_models heavy --out DIR`), and MoveNet MultiPose's 17 COCO
@@ -38,7 +39,7 @@ predictions' truth offsets and matched across views by the bench's yardstick.
    `fuse_recordings` estimates (offsets 0) against the lab's, lens held and every lens
    estimated; and each pair of cameras alone on the largest volume. Seeded: it repeats.
 5. `--essential` (alone): two cameras whose lenses are known (each view predicted with its lab
-   intrinsics, `bench_fuse.predict_lab`), at the truth offsets: the relative pose from their 2D
+   intrinsics, `common.predict_lab`), at the truth offsets: the relative pose from their 2D
    joints (OpenCV's five-point essential matrix with RANSAC on the associated joints, then
    recoverPose; the baseline at the consensus's length) against posecam's start (the consensus
    of the monocular poses), each then refined by the same bundle adjustment (lens held): the
@@ -55,9 +56,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import json
-import os
 import shutil
-import subprocess
 import sys
 import time
 import warnings
@@ -67,9 +66,10 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import bench_fuse as bf  # noqa: E402  (the yardstick: lab rig, truth offsets, plain DLT)
+import yardsticks as ys  # noqa: E402  (the yardstick: lab rig, truth offsets, plain DLT)
+from common import predict_lab, predict_take  # noqa: E402
 
-ROOT = bf.ROOT
+ROOT = ys.REPO
 sys.path.insert(0, str(ROOT / "tests"))   # synth_rig: the tests' synthetic recordings
 BIAS_CELLS = 8          # the largest (view, joint) biases taken out in the "a few" variant
 BLOCK = 10              # frames per block of the bootstrap
@@ -79,17 +79,7 @@ MAX_MATCH = 0.08        # normalised units (~130 px): a MoveNet detection this f
 
 # ---- keypoint sets ----------------------------------------------------------------------------
 
-def predict(cache: Path, label: str, take: str, model: str | None) -> None:
-    folder = cache / label / take
-    if all((folder / f"{n}.json").exists() for n in bf.NAMES):
-        return
-    folder.mkdir(parents=True, exist_ok=True)
-    subprocess.run([sys.executable, "-m", "posecam", "predict", *(["--model", model] if model else []),
-                    "--out-dir", str(folder), *[str(ROOT / bf.TAKES[take][0] / f"{n}.mp4") for n in bf.NAMES]],
-                   check=True, env=dict(os.environ, PYTHONPATH=str(ROOT)), stdout=subprocess.DEVNULL)
-
-
-def movenet_tracks(cache: Path, take: str, size: int, truth: bf.Truth) -> dict:
+def movenet_tracks(cache: Path, take: str, size: int, truth: ys.Truth) -> dict:
     """Per view, person id -> (F, 17, 2) normalised undistorted MoveNet keypoints and (F, 17)
     scores: each frame's detection nearest the person's BlazePose keypoints (cached)."""
     from posecam.inference.detector import MoveNetDetector
@@ -99,8 +89,8 @@ def movenet_tracks(cache: Path, take: str, size: int, truth: bf.Truth) -> dict:
     if not stored.exists():
         det = MoveNetDetector(load_model("movenet", kind="detector"), input_size=size)
         views = []
-        for n in bf.NAMES:
-            cap, frames = cv2.VideoCapture(str(ROOT / bf.TAKES[take][0] / f"{n}.mp4")), []
+        for n in ys.CAMERAS:
+            cap, frames = cv2.VideoCapture(str(ROOT / ys.TAKES[take][0] / f"{n}.mp4")), []
             while True:
                 ok, bgr = cap.read()
                 if not ok:
@@ -113,9 +103,7 @@ def movenet_tracks(cache: Path, take: str, size: int, truth: bf.Truth) -> dict:
     views = json.loads(stored.read_text())
     out = []
     for cam, blaze, view in zip(truth.cams, truth.raw, views):
-        k = cam["K"].copy()
-        k[0, 2] += (view["size"][0] - cam["size"][0]) / 2
-        k[1, 2] += (view["size"][1] - cam["size"][1]) / 2
+        k = ys.video_lens(cam, view["size"])
         n = len(view["frames"])
         tracks = {}
         for pid, (uv_b, conf_b) in blaze.items():
@@ -125,8 +113,7 @@ def movenet_tracks(cache: Path, take: str, size: int, truth: bf.Truth) -> dict:
                 if ok.sum() < 6 or not dets:
                     continue
                 centre = uv_b[i][ok].mean(axis=0)
-                pts = [cv2.undistortPoints(np.array(d[0], float).reshape(-1, 1, 2), k, cam["dist"]).reshape(-1, 2)
-                       for d in dets]
+                pts = [ys.normalised(np.array(d[0], float), k, cam["dist"]) for d in dets]
                 dist = [np.linalg.norm(p[np.array(d[1]) >= 0.3].mean(axis=0) - centre) if (np.array(d[1]) >= 0.3).sum()
                         >= 6 else np.inf for p, d in zip(pts, dets)]
                 best = int(np.argmin(dist))
@@ -137,33 +124,32 @@ def movenet_tracks(cache: Path, take: str, size: int, truth: bf.Truth) -> dict:
     return out
 
 
-def keypoint_sets(cache: Path, take: str, heavy: str | None, movenet: bool) -> dict[str, tuple[bf.Truth, tuple]]:
+def keypoint_sets(cache: Path, take: str, heavy: str | None, movenet: bool) -> dict[str, tuple[ys.Truth, tuple]]:
     """label -> (the yardstick holding that set's tracks, its joint names)."""
     from export.convert.build_models import MOVENET_KEYPOINTS
     from posecam.skeleton import H36M_JOINTS
 
-    predict(cache, "full", take, None)
-    full = bf.Truth(take, cache / "full")
+    predict_take(cache / "full", take)
+    full = ys.Truth(take, cache / "full")
     sets = {"full (default)": (full, H36M_JOINTS)}
     if heavy:
-        predict(cache, "heavy", take, heavy)
+        predict_take(cache / "heavy", take, heavy)
         shutil.copy(cache / "full" / take / "truth.json", cache / "heavy" / take / "truth.json")   # same offsets
-        sets["heavy"] = (bf.Truth(take, cache / "heavy"), H36M_JOINTS)
+        sets["heavy"] = (ys.Truth(take, cache / "heavy"), H36M_JOINTS)
     for size in MOVENET_SIZES if movenet else ():
-        t = bf.Truth(take, cache / "full")
-        t.raw, t._matches = movenet_tracks(cache, take, size, full), {}
-        t.views = [{pid: bf.smoothed(track) for pid, track in v.items()} for v in t.raw]
+        t = ys.Truth(take, cache / "full")
+        t.use_tracks(movenet_tracks(cache, take, size, full))
         sets[f"movenet {size} px"] = (t, MOVENET_KEYPOINTS)
     return sets
 
 
 # ---- 1. at the lab rig ------------------------------------------------------------------------
 
-def lab_residuals(truth: bf.Truth) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def lab_residuals(truth: ys.Truth) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """(V, P, F, J, 2) normalised keypoints and (V, P, F, J) confidences of the people at the
     truth offsets, their DLT reprojection residual vectors through the lab rig in pixels
     (NaN where unused) and the DLT points (P, F, J, 3) lab mm."""
-    uv, conf = truth._matched(truth.combination, smooth=False)                  # as detected, not low-passed
+    uv, conf = truth.matched(truth.combination, smooth=False)                  # as detected, not low-passed
     v, p, f, j = conf.shape
     w = (conf >= 0.5).astype(float).reshape(v, p * f, j)
     flat = uv.reshape(v, p * f, j, 2)
@@ -171,7 +157,7 @@ def lab_residuals(truth: bf.Truth) -> tuple[np.ndarray, np.ndarray, np.ndarray, 
     fx = np.array([c["K"][0, 0] for c in truth.cams])
     res, points = np.full(flat.shape, np.nan), np.full((p * f, j, 3), np.nan)
     for k in range(j):
-        pts, _ = bf.dlt(truth.cams, flat[:, :, k], w[:, :, k])
+        pts, _ = ys.dlt(truth.cams, flat[:, :, k], w[:, :, k])
         points[:, k] = pts
         pc = np.einsum("vij,nj->vni", P[:, :, :3], pts) + P[:, None, :, 3]
         r = (pc[..., :2] / pc[..., 2:3] - flat[:, :, k]) * fx[:, None, None]
@@ -192,15 +178,15 @@ def bias_noise(res: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.where(count[..., None] >= 10, bias, np.nan), np.where(count >= 10, noise, np.nan), count
 
 
-def adjust_from_lab(truth: bf.Truth, uv: np.ndarray, conf: np.ndarray, joints: tuple) -> dict:
+def adjust_from_lab(truth: ys.Truth, uv: np.ndarray, conf: np.ndarray, joints: tuple) -> dict:
     """posecam's bundle adjustment started from the lab rig (cam01's frame) on normalised
-    keypoints (V, N, J, 2): the run dict `bf.Truth.score` reads."""
+    keypoints (V, N, J, 2): the run dict `ys.Truth.score` reads."""
     from posecam.geometry.camera import CameraCalibration, Intrinsics, Rig
     from posecam.multiview.bundle import bundle_adjust
 
     c0 = truth.cams[0]
     cams = []
-    for name, c in zip(bf.NAMES, truth.cams):
+    for name, c in zip(ys.CAMERAS, truth.cams):
         r, k = c["R"] @ c0["R"].T, c["K"]
         cams.append(CameraCalibration(name, c["size"], Intrinsics(k[0, 0], k[1, 1], k[0, 2], k[1, 2]), r,
                                       c["t"] - r @ c0["t"]))
@@ -209,13 +195,13 @@ def adjust_from_lab(truth: bf.Truth, uv: np.ndarray, conf: np.ndarray, joints: t
                    uv[..., 1] * k[:, None, None, 1, 1] + k[:, None, None, 1, 2]], axis=-1)
     fit = bundle_adjust(Rig(cams, "cam01"), px, conf, None, joints)
     est = fit.rig.cameras
-    return {"frame": "camera", "cameras_names": list(bf.NAMES), "R": [c.rotation.tolist() for c in est],
+    return {"frame": "camera", "cameras_names": list(ys.CAMERAS), "R": [c.rotation.tolist() for c in est],
             "t": [c.translation.tolist() for c in est], "fx": [c.intrinsics.fx for c in est],
             "offsets_kept": truth.combination, "pelvis": [[] for _ in range(truth.n)],
             "error_px": float(np.median(fit.median_error_px))}
 
 
-def at_lab(label: str, truth: bf.Truth, joints: tuple) -> dict:
+def at_lab(label: str, truth: ys.Truth, joints: tuple) -> dict:
     from posecam.multiview.bundle import left_out
     from posecam.multiview.options import LEFT_OUT
 
@@ -236,7 +222,7 @@ def at_lab(label: str, truth: bf.Truth, joints: tuple) -> dict:
             for j in order if used[j]][:6]
     print(f"   largest biases, bias/noise px per view cam01..04 (mean over the people): {'; '.join(rows)}")
     by_view = np.nanmedian(np.where(used, size, np.nan).reshape(n_v, -1), axis=1)
-    print(f"   median bias per view: {', '.join(f'{n} {b:.1f} px' for n, b in zip(bf.NAMES, by_view))}")
+    print(f"   median bias per view: {', '.join(f'{n} {b:.1f} px' for n, b in zip(ys.CAMERAS, by_view))}")
     fx = np.array([c["K"][0, 0] for c in truth.cams])
     shift = np.nan_to_num(bias) / fx[:, None, None, None]                         # (V, P, J, 2) normalised
     cells = np.argsort(-np.where(used, np.nan_to_num(size), 0).ravel())[:BIAS_CELLS]
@@ -253,21 +239,21 @@ def at_lab(label: str, truth: bf.Truth, joints: tuple) -> dict:
         print(f"   adjustment from the lab rig, keypoints {name}: rotation median {s['rot_median']:.2f} deg, "
               f"focal max {s['focal_max']:.1f} % ({', '.join(f'{k} {v:+.1f}' for k, v in s['focal'].items())}), "
               f"reprojection {run['error_px']:.1f} px")
-    top = [f"{bf.NAMES[c // (n_p * n_j)]} {joints[c % n_j]}" for c in cells]
+    top = [f"{ys.CAMERAS[c // (n_p * n_j)]} {joints[c % n_j]}" for c in cells]
     print(f"   the {BIAS_CELLS} largest: {', '.join(top)}")
     return {"residual": (before, after), **{k: (v["rot_median"], v["focal_max"]) for k, v in out.items()}}
 
 
 # ---- 2. from scratch, 3. spreads against the error -------------------------------------------
 
-def from_scratch(label: str, truth: bf.Truth, folder: Path) -> None:
+def from_scratch(label: str, truth: ys.Truth, folder: Path) -> None:
     """`fuse_recordings` without a calibration on the set's pose JSON, `--sync auto` and at the
     truth offsets (this checkout)."""
     from posecam import read_poses
     from posecam.multiview.fuse import fuse_recordings
     from posecam import FuseOptions
 
-    recs = [read_poses(folder / f"{n}.json")[0] for n in bf.NAMES]
+    recs = [read_poses(folder / f"{n}.json")[0] for n in ys.CAMERAS]
     for how, opts in (("--sync auto", FuseOptions(sync=True)),
                       ("lab offsets", FuseOptions(offsets=[round(o) for o in truth.combination]))):
         t0 = time.perf_counter()
@@ -283,7 +269,7 @@ def from_scratch(label: str, truth: bf.Truth, folder: Path) -> None:
               f"{s['pelvis_median']:.0f} mm, offsets {[round(o, 2) for o in run['offsets_kept']]}")
 
 
-def spreads(truth: bf.Truth, folder: Path, n_boot: int, seed: int = 0) -> None:
+def spreads(truth: ys.Truth, folder: Path, n_boot: int, seed: int = 0) -> None:
     """Per estimated camera: the reported (sandwich) spread, the bootstrap's, the error."""
     from posecam import read_poses
     from posecam.multiview.associate import associate_people
@@ -294,7 +280,7 @@ def spreads(truth: bf.Truth, folder: Path, n_boot: int, seed: int = 0) -> None:
     from posecam.multiview.observations import Observations
     from posecam.multiview.sync import synchronise
 
-    recs = [read_poses(folder / f"{n}.json")[0] for n in bf.NAMES]
+    recs = [read_poses(folder / f"{n}.json")[0] for n in ys.CAMERAS]
     opts = FuseOptions(sync=True)
     take = check_take(recs, opts)
     association = associate_people(take, None, [0] * 4, opts)
@@ -383,7 +369,7 @@ GAUSS_MEDIAN = np.sqrt(2 * np.log(2))   # median distance of a 2D Gaussian from 
 MIN_SEEN = 9                            # joints inside an image for its camera to detect the person
 
 
-def real_person(truth: bf.Truth) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def real_person(truth: ys.Truth) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The take's person (F, J, 3): the frames where every joint is DLT-triangulated through the
     lab rig (lab mm, z up); their (V, J, 2) bias vectors (detected - lab reprojection) and (V, J)
     Gaussian sigmas in px, as measured at the lab rig (part 1)."""
@@ -471,15 +457,13 @@ def rig_errors(recs: list, cams: list, **options) -> tuple[float, float, float, 
     return float(np.median(rot)) if rot else np.nan, max(rot, default=np.nan), focal, len(est)
 
 
-def volume(truth: bf.Truth, seed: int = 0) -> None:
+def volume(truth: ys.Truth, seed: int = 0) -> None:
     """The real bias and noise of the single take's keypoints, on its real poses carried over
     larger paths and longer takes, through the lab cameras: the rig `fuse_recordings` estimates
     with the lab lens held and with every lens estimated, and each pair of cameras alone on the
     largest volume."""
-    from posecam.io.calibration import read_calibration
-
-    rig = read_calibration(ROOT / bf.TAKES["single"][0] / "Calib.qca.txt")
-    cams = [rig.camera(n) for n in bf.NAMES]
+    rig = ys.lab_calibration("single")
+    cams = [rig.camera(n) for n in ys.CAMERAS]
     world, bias, sigma = real_person(truth)
     common = np.linalg.norm(bias.mean(axis=1), axis=-1)                          # (V,) px
     print(f"== volume: {len(world)} real poses; bias median {np.median(np.linalg.norm(bias, axis=-1)):.1f} px "
@@ -513,12 +497,12 @@ def volume(truth: bf.Truth, seed: int = 0) -> None:
         rows = []
         for a, b in itertools.combinations(range(len(cams)), 2):
             both = np.mean([bool(fa.people and fb.people) for fa, fb in zip(recs[a].frames, recs[b].frames)])
-            rows.append(f"{bf.NAMES[a][-2:]}+{bf.NAMES[b][-2:]} {rig_errors([recs[a], recs[b]], cams)[0]:.2f} "
+            rows.append(f"{ys.CAMERAS[a][-2:]}+{ys.CAMERAS[b][-2:]} {rig_errors([recs[a], recs[b]], cams)[0]:.2f} "
                         f"[{100 * both:.0f}%]")
         print(f"      {errors:5s}: {', '.join(rows)}", flush=True)
 
 
-def essential(truth: bf.Truth, folder: Path) -> None:
+def essential(truth: ys.Truth, folder: Path) -> None:
     """Part 5 (module docstring): every pair, the essential-matrix start against the consensus's."""
     from dataclasses import replace
 
@@ -532,11 +516,11 @@ def essential(truth: bf.Truth, folder: Path) -> None:
     from posecam import FuseOptions
     from posecam.multiview.observations import Observations
 
-    recs = [read_poses(folder / f"{n}.json")[0] for n in bf.NAMES]
+    recs = [read_poses(folder / f"{n}.json")[0] for n in ys.CAMERAS]
 
     def error(r: np.ndarray, a: int, b: int) -> float:
         lab = truth.cams[b]["R"] @ truth.cams[a]["R"].T
-        return float(np.degrees(np.linalg.norm(cv2.Rodrigues(r @ lab.T)[0])))
+        return ys.rotation_deg(r @ lab.T)
 
     print("   pair         start: consensus / essential (RANSAC inliers)  refined: deg, px, monocular poses apart mm")
     for a, b in itertools.combinations(range(4), 2):
@@ -561,7 +545,7 @@ def essential(truth: bf.Truth, folder: Path) -> None:
             apart = stretch_residuals(fit.rig, take.assumed, obs, np.array([0, obs.conf.shape[1]]), 0.5)
             row.append(f"{error(fit.rig.cameras[1].rotation, a, b):5.2f}, {np.nanmedian(fit.median_error_px):.1f}, "
                        f"{np.nanmedian(apart):.0f}")
-        print(f"   {bf.NAMES[a]}+{bf.NAMES[b]}  {error(start.cameras[1].rotation, a, b):5.2f} / {error(r, a, b):5.2f} "
+        print(f"   {ys.CAMERAS[a]}+{ys.CAMERAS[b]}  {error(start.cameras[1].rotation, a, b):5.2f} / {error(r, a, b):5.2f} "
               f"({int(inliers.sum())} of {len(na)})     consensus {row[0]}; essential {row[1]}", flush=True)
 
 
@@ -569,7 +553,7 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--cache", type=Path, default=Path("/tmp/rig_limit_cache"))
     ap.add_argument("--heavy", help="BlazePose heavy ONNX (build_models heavy --out DIR); none: not run")
-    ap.add_argument("--take", choices=[*bf.TAKES, "both"], default="both")
+    ap.add_argument("--take", choices=[*ys.TAKES, "both"], default="both")
     ap.add_argument("--boot", type=int, default=20, help="bootstrap replicates (0: no spreads part)")
     ap.add_argument("--skip-movenet", action="store_true")
     ap.add_argument("--volume", action="store_true", help="only part 4: the single take's bias and noise on its "
@@ -578,17 +562,17 @@ def main() -> None:
                     "essential-matrix start against the consensus's")
     args = ap.parse_args()
     if args.essential:
-        for take in bf.TAKES:
+        for take in ys.TAKES:
             if args.take in (take, "both"):
-                predict(args.cache, "full", take, None)
-                bf.predict_lab(args.cache / "full", take)
+                predict_take(args.cache / "full", take)
+                predict_lab(args.cache / "full", take)
                 print(f"== {take}: pairs with the lab lens, at the truth offsets")
-                essential(bf.Truth(take, args.cache / "full"), args.cache / "full" / f"{take}_lab")
+                essential(ys.Truth(take, args.cache / "full"), args.cache / "full" / f"{take}_lab")
         return
     if args.volume:
-        predict(args.cache, "full", "single", None)
-        return volume(bf.Truth("single", args.cache / "full"))
-    for take in bf.TAKES:
+        predict_take(args.cache / "full", "single")
+        return volume(ys.Truth("single", args.cache / "full"))
+    for take in ys.TAKES:
         if args.take not in (take, "both"):
             continue
         sets = keypoint_sets(args.cache, take, args.heavy, not args.skip_movenet)

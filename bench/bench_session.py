@@ -6,8 +6,8 @@ same run.
 
 Yardsticks from outside the code under test: the lab calibration (`Calib.qca.txt`: each camera
 pair's relative rotation, each focal length, the floor's vertical and each camera's height), the
-lab offsets and the lab's DLT pelvis (bench_fuse.Truth), the same views fused through the lab
-calibration at the lab offsets (the 8 big joint angles' yardstick, as bench_fuse --rigs), and
+lab offsets and the lab's DLT pelvis (bench/yardsticks.py's `Truth`), the same views fused
+through the lab calibration at the lab offsets (the 8 big joint angles' yardstick, as bench_fuse --rigs), and
 Pose2Sim's own triangulation through the TOML posecam writes (bench/pose2sim_peer.py, --peer).
 
 Honest edits of the real takes (each one a session of the two takes, one of them edited):
@@ -36,10 +36,10 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import bench_fuse as bf  # noqa: E402
+from common import fused_angles, predict_take  # noqa: E402
+from yardsticks import (CAMERAS as NAMES, REPO as ROOT, TAKES, Truth, angle_errors,  # noqa: E402
+                        lab_calibration, rotation_deg)
 
-ROOT = bf.ROOT
-NAMES = bf.NAMES
 SHIFT_PX = 400                 # the moved edit: cam02's frames shifted this far sideways
 STATIC_FRAMES = 11             # the static trial: the first frames of the single take
 
@@ -68,7 +68,7 @@ def moved_cam02(cache: Path, take: str):
     folder.mkdir(parents=True, exist_ok=True)
     video, poses = folder / "cam02.mp4", folder / "cam02.json"
     if not poses.exists():
-        shifted_video(ROOT / bf.TAKES[take][0] / "cam02.mp4", video, SHIFT_PX)
+        shifted_video(ROOT / TAKES[take][0] / "cam02.mp4", video, SHIFT_PX)
         subprocess.run([sys.executable, "-m", "posecam", "predict", str(video), "-o", str(poses)], check=True,
                        env=dict(os.environ, PYTHONPATH=str(ROOT)), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     return read_poses(poses)[0]
@@ -82,14 +82,14 @@ def renamed(rec, name: str):
 def plain(cache: Path) -> dict[str, list]:
     from posecam import read_poses
 
-    return {take: [read_poses(cache / take / f"{n}.json")[0] for n in NAMES] for take in bf.TAKES}
+    return {take: [read_poses(cache / take / f"{n}.json")[0] for n in NAMES] for take in TAKES}
 
 
 def cases(cache: Path) -> dict[str, dict[str, list]]:
     """Every session the bench calibrates: name -> {take: its views' recordings}."""
     base = plain(cache)
     out = {"both takes": base}
-    for take in bf.TAKES:
+    for take in TAKES:
         edited = dict(base)
         edited[take] = [moved_cam02(cache, take) if n == "cam02" else r for n, r in zip(NAMES, base[take])]
         out[f"cam02 moved in {take}"] = edited
@@ -112,14 +112,12 @@ LAB = None
 def lab():
     global LAB
     if LAB is None:
-        from posecam.io.calibration import read_calibration
-
-        LAB = {c.name: c for c in read_calibration(ROOT / bf.TAKES["single"][0] / "Calib.qca.txt").cameras}
+        LAB = {c.name: c for c in lab_calibration("single").cameras}
     return LAB
 
 
 def turned(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.degrees(np.linalg.norm(cv2.Rodrigues(a.T @ b)[0])))
+    return rotation_deg(a.T @ b)
 
 
 def rig_errors(rig) -> dict:
@@ -170,7 +168,7 @@ def camera_frame_run(result, rig_world: bool) -> dict:
     return {"cameras_names": [c.name for c in cams], "R": [c.rotation.tolist() for c in cams],
             "t": [c.translation.tolist() for c in cams], "fx": [c.intrinsics.fx for c in cams],
             "offsets_kept": [result.offsets[v] for v in result.views], "frame": "camera", "pelvis": pelvis,
-            "angles": bf._fused_angles(result), "warnings": result.warnings}
+            "angles": fused_angles(result), "warnings": result.warnings}
 
 
 def fused_figures(recs: list, rig, truth, lab_run: dict) -> dict:
@@ -183,7 +181,7 @@ def fused_figures(recs: list, rig, truth, lab_run: dict) -> dict:
     except Exception as exc:  # a refusal is a figure too
         return {"error": f"{type(exc).__name__}: {exc}"}
     run = camera_frame_run(res, rig is not None)
-    med, worst = bf._angle_errors(run, lab_run)
+    med, worst = angle_errors(run, lab_run)
     score = truth.score(run)
     return {"angles": (med, worst), "pelvis": score["pelvis_median"], "offsets": run["offsets_kept"],
             "warnings": res.warnings}
@@ -191,9 +189,8 @@ def fused_figures(recs: list, rig, truth, lab_run: dict) -> dict:
 
 def lab_run(recs: list, truth) -> dict:
     from posecam import FuseOptions, fuse_recordings
-    from posecam.io.calibration import read_calibration
 
-    rig = read_calibration(ROOT / bf.TAKES["single"][0] / "Calib.qca.txt")
+    rig = lab_calibration("single")
     res = fuse_recordings(recs, FuseOptions(calibration=rig, offsets=list(truth.combination)))
     return camera_frame_run(res, True)
 
@@ -212,7 +209,7 @@ def show_rig(label: str, rig, seconds: float | None = None) -> dict:
 def session_figures(cache: Path, peer: bool) -> None:
     from posecam import calibrate_session, fuse_recordings
 
-    truths = {take: bf.Truth(take, cache) for take in bf.TAKES}
+    truths = {take: Truth(take, cache) for take in TAKES}
     sessions = cases(cache)
     print("== the rig against the lab (defaults, no lens given)")
     base = sessions["both takes"]
@@ -308,7 +305,7 @@ def session_figures(cache: Path, peer: bool) -> None:
         work.mkdir(parents=True, exist_ok=True)
         write_toml(work / "session.toml", session.rig.cameras)
         poses = {n: cache / "single" / f"{n}.json" for n in NAMES}
-        for label, toml in (("the lab's Calib.toml", ROOT / bf.TAKES["single"][0] / "Calib.toml"),
+        for label, toml in (("the lab's Calib.toml", ROOT / TAKES["single"][0] / "Calib.toml"),
                             ("posecam calibrate's", work / "session.toml")):
             got = pose2sim_up_axis(toml, poses, work / label.split()[0].strip("'"))
             print(f"  {label:24s} upright {got['upright_deg']:5.1f} deg, up axis (TRC) "
@@ -320,16 +317,16 @@ def speed(cache: Path, rounds: int) -> None:
     videos plus one single-take `posecam fuse` of its pose JSON, alternated (medians)."""
     env, scratch = dict(os.environ, PYTHONPATH=str(ROOT)), cache / "speed"
     scratch.mkdir(parents=True, exist_ok=True)
-    videos = [str(ROOT / bf.TAKES[t][0] / f"{n}.mp4") for t in bf.TAKES for n in NAMES]
+    videos = [str(ROOT / TAKES[t][0] / f"{n}.mp4") for t in TAKES for n in NAMES]
     calibrating, peer = [], []
     for _ in range(rounds):
         t0 = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "posecam", "calibrate", *(str(ROOT / bf.TAKES[t][0]) for t in bf.TAKES),
+        subprocess.run([sys.executable, "-m", "posecam", "calibrate", *(str(ROOT / TAKES[t][0]) for t in TAKES),
                         "-o", str(scratch / "rig.toml")], check=True, env=env, stdout=subprocess.DEVNULL,
                        stderr=subprocess.DEVNULL)
         calibrating.append(time.perf_counter() - t0)
         t0 = time.perf_counter()
-        for take in bf.TAKES:
+        for take in TAKES:
             (scratch / take).mkdir(exist_ok=True)
             for n in NAMES:
                 (scratch / take / f"{n}.json").unlink(missing_ok=True)
@@ -353,8 +350,8 @@ def main() -> None:
     args = ap.parse_args()
     if args.speed:
         return speed(args.cache, args.speed)
-    for take in bf.TAKES:
-        bf.predict(args.cache, take)
+    for take in TAKES:
+        predict_take(args.cache, take)
     session_figures(args.cache, args.peer)
 
 

@@ -9,7 +9,8 @@ filter in FILTERS. For every camera and every track:
   the root (pelvis), over frames where the track has three consecutive poses;
 - root error (single-person take only): mean distance in camera coordinates between posecam's
   root and the pelvis triangulated from the 4 views through the lab's Qualisys calibration, the
-  reference that bench_predict.py builds (same offsets, same first-person arrays).
+  reference bench_predict.py scores against too (bench/yardsticks.py's `lab_joints`: same
+  offsets, same first-person arrays).
 The multi-person take has no reference here (which track is whom across views is not solved by
 this script): jitter only.
 """
@@ -18,19 +19,15 @@ from __future__ import annotations
 
 import argparse
 import sys
-import zipfile
 from pathlib import Path
 
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_predict import CAMERAS, OFFSETS, _first_person  # noqa: E402
+from common import wheel_predictions  # noqa: E402
+from yardsticks import OFFSETS, first_person, lab_joints  # noqa: E402
 
-from export.assets import archive_path  # noqa: E402
-from posecam import EstimatorOptions, PoseEstimator, PredictOptions, read_poses, write_poses  # noqa: E402
 from posecam.analysis.filters import SmoothOptions, smooth_recording  # noqa: E402
-from posecam.geometry.triangulate import triangulate  # noqa: E402
-from posecam.io.calibration import read_qualisys  # noqa: E402
 
 TAKES = {"single": ("Demo_SinglePerson", 1), "multi": ("Demo_MultiPerson", 4)}   # folder, max people
 FILTERS = {
@@ -40,33 +37,6 @@ FILTERS = {
     "butterworth 10 Hz": SmoothOptions("butterworth", cutoff_hz=10.0),
     "one-euro": SmoothOptions("one_euro"),
 }
-
-
-def take_file(take: str, relative: str, cache: Path) -> Path:
-    """A file of a Pose2Sim demo take, extracted from the cached wheel."""
-    out = cache / take / relative
-    if not out.exists():
-        out.parent.mkdir(parents=True, exist_ok=True)
-        with zipfile.ZipFile(archive_path("pose2sim")) as z:
-            out.write_bytes(z.read(f"Pose2Sim/{take}/{relative}"))
-    return out
-
-
-def predictions(take: str, max_people: int, model: str, cache: Path):
-    """Per camera: the lab calibration camera and posecam's recording (with the lab intrinsics)."""
-    import cv2
-
-    videos = {c: take_file(take, f"videos/{c}.mp4", cache) for c in CAMERAS}
-    widths = {c: int(cv2.VideoCapture(str(v)).get(cv2.CAP_PROP_FRAME_WIDTH)) for c, v in videos.items()}
-    cams = read_qualisys(take_file(take, "calibration/Calib.qca.txt", cache), image_widths=widths)
-    recs, estimator = [], None
-    for cam in cams:
-        path = cache / take / f"{cam.name}_{model}.json"
-        if not path.exists():
-            estimator = estimator or PoseEstimator(EstimatorOptions(model=model, max_people=max_people))
-            write_poses(path, [estimator.predict_file(videos[cam.name], cam.intrinsics, PredictOptions(smooth=False, metric=None))])
-        recs.append(read_poses(path)[0])
-    return cams, recs
 
 
 def tracks(rec) -> dict[int, np.ndarray]:
@@ -88,20 +58,6 @@ def jitter(track: np.ndarray) -> tuple[float, float]:
     return float(np.nanmean(acc)), float(np.nanmean(acc[:, 0]))
 
 
-def lab_joints(cams, recs) -> tuple[np.ndarray, int]:
-    """All 17 joints triangulated from all views through the lab calibration (world mm) over
-    the synchronised frames, as bench_predict.accuracy builds them; and n, the number of those
-    frames (from cam01's frame -min(offsets))."""
-    n = 100 - max(OFFSETS.values()) + min(OFFSETS.values())
-    uv, conf = [], []
-    for cam, rec in zip(cams, recs):
-        start = OFFSETS[cam.name] - min(OFFSETS.values())
-        frames = rec.frames[start:start + n]
-        uv.append(_first_person(frames, "keypoints_2d", (17, 2)))
-        conf.append(_first_person(frames, "confidence", (17,)))
-    return triangulate(cams, np.stack(uv), np.stack(conf)), n
-
-
 def lab_root(cams, recs) -> tuple[np.ndarray, int]:
     """The pelvis of lab_joints, and n."""
     joints, n = lab_joints(cams, recs)
@@ -110,7 +66,7 @@ def lab_root(cams, recs) -> tuple[np.ndarray, int]:
 
 def root_error(cam, rec, world_root: np.ndarray, n: int) -> float:
     start = OFFSETS[cam.name] - min(OFFSETS.values())
-    roots = _first_person(rec.frames[start:start + n], "keypoints_3d", (17, 3))[:, 0]
+    roots = first_person(rec.frames[start:start + n], "keypoints_3d", (17, 3))[:, 0]
     return float(np.nanmean(np.linalg.norm(roots - cam.to_camera(world_root), axis=-1)))
 
 
@@ -129,7 +85,7 @@ def fused_figures(cams, recs, reference) -> None:
         line = f"  {label:18s}{np.mean([j[0] for j in jit]):14.2f}{np.mean([j[1] for j in jit]):13.2f}"
         if reference:
             world_root, n = reference
-            root = _first_person(rec.frames[start:start + n], "keypoints_3d", (17, 3))[:, 0]
+            root = first_person(rec.frames[start:start + n], "keypoints_3d", (17, 3))[:, 0]
             line += f"{np.nanmean(np.linalg.norm(root - world_root, axis=-1)):15.1f}"
         print(line)
 
@@ -140,7 +96,7 @@ def main() -> None:
     ap.add_argument("--cache", type=Path, default=Path(__file__).resolve().parent.parent / ".cache" / "bench_smooth")
     a = ap.parse_args()
     for take_name, (take, max_people) in TAKES.items():
-        cams, recs = predictions(take, max_people, a.model, a.cache)
+        cams, recs = wheel_predictions(take, max_people, a.model, a.cache)
         reference = lab_root(cams, recs) if take_name == "single" else None
         print(f"\n== {take} ({a.model}, lab intrinsics): mean over cameras and tracks")
         print(f"{'filter':20s}{'joint jitter':>14s}{'root jitter':>13s}" + (f"{'root error mm':>15s}" if reference else ""))
