@@ -44,14 +44,27 @@ from posecam.io.media import DEFAULT_FPS, Media, expand_inputs, open_media
 from posecam.options import EstimatorOptions, PredictOptions
 from posecam.results import Dropped, Frame, Person, Recording
 from posecam.skeleton import BLAZEPOSE33, BLAZEPOSE_LANDMARKS, H36M_JOINTS, SKELETONS, blazepose_to_h36m, skeleton_of
-from posecam.tracking import ConfirmedIds, Track, Tracker, TrackerOptions, foreign_joints, number_people, oks
+from posecam.tracking import ConfirmedIds, Track, Tracker, TrackerOptions, foreign_joints, number_people
+from posecam.tracking.schedule import Search
 
-MIN_PERSON_PX = 40    # the detector searches for people at least this tall (image pixels)
-# the presence a pose needs where the pose model looks again for someone lost (Tracker.probes):
-# no detector vouches for the person there, and at --min-presence the looks again kept partial
-# skeletons (vtest.avi: 67 doubtful poses against 46 without them; at 0.8, 52, the people found
-# the same within the runs' spread; the clip hidden, then backlit, 75 -> 72 of 80 frames)
-PROBE_PRESENCE = 0.8
+@dataclass(frozen=True)
+class FramePolicy:
+    """The per-frame stages' rules (`PoseEstimator._track`): light, detect, pose, judge, lift.
+    Each value with what it was measured on."""
+
+    # detect: the smallest person searched for (px tall), the tiles sized for it; the hand counts of
+    # vtest.avi (bench_people.py) count everyone from this height
+    min_person_px: int = 40
+    # pose, where the pose model looks again for someone lost (Tracker.probes): no detector vouches for
+    # the person there (vtest.avi: 67 doubtful poses at --min-presence, 52 at 0.8, people found the same)
+    probe_presence: float = 0.8
+    # judge: a pose with this many joints on a neighbour's keypoints is tried again from other crops
+    # (set with the neighbour check on the two-person take, where one or two joints on the other
+    # person are the overlap of a hand or a foot; not re-measured since)
+    retry_foreign_joints: int = 3
+
+
+POLICY = FramePolicy()
 
 
 # A tap: called for each frame as it leaves a stage of the chain, with its RGB image and the
@@ -289,25 +302,18 @@ class PoseEstimator:
         (their ids are numbered once the tracks are confirmed: `number_people`, `ConfirmedIds`),
         and the people left out, each with the stage that dropped them."""
         _check_image(image_rgb)
-        image_rgb = equalised(image_rgb) if under_exposed(image_rgb) else image_rgb   # dusk: posed in its light equalised
+        image_rgb = equalised(image_rgb) if under_exposed(image_rgb) else image_rgb   # light: dusk equalised
         h, w = image_rgb.shape[:2]
-        detections, search, run = None, None, tracker.detector_run(w, h)
-        if run is not None:
-            person_px = max(tracker.person_px() or MIN_PERSON_PX, MIN_PERSON_PX)
-            if tracker.active():   # where the tracker asks for: everywhere (every tile), or around some people
-                search = tracker.search(run, self.detector.tiles(w, h, person_px), w, h)
-                detections = self.detector(image_rgb, tiles=search.regions, whole=search.whole)
-            else:                  # nobody followed: every tile, and people in any orientation
-                detections = detect_any_turn(self.detector, image_rgb, person_px)
+        detections, search = self._detect(image_rgb, tracker)
         tracks = tracker.begin_frame(detections, image_rgb, search)
         probes = tracker.probes(w, h)   # people just lost, looked for again where their motion puts them
         if not tracks and not probes:
             return [], [], list(tracker.refused)
         candidates = self.pose_model(image_rgb, [t.roi for t in tracks + probes])
-        bars = [self.options.min_presence] * len(tracks) + [max(self.options.min_presence, PROBE_PRESENCE)] * len(probes)
+        bars = [self.options.min_presence] * len(tracks) + [max(self.options.min_presence, POLICY.probe_presence)] * len(probes)
         stages: list[str | None] = [None if c.score >= bar else "presence" for c, bar in zip(candidates, bars)]
         if detections is not None:
-            checked = [self._own_pose(image_rgb, t, c, detections) if t.detection is not None else (c, stage)
+            checked = [self._judge(image_rgb, t, c, detections) if t.detection is not None else (c, stage)
                        for t, c, stage in zip(tracks, candidates, stages)]
             candidates[:len(tracks)], stages[:len(tracks)] = [c for c, _ in checked], [stage for _, stage in checked]
         looked_for, tracks = len(tracks), tracks + probes
@@ -322,21 +328,33 @@ class PoseEstimator:
                    if i not in kept and i < looked_for]     # a probe that finds nobody drops nobody
         return [candidates[i] for i in kept], [tracks[i] for i in kept], list(tracker.refused) + dropped
 
-    def _own_pose(self, image_rgb: np.ndarray, track: Track, c: PoseCandidate,
-                  detections: list[Detection]) -> tuple[PoseCandidate, str | None]:
+    def _detect(self, image_rgb: np.ndarray, tracker: Tracker) -> tuple[list[Detection] | None, Search | None]:
+        """The detect stage, where the tracker asks for it (None otherwise): every tile or around some
+        people while someone is followed (`Tracker.search`); with nobody followed, every tile and
+        people in any orientation (`detect_any_turn`). Searching for people as small as the smallest
+        seen, and never smaller than FramePolicy.min_person_px."""
+        h, w = image_rgb.shape[:2]
+        run = tracker.detector_run(w, h)
+        if run is None:
+            return None, None
+        person_px = max(tracker.person_px() or POLICY.min_person_px, POLICY.min_person_px)
+        if not tracker.active():
+            return detect_any_turn(self.detector, image_rgb, person_px), None
+        search = tracker.search(run, self.detector.tiles(w, h, person_px), w, h)
+        return self.detector(image_rgb, tiles=search.regions, whole=search.whole), search
+
+    def _judge(self, image_rgb: np.ndarray, track: Track, c: PoseCandidate,
+               detections: list[Detection]) -> tuple[PoseCandidate, str | None]:
         """The pose of the track's own person, and why it is dropped (None: kept). Where the
         detector gave an upright box for someone followed turned (lying, upside down) or cut
         by the image's border (`Track.own_roi`), the pose from the crop their own pose gave is
         tried too, and the one whose joints fill the box better kept (`_box_fit`: the box's
         crop of someone turned, or of the part in view of someone cut, gives a skeleton on
-        part of them). A pose the pose model doubts (presence below min_presence) or
-        with 3 or more joints on a neighbour is tried again: from an upright crop of the person's box,
-        from one reaching past the image's border where it cuts the box (`past_border`), then
-        from the detector's crop turned by 90, -90 and 180 degrees (people lying, upside down),
-        the first pose kept winning. Joints that still fall on a neighbour lose their confidence
+        part of them). A pose the pose model doubts (presence below min_presence) or with
+        `retry_foreign_joints` or more joints on a neighbour is tried again from each of
+        `crops_to_try`, the first pose kept winning. Joints that still fall on a neighbour lose their confidence
         (so the lift places the root without them), and the pose is refused ("neighbour") when
-        most of its joints do. A doubted pose is kept when it agrees with the detector's
-        keypoints of the person (OKS >= 0.5)."""
+        most of its joints do. The rules: FramePolicy."""
         own = track.detection
         if track.own_roi is not None:   # the detector's upright box or the crop the person's own pose gave
             mine = self.pose_model(image_rgb, [track.own_roi])[0]
@@ -351,15 +369,11 @@ class PoseEstimator:
             return foreign_joints(pose.keypoints_2d[idx], pose.confidence[idx], own, others)
 
         def rank(pose: PoseCandidate, foreign: np.ndarray) -> tuple:
-            return pose.score >= min_presence and foreign.sum() < 3, -int(foreign.sum()), pose.score
+            return pose.score >= min_presence and foreign.sum() < POLICY.retry_foreign_joints, -int(foreign.sum()), pose.score
 
         foreign = foreign_of(c)
         if rank(c, foreign)[0] is False:
-            r, h, w = own.roi, *image_rgb.shape[:2]
-            cut = past_border(own.box, w, h)   # a person the border cuts: the crop reaches past it
-            retries = [Roi.around_points(own.box.reshape(2, 2))] + ([cut] if cut else []) + \
-                [replace(r, angle=r.angle + turn) for turn in (np.pi / 2, -np.pi / 2, np.pi)]
-            for roi in retries:
+            for roi in crops_to_try(own, image_rgb.shape[1], image_rgb.shape[0]):
                 redo = self.pose_model(image_rgb, [roi])[0]
                 again = foreign_of(redo)
                 if rank(redo, again) > rank(c, foreign):
@@ -374,9 +388,7 @@ class PoseEstimator:
             conf = c.confidence.copy()
             conf[idx[foreign]] = 0.0
             c = replace(c, confidence=conf)
-        area = float(np.prod(own.box[2:] - own.box[:2]))
-        agrees = oks(c.keypoints_2d[idx], c.confidence[idx], own.keypoints, own.keypoint_scores, area) >= 0.5
-        return c, None if c.score >= min_presence or agrees else "presence"
+        return c, None if c.score >= min_presence else "presence"
 
     def _tracker(self, video: bool = True, fps: float | None = None) -> Tracker:
         """A tracker for one input at `fps` frames a second (None: DEFAULT_FPS); the looks are
@@ -506,6 +518,15 @@ def shared_estimator(options: EstimatorOptions | None = None) -> PoseEstimator:
     if key not in _shared:
         _shared[key] = PoseEstimator(options)
     return _shared[key]
+
+
+def crops_to_try(own: Detection, width: int, height: int) -> list[Roi]:
+    """The crops a doubted pose is tried again from, in order: upright about the person's box,
+    reaching past the image's border where it cuts the box (`past_border`), then the detector's
+    crop turned by 90, -90 and 180 degrees (people lying, upside down)."""
+    cut = past_border(own.box, width, height)
+    turned = [replace(own.roi, angle=own.roi.angle + turn) for turn in (np.pi / 2, -np.pi / 2, np.pi)]
+    return [Roi.around_points(own.box.reshape(2, 2))] + ([cut] if cut else []) + turned
 
 
 def _box_of(uv: np.ndarray, conf: np.ndarray, min_conf: float = MIN_CONFIDENCE) -> np.ndarray:
