@@ -110,6 +110,43 @@ class Frame:
 
 
 @dataclass
+class Track:
+    """One person's track as batched arrays, from the first frame of the recording that holds the
+    person to the last (F rows, `rows` into Recording.frames): NaN keypoints and zero confidence
+    where the person is absent (`present`), the keypoints as observed beside them (`Person.observed`)."""
+
+    id: int
+    rows: np.ndarray            # (F,) indices into Recording.frames
+    present: np.ndarray         # (F,) bool
+    people: list[Person | None]  # (F,) the person in each row (None: absent)
+    keypoints_2d: np.ndarray    # (F, J, 2) px
+    keypoints_3d: np.ndarray    # (F, J, 3) mm
+    confidence: np.ndarray      # (F, J)
+    observed_2d: np.ndarray     # (F, J, 2) px, before any smoothing
+    observed_3d: np.ndarray     # (F, J, 3) mm, before any smoothing
+
+    @classmethod
+    def of(cls, rec: Recording, person_id: int) -> Track:
+        """The track of `person_id` in `rec` (ValueError when nobody has that id)."""
+        held = [(i, p) for i, f in enumerate(rec.frames) for p in f.people if p.id == person_id]
+        if not held:
+            raise ValueError(f"no person with id {person_id} in {rec.source}")
+        rows = np.arange(held[0][0], held[-1][0] + 1)
+        people: list[Person | None] = [None] * len(rows)
+        for i, p in held:
+            people[i - rows[0]] = p
+        j = len(rec.joints)
+        out = {name: np.full((len(rows), j, d), np.nan) for name, d in
+               (("keypoints_2d", 2), ("keypoints_3d", 3), ("observed_2d", 2), ("observed_3d", 3))}
+        conf = np.zeros((len(rows), j))
+        for r, p in enumerate(people):
+            if p is not None:
+                out["keypoints_2d"][r], out["keypoints_3d"][r], conf[r] = p.keypoints_2d, p.keypoints_3d, p.confidence
+                out["observed_2d"][r], out["observed_3d"][r] = p.observed()
+        return cls(person_id, rows, np.array([p is not None for p in people]), people, confidence=conf, **out)
+
+
+@dataclass
 class Recording:
     """Everything posecam found in one input: an image, a video, or the fusion of several views."""
 
@@ -131,6 +168,15 @@ class Recording:
         for fused poses, whose joints several cameras saw (one off the reference camera's image
         may be in another's)."""
         return (self.width, self.height) if self.frame_of_reference == "camera" else None
+
+    @property
+    def person_ids(self) -> list[int]:
+        """Every track's id, in order."""
+        return sorted({p.id for f in self.frames for p in f.people})
+
+    def tracks(self) -> list[Track]:
+        """Every person's track as batched arrays (`Track`), by id."""
+        return [Track.of(self, pid) for pid in self.person_ids]
 
     @property
     def root_joint(self) -> str:

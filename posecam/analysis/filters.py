@@ -22,7 +22,7 @@ import numpy as np
 
 from posecam.errors import InputError
 from posecam.io.media import DEFAULT_FPS
-from posecam.results import Frame, Recording
+from posecam.results import Frame, Person, Recording
 
 METHODS = ("butterworth", "one_euro")
 MIN_RUN = 4                     # frames; shorter runs are not filtered
@@ -148,26 +148,19 @@ def smooth_recording(rec: Recording, options: SmoothOptions | None = None) -> Re
     A still image (one frame) comes back unchanged; a recording without a frame rate is taken
     at `DEFAULT_FPS`."""
     options = options or SmoothOptions()
-    frames = [dataclasses.replace(f, people=list(f.people)) for f in rec.frames]
-    if len(frames) < 2:
-        return dataclasses.replace(rec, frames=frames)
+    if len(rec.frames) < 2:
+        return dataclasses.replace(rec, frames=[dataclasses.replace(f, people=list(f.people)) for f in rec.frames])
     fps = rec.fps or DEFAULT_FPS
-    ids = sorted({p.id for f in frames for p in f.people})
-    for pid in ids:
-        where = [(i, k) for i, f in enumerate(frames) for k, p in enumerate(f.people) if p.id == pid]
-        smoothed = {}
-        for attr in ("keypoints_3d", "keypoints_2d"):
-            first = getattr(frames[where[0][0]].people[where[0][1]], attr)
-            track = np.full((len(frames), *first.shape), np.nan)
-            for i, k in where:
-                track[i] = getattr(frames[i].people[k], attr)
-            smoothed[attr] = smooth_array(track, fps, options)
-        for i, k in where:
-            person = frames[i].people[k]
-            uv, xyz = person.observed()          # what was observed stays, for the estimators that need it
-            frames[i].people[k] = dataclasses.replace(person, observed_2d=uv, observed_3d=xyz,
-                                                      **{a: t[i] for a, t in smoothed.items()})
-    return dataclasses.replace(rec, frames=frames)
+    smoothed: dict[int, Person] = {}     # id() of each person -> the person smoothed
+    for track in rec.tracks():
+        uv, xyz = (smooth_array(a, fps, options) for a in (track.keypoints_2d, track.keypoints_3d))
+        for r in np.flatnonzero(track.present):
+            person = track.people[r]
+            seen_uv, seen_xyz = person.observed()   # what was observed stays, for the estimators that need it
+            smoothed[id(person)] = dataclasses.replace(person, keypoints_2d=uv[r], keypoints_3d=xyz[r],
+                                                       observed_2d=seen_uv, observed_3d=seen_xyz)
+    return dataclasses.replace(rec, frames=[dataclasses.replace(f, people=[smoothed.get(id(p), p) for p in f.people])
+                                            for f in rec.frames])
 
 
 class StreamingSmoother:

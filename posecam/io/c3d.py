@@ -18,7 +18,7 @@ import numpy as np
 from posecam.errors import InputError
 from posecam.io.atomic import OutputSet
 from posecam.io.media import DEFAULT_FPS
-from posecam.io.trc import person_ids, to_y_up, trajectory, trc_paths, write_files
+from posecam.io.trc import to_y_up, trajectory, trc_paths, write_files
 from posecam.results import Recording
 
 INSTALL_HINT = "pip install 'posecam[c3d]' (the c3d package)"
@@ -57,7 +57,7 @@ def write_c3d(path: str | os.PathLike, rec: Recording, y_up: bool = False,
               outputs: OutputSet | None = None) -> list[Path]:
     """Write one C3D file per person of `rec` (named as posecam.io.trc.trc_paths); returns the paths."""
     writer_module()
-    ids = person_ids(rec)
+    ids = rec.person_ids
     if not ids:
         raise InputError(f"no person found in {rec.source}: nothing to write to {path}")
     paths = trc_paths(path, ids)

@@ -22,27 +22,19 @@ import numpy as np
 from posecam.errors import InputError
 from posecam.io.atomic import OutputSet, atomic_path
 from posecam.io.media import DEFAULT_FPS, exact_times
-from posecam.results import Recording
+from posecam.results import Recording, Track
 
-
-
-def person_ids(rec: Recording) -> list[int]:
-    return sorted({p.id for f in rec.frames for p in f.people})
 
 
 def trajectory(rec: Recording, person_id: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(frame numbers, times, (F, J, 3) mm with NaN where absent) from the person's first to
     last frame."""
-    rows = [i for i, f in enumerate(rec.frames) if any(p.id == person_id for p in f.people)]
-    if not rows:
-        raise InputError(f"no person with id {person_id} in {rec.source}")
-    frames = rec.frames[rows[0]:rows[-1] + 1]
-    xyz = np.full((len(frames), len(rec.joints), 3), np.nan)
-    for i, f in enumerate(frames):
-        for p in f.people:
-            if p.id == person_id:
-                xyz[i] = p.keypoints_3d
-    return np.array([f.index for f in frames]), np.array([f.time for f in frames]), xyz
+    try:
+        track = Track.of(rec, person_id)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    frames = [rec.frames[r] for r in track.rows]
+    return np.array([f.index for f in frames]), np.array([f.time for f in frames]), track.keypoints_3d
 
 
 def to_y_up(xyz: np.ndarray, frame_of_reference: str) -> np.ndarray:
@@ -99,7 +91,7 @@ def write_files(files: list[tuple[Path, bytes]], outputs: OutputSet | None = Non
 def write_trc(path: str | os.PathLike, rec: Recording, y_up: bool = False,
               outputs: OutputSet | None = None) -> list[Path]:
     """Write one TRC file per person of `rec` (see trc_paths); returns the paths written."""
-    ids = person_ids(rec)
+    ids = rec.person_ids
     if not ids:
         raise InputError(f"no person found in {rec.source}: nothing to write to {path}")
     paths = trc_paths(path, ids)

@@ -49,7 +49,7 @@ def _r(a: np.ndarray) -> list[float]:
 def scene(rec: Recording, rig: Rig | None = None) -> dict:
     """The page's data: frames of people (display axes, m), bones, cameras, floor grid."""
     frame = rec.frame_of_reference
-    ids = sorted({p.id for f in rec.frames for p in f.people})
+    ids = rec.person_ids
     colour = {pid: PALETTE[i % len(PALETTE)] for i, pid in enumerate(ids)}
     frames, points = [], []
     for f in rec.frames:
