@@ -7,10 +7,9 @@ import re
 from pathlib import Path
 
 from posecam.io.poses import read_poses
-from posecam.multiview.calibrate import MAX_ERROR_PX
 from posecam.multiview.fuse import fuse_recordings
 from posecam.multiview.options import FuseOptions
-from posecam.multiview.same_scene import MIN_SAME_MOTION
+from posecam.multiview.policy import CALIBRATION, SYNC
 
 TAKE = Path(__file__).parent / "data" / "two_people_50f"
 
@@ -30,7 +29,7 @@ def test_a_view_of_another_time_is_not_fused():
     dropped = [w for w in result.warnings if w.startswith("camera cam04 dropped:")]
     assert len(dropped) == 1 and "motion agrees poorly with the reference's" in dropped[0], result.warnings
     corr = float(re.search(r"correlation (-?[\d.]+)", dropped[0]).group(1))
-    assert corr < MIN_SAME_MOTION, dropped
+    assert corr < SYNC.min_same_motion, dropped
 
 
 def test_a_camera_that_tilted_as_it_filmed_is_dropped_for_its_reprojection_error():
@@ -44,5 +43,6 @@ def test_a_camera_that_tilted_as_it_filmed_is_dropped_for_its_reprojection_error
     assert result.views == [0, 2, 3], result.warnings
     dropped = [w for w in result.warnings if w.startswith("camera cam02_tilting dropped:")]
     assert len(dropped) == 1 and "its reprojection error is" in dropped[0], result.warnings
-    assert float(re.search(r"error is (\d+) px", dropped[0]).group(1)) > MAX_ERROR_PX, dropped
-    assert all(c.reprojection_px < MAX_ERROR_PX / 2 for c in result.cameras), [c.reprojection_px for c in result.cameras]
+    assert float(re.search(r"error is (\d+) px", dropped[0]).group(1)) > CALIBRATION.max_error_px, dropped
+    assert all(c.reprojection_px < CALIBRATION.max_error_px / 2 for c in result.cameras), \
+        [c.reprojection_px for c in result.cameras]

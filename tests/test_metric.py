@@ -167,7 +167,7 @@ def test_someone_never_seen_whole_keeps_the_models_size_and_its_spread():
     import dataclasses
 
     from posecam.geometry.camera import DEFAULT_FOCAL_SD
-    from posecam.scale.metric import GIVEN_SD, MODEL_SD
+    from posecam.scale.policy import SCALE
 
     rec, _ = scene({0: 1700.0, 1: 1700.0}, frames=20)
     rec = dataclasses.replace(rec, model="blazepose-full")
@@ -175,9 +175,9 @@ def test_someone_never_seen_whole_keeps_the_models_size_and_its_spread():
     for f in rec.frames:
         f.people[1].confidence[legs] = 0.05
     size = MODEL_STATURE["blazepose-full"]
-    cases = [(K, Heights(), 1.0, "model", MODEL_SD),
-             (dataclasses.replace(K, source="default"), Heights(), 1.0, "model", np.hypot(MODEL_SD, DEFAULT_FOCAL_SD)),
-             (K, Heights.parse(["1=1.50"]), 1.50 / size, "given", GIVEN_SD)]
+    cases = [(K, Heights(), 1.0, "model", SCALE.model_sd),
+             (dataclasses.replace(K, source="default"), Heights(), 1.0, "model", np.hypot(SCALE.model_sd, DEFAULT_FOCAL_SD)),
+             (K, Heights.parse(["1=1.50"]), 1.50 / size, "given", SCALE.given_sd)]
     for lens, heights, scale, source, spread in cases:
         out = scale_recording(dataclasses.replace(rec, intrinsics=lens), MetricOptions(floor=False, heights=heights))
         for f, g in zip(rec.frames, out.frames):

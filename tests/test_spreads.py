@@ -8,10 +8,10 @@ import pytest
 from posecam.errors import FusionError
 from posecam.geometry.camera import Rig
 from posecam.multiview.bundle import CameraSpread
-from posecam.multiview.calibrate import (MAX_PINNED_FOCAL_PCT, MAX_PINNED_ROTATION_DEG, KeptCameras, pinned,
-                                          widened, without_loose_cameras)
+from posecam.multiview.calibrate import KeptCameras, pinned, widened, without_loose_cameras
 from posecam.multiview.fuse import fuse_recordings
 from posecam.multiview.options import BundleOptions, FuseOptions
+from posecam.multiview.policy import CALIBRATION
 from posecam.multiview.observations import Observations
 from posecam.multiview.report import CameraReport
 from synth_rig import CameraSpec, make_rig, monocular_views, relative_rotation_error_deg, skeleton_motion
@@ -41,9 +41,10 @@ def test_a_camera_whose_spread_says_it_is_not_pinned_is_kept_marked_and_warned_a
     assert len(kept.warnings) == 1, kept.warnings
     line = kept.warnings[0]
     assert line.startswith("camera c is kept but not pinned") and "what would help: the lenses" in line, line
-    assert pinned(CameraSpread(MAX_PINNED_ROTATION_DEG + 0.1, 1.0, 1.0)) is not None
-    assert pinned(CameraSpread(1.0, MAX_PINNED_FOCAL_PCT + 1, 1.0)) is not None
-    assert pinned(CameraSpread(MAX_PINNED_ROTATION_DEG - 0.1, MAX_PINNED_FOCAL_PCT - 1, 1e6)) is None
+    rotation, focal = CALIBRATION.max_pinned_rotation_deg, CALIBRATION.max_pinned_focal_pct
+    assert pinned(CameraSpread(rotation + 0.1, 1.0, 1.0)) is not None
+    assert pinned(CameraSpread(1.0, focal + 1, 1.0)) is not None
+    assert pinned(CameraSpread(rotation - 0.1, focal - 1, 1e6)) is None
     wild = CameraSpread(15.0, 5.0, 1.0, (12.0, 5.0, 1.0))
     kept = without_loose_cameras(_kept([GOOD, wild, GOOD]), _people(3), np.zeros(3, int), ["a", "b", "c"], 0)[0]
     assert kept.views == [0, 2] and kept.unpinned == [None, None] and "camera b dropped" in kept.warnings[0]

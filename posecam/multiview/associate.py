@@ -27,14 +27,10 @@ from posecam.errors import FusionError
 from posecam.geometry.camera import FOCAL_RATIOS, CameraCalibration, Rig
 from posecam.geometry.rotation import rodrigues, rotation_jacobian
 from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
-from posecam.multiview.consensus import (MAX_PAIR_ANGLE, ConsensusOptions, camera_points, estimate_rig,
-                                        fuse_points, intrinsics_vectors)
+from posecam.multiview.consensus import ConsensusOptions, camera_points, estimate_rig, fuse_points, intrinsics_vectors
 from posecam.multiview.observations import Observations, PersonTracks, Take, ViewTrack, shift
 from posecam.multiview.options import FuseOptions
-
-MIN_COMMON_FRAMES = 10          # a pair of tracks needs this many frames seen by both
-MAX_SHARED = 2                  # frames two tracks of one view may share and still join
-PAIR_FRAMES = 300               # common frames (evenly spaced) that score a calibrated pair
+from posecam.multiview.policy import ASSOCIATION
 
 
 @dataclass
@@ -51,7 +47,7 @@ def associate_people(take: Take, rig: Rig | None, offsets: list[float], opts: Fu
     if rig is None:
         return associate_by_consensus(take, offsets, min_conf)
     n = take.lengths[take.reference]
-    return associate(take.tracks, pair_cost_calibrated(rig.cameras, offsets, n, min_conf), MAX_PAIR_ANGLE)
+    return associate(take.tracks, pair_cost_calibrated(rig.cameras, offsets, n, min_conf), ASSOCIATION.max_pair_angle)
 
 
 def unmatched_views(take: Take, association: Association) -> list[str]:
@@ -89,10 +85,10 @@ def pair_cost_calibrated(cams: list[CameraCalibration], offsets: list[float], n:
 
     def cost(a: ViewTrack, b: ViewTrack) -> PairFit:
         (pa, pb), common = _common(a, b, offsets, n, min_conf)
-        if common < MIN_COMMON_FRAMES:
+        if common < ASSOCIATION.min_common_frames:
             return PairFit(np.inf)
         rig = Rig([cams[a.view], cams[b.view]])
-        step = -(-common // PAIR_FRAMES)                          # a median needs no more frames
+        step = -(-common // ASSOCIATION.pair_frames)                          # a median needs no more frames
         uv, conf = np.stack([pa[0][::step], pb[0][::step]]), np.stack([pa[2][::step], pb[2][::step]])
         common = uv.shape[1]
         err = rig.reprojection_errors(rig.triangulate(uv, conf, min_conf), uv, conf, min_conf)
@@ -136,7 +132,7 @@ def _merged(groups: dict[int, list[ViewTrack]], pairs: list[tuple[ViewTrack, Vie
         ga, gb = groups[id(s)], groups[id(t)]
         if ga is gb:
             continue
-        if any(x.view == y.view and _overlap(x, y) > MAX_SHARED for x in ga for y in gb):
+        if any(x.view == y.view and _overlap(x, y) > ASSOCIATION.max_shared for x in ga for y in gb):
             return None
         merged = ga + gb
         for x in merged:
@@ -162,17 +158,17 @@ def _fused(take: Take, people: list[PersonTracks], core: list[int], rig: Rig, of
 def _hypothesis_cost(pairs: list[tuple[int, ViewTrack]], fused: list[tuple[np.ndarray, np.ndarray]], ref_cam: CameraCalibration,
                      view_cam: CameraCalibration, offset: float, min_conf: float) -> float:
     """Sum over the pairs (person, track of the new view: its camera as assumed, its offset) of
-    frames x (epipolar residual / MAX_PAIR_ANGLE - 1) under ONE consensus of all the pairs:
+    frames x (epipolar residual / max_pair_angle - 1) under ONE consensus of all the pairs:
     negative when one camera explains them all."""
     n = len(fused[0][0])
     a_parts, b_parts, bounds = [], [], [0]
     for p, t in pairs:
         pts, conf = fused[p]
         uv, xyz, c = shift(t.uv, offset, n), shift(t.xyz, offset, n), shift(t.conf, offset, n, 0.0)
-        both = (np.isfinite(pts).all(axis=-1) & (conf >= min_conf)).sum(axis=1) >= 6
-        both &= (c >= min_conf).sum(axis=1) >= 6
+        both = (np.isfinite(pts).all(axis=-1) & (conf >= min_conf)).sum(axis=1) >= ASSOCIATION.hypothesis_joints
+        both &= (c >= min_conf).sum(axis=1) >= ASSOCIATION.hypothesis_joints
         both[1::2] = False                                          # every other frame is enough
-        if both.sum() < MIN_COMMON_FRAMES // 2:
+        if both.sum() < ASSOCIATION.min_common_frames // 2:
             return np.inf
         a_parts.append((ref_cam.project(pts[both]), pts[both], conf[both]))
         b_parts.append((uv[both], xyz[both], c[both]))
@@ -181,7 +177,7 @@ def _hypothesis_cost(pairs: list[tuple[int, ViewTrack]], fused: list[tuple[np.nd
     obs = Observations(uv, xyz, conf, np.zeros(conf.shape[:2]))
     try:
         fit = estimate_rig([CameraCalibration("people", ref_cam.size, ref_cam.intrinsics), view_cam], obs,
-                           ConsensusOptions(min_conf=min_conf, max_iter=30, joint=False))
+                           ConsensusOptions(min_conf=min_conf, max_iter=ASSOCIATION.hypothesis_iter, joint=False))
     except FusionError:
         return np.inf
     if not FOCAL_RATIOS[0] < fit.focal_scale[1] < FOCAL_RATIOS[1]:   # focal / assumed focal a pair may imply
@@ -191,13 +187,14 @@ def _hypothesis_cost(pairs: list[tuple[int, ViewTrack]], fused: list[tuple[np.nd
     weights = obs.weights(min_conf)
     w = np.minimum(weights[0], weights[1])
     err = epipolar_errors(a, b, fit.rig.cameras[1].rotation, w)                          # (F, J) rad
-    per_frame = np.array([np.nanmedian(np.where(w[i] > 0, err[i], np.nan)) if (w[i] > 0).sum() >= 3 else np.nan
+    per_frame = np.array([np.nanmedian(np.where(w[i] > 0, err[i], np.nan))
+                          if (w[i] > 0).sum() >= ASSOCIATION.frame_joints else np.nan
                           for i in range(len(w))])
     residual = np.array([np.nanmedian(per_frame[lo:hi]) if np.isfinite(per_frame[lo:hi]).any() else np.inf
                          for lo, hi in zip(bounds[:-1], bounds[1:])])
     if not np.all(np.isfinite(residual)):
         return np.inf
-    return float(np.sum(np.diff(bounds) * (residual / MAX_PAIR_ANGLE - 1.0)))
+    return float(np.sum(np.diff(bounds) * (residual / ASSOCIATION.max_pair_angle - 1.0)))
 
 
 def epipolar_errors(a: np.ndarray, b: np.ndarray, rotation: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -214,7 +211,8 @@ def epipolar_errors(a: np.ndarray, b: np.ndarray, rotation: np.ndarray, w: np.nd
     t0 = np.linalg.svd(rows, full_matrices=False)[2][-1]
     fit = least_squares(lambda x: sw * epipolar_residuals(x, rotation, pa, pb), np.r_[0.0, 0.0, 0.0, t0],
                         jac=lambda x: sw[:, None] * epipolar_jacobian(x, rotation, pa, pb),
-                        loss="soft_l1", f_scale=MAX_PAIR_ANGLE / 3, max_nfev=50)
+                        loss="soft_l1", f_scale=ASSOCIATION.max_pair_angle / ASSOCIATION.epipolar_loss,
+                        max_nfev=ASSOCIATION.epipolar_nfev)
     out = np.full(w.shape, np.nan)
     out[ok] = np.abs(epipolar_residuals(fit.x, rotation, pa, pb))
     return out
@@ -257,7 +255,7 @@ def _best_hypothesis(tracks: list[ViewTrack], people: list[PersonTracks], fused,
     best, best_pairs = 0.0, []
     for choice in itertools.product(*options):
         pairs = [(p, t) for p, t in zip(choice, tracks) if p is not None]
-        if not pairs or any(p == q and _overlap(s, t) > MAX_SHARED
+        if not pairs or any(p == q and _overlap(s, t) > ASSOCIATION.max_shared
                             for (p, s), (q, t) in itertools.combinations(pairs, 2)):
             continue
         cost = single[(pairs[0][0], id(pairs[0][1]))] if len(pairs) == 1 else \
@@ -310,7 +308,8 @@ def _place(take: Take, core: list[int], people: list[PersonTracks], offsets: lis
     obs = Observations.side_by_side(take.observations(people, offsets, core))
     try:
         return estimate_rig([take.assumed[v] for v in core], obs,
-                            ConsensusOptions(reference=core.index(take.reference), min_conf=min_conf, max_iter=40)).rig
+                            ConsensusOptions(reference=core.index(take.reference), min_conf=min_conf,
+                                                             max_iter=ASSOCIATION.place_iter)).rig
     except FusionError:
         return None
 

@@ -63,19 +63,11 @@ from posecam.geometry.camera import Rig
 from posecam.geometry.rotation import rodrigues, rotation_jacobian
 from posecam.multiview.observations import TimedKeypoints, catmull_rom, held
 from posecam.multiview.options import BundleOptions
+from posecam.multiview.policy import BUNDLE
 from posecam.multiview.schur_lm import Prior, Solution, solve
 from posecam.skeleton import skeleton_of
 from posecam.geometry.triangulate import observation_weights, triangulate
 
-
-# soft-L1 loss: residuals (in pixel_sigma) beyond this scale count less; graduated, each scale to
-# convergence from the last (1 alone takes twice the evaluations: 238 against 112, single take)
-F_SCALES = (2.0, 1.0)
-# a refined offset's spread: its Jacobian's in quadrature with this many times the camera's median
-# reprojection error over its keypoints' median speed (`offset_floor`). Fitted on the single take's
-# --rigs sweep (offsets against the lab's within 2 sd: 29 of 39 at 1.0, 35 at 1.25, 37 at 1.5; the
-# errors are cam03's 2.7-3.5 frames in every run), checked on the two-person take: docs/benchmarks.md
-OFFSET_FLOOR = 1.5
 
 # The slots of a camera's vector in the adjustment: CameraCalibration.params (rotation vector,
 # translation, focal length f = sqrt(fx fy), optimised as log f, principal point) and its time offset
@@ -117,7 +109,7 @@ def coverage_frames(points: np.ndarray, weight: np.ndarray, n: int) -> np.ndarra
     chosen = [int(np.argmax(weight[ok]))]
     dist = np.linalg.norm(x - x[chosen[0]], axis=1)
     for _ in range(n - 1):
-        k = int(np.argmax(dist * (0.5 + weight[ok] / weight[ok].max())))
+        k = int(np.argmax(dist * (BUNDLE.coverage_floor + weight[ok] / weight[ok].max())))
         chosen.append(k)
         dist = np.minimum(dist, np.linalg.norm(x - x[k], axis=1))
     return np.sort(ok[chosen])
@@ -338,7 +330,7 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     obs_v, obs_f, obs_j = np.nonzero((w > 0) & used[None])
     obs_m = point_index[obs_f, obs_j]
     n_m = int(used.sum())
-    if n_m < 20:
+    if n_m < BUNDLE.min_points:
         raise FusionError(f"bundle adjustment: only {n_m} joints are seen by two cameras or more")
 
     # free parameters of each camera's vector (posecam.geometry.camera.CameraCalibration.params,
@@ -381,14 +373,14 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     # against the rotations) leave a valley open: `_inexact`; the rest takes the exact solver
     exact = (n_v > 2 or not lens_free.any()) and opts.fix_principal_point
     converged, x = True, x0
-    for f_scale in F_SCALES:
+    for f_scale in BUNDLE.f_scales:
         if exact:
             fit = solve(problem, x, f_scale, lower[free], upper[free], opts.max_nfev, opts.ftol, prior)
         else:
             fit = _inexact(problem, x, f_scale, lower[free], upper[free], opts, prior)
         converged, x = converged and fit.converged, fit.x
     p, pts = problem.unpack(fit.x)
-    loss_w = 1.0 / np.sqrt(1.0 + (problem.residuals(fit.x) / F_SCALES[-1]) ** 2)     # soft_l1's weights
+    loss_w = 1.0 / np.sqrt(1.0 + (problem.residuals(fit.x) / BUNDLE.f_scales[-1]) ** 2)     # soft_l1's weights
     cov = camera_covariance(problem, fit.x, loss_w, obs_v * n_j + obs_j)
     if refine:                                                            # the keypoints at the refined offsets
         uv, conf = timed.frames(frames).at(p[:, OFFSET])
@@ -432,7 +424,7 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
 
 def offset_floor(problem: _Problem, p: np.ndarray, median_px: np.ndarray) -> np.ndarray:
     """(V,) frames: how far a camera's offset can sit from the truth with its keypoints' bias
-    absorbed: OFFSET_FLOOR times its median reprojection error over the median speed of its
+    absorbed: BUNDLE.offset_floor times its median reprojection error over the median speed of its
     keypoints (px / frame). The detector's error for a joint in a view drifts with the pose and
     is the same from frame to frame, and an offset of d frames moves the keypoints by d times
     their speed, so the fit trades one against the other; no resampling of frames or joints
@@ -443,7 +435,7 @@ def offset_floor(problem: _Problem, p: np.ndarray, median_px: np.ndarray) -> np.
     for v in range(len(p)):
         sel = problem.obs_v == v
         if sel.any():
-            out[v] = OFFSET_FLOOR * median_px[v] / max(float(np.median(speed[sel])), 1e-6)
+            out[v] = BUNDLE.offset_floor * median_px[v] / max(float(np.median(speed[sel])), 1e-6)
     return np.nan_to_num(out, nan=np.inf)
 
 

@@ -12,11 +12,11 @@ nothing (its rays meet the others' at a tiny angle) or fused points behind it, a
 length out of any lens's range, or a spread of its rotation or focal length (from the bundle
 adjustment's Jacobian) too wide to trust. What is left is estimated again without it. Once
 the bootstrap has measured the spreads that fusion reports (`bootstrap_spreads`), a camera whose
-rotation it moves by more than MAX_BOOT_ROTATION_DEG is dropped too (`without_loose_cameras`):
+rotation it moves by more than CALIBRATION.max_boot_rotation_deg is dropped too (`without_loose_cameras`):
 the Jacobian's spreads are a fifth to an eighth of the real error, and a rig bent to fit
 unrelated people can pass them. The bootstrap's spreads are widened by the keypoints' bias,
-which all its replicates share (`widened`); a camera they leave loose (MAX_PINNED_ROTATION_DEG,
-MAX_PINNED_FOCAL_PCT) is kept, marked and warned about (`pinned`).
+which all its replicates share (`widened`); a camera they leave loose (CALIBRATION.max_pinned_rotation_deg,
+CALIBRATION.max_pinned_focal_pct) is kept, marked and warned about (`pinned`).
 """
 
 from __future__ import annotations
@@ -32,55 +32,12 @@ from posecam.multiview.associate import Association
 from posecam.multiview.bundle import CameraSpread, bundle_adjust, left_out
 from posecam.multiview.consensus import ConsensusOptions, estimate_rig, stretch_residuals
 from posecam.multiview.observations import Observations, Take, TimedKeypoints
-from posecam.multiview.motion_sync import MIN_MOTION
 from posecam.multiview.options import FuseOptions
-from posecam.multiview.same_scene import MIN_SAME_MOTION, motion_agreement
+from posecam.multiview.policy import CALIBRATION, SYNC
+from posecam.multiview.same_scene import motion_agreement
 from posecam.multiview.sync import SyncResult
 from posecam.scale.stature import stature
 from posecam.skeleton import skeleton_of
-
-MIN_FRAMES = 15                 # frames a camera must share with the others (>= 6 confident joints)
-MIN_JOINTS_PER_FRAME = 6
-MAX_ERROR_PX = 40.0             # median bundle-adjustment reprojection error per camera
-# median angle between this camera's rays and the best other's: below it, distance along the
-# common axis trades against focal length (a dolly zoom) and the fit settles anywhere
-MIN_RAY_ANGLE_DEG = 8.0
-MAX_BEHIND = 0.05               # fraction of the fused points that may lie behind a camera
-# one standard deviation from the adjustment's Jacobian (posecam.multiview.bundle.CameraSpread)
-# above which the data does not pin a camera: people too still, too few frames, or geometry that
-# tells little (0.4-0.8 deg and 1.4-2.4 % on Pose2Sim's takes: bench/bench_rig_limit.py)
-MAX_ROTATION_SPREAD_DEG = 3.0
-MAX_FOCAL_SPREAD_PCT = 15.0
-OUTLIER_FACTOR = 3.0            # a person's stretch this many times the median residual: outlier
-# the reported spreads: a bootstrap of the bundle adjustment (`bootstrap_spreads`), this many
-# replicates, each weighing every joint and every block of BOOT_BLOCK frames by a multinomial
-# count, warm-started from the rig on BOOT_FRAMES frames and ending at a relative cost change of
-# BOOT_FTOL (on the single take 10 replicates' spreads match those on 150 frames at 1e-6 within
-# 0.05 deg and 1 %, in 11 s against 17 s); the replicates' standard deviations vary by about
-# 1 / sqrt(2 BOOT_REPLICATES) = 20 % of themselves
-BOOT_REPLICATES = 12
-BOOT_BLOCK = 10
-BOOT_FRAMES = 50
-BOOT_FTOL = 1e-4
-# a bootstrap spread of a camera's rotation above this: the people do not pin it at all (1.1 to
-# 3.0 deg on Pose2Sim's takes with their four cameras, up to 3.6 with two of them; vtest.avi
-# against itself 40 s later, a rig bent to fit unrelated people, 26 deg)
-MAX_BOOT_ROTATION_DEG = 10.0
-# The bootstrap's replicates share the detector's structured bias (the same in every frame, alike
-# over the joints), so it under-covers: on the --rigs sweep of Pose2Sim's takes only 12 of 20
-# rotation errors lay within 2 of its spreads. Each spread is widened in quadrature by a floor
-# (`widened`): the angle BIAS_FLOOR times the camera's median reprojection error over the extent
-# of the people's keypoints in its image (the bias left visible, over the lever it acts on), for
-# rotation; that angle times the camera's distance to the people, for position; the angle as a
-# fraction, for a focal length estimated. Fitted on the single take's --rigs sweep (rotation errors
-# within 2 sd: 39 of 39 at 1.0, from the bootstrap's 28; 38 at 0.5; 37 of 39 at 1.0 on the
-# predictions before fuse read the observed keypoints, 30 at 0.5), checked on the two-person take
-# (57 of 64, from 34; focal lengths 78 of 86, positions 58 of 64): docs/benchmarks.md.
-BIAS_FLOOR = 1.0
-# a camera whose widened spread exceeds these is not pinned by the people: kept, marked and warned
-# about (`without_loose_cameras`)
-MAX_PINNED_ROTATION_DEG = 5.0
-MAX_PINNED_FOCAL_PCT = 25.0
 
 
 @dataclass
@@ -102,14 +59,14 @@ def measured_statures(rig: Rig, people: list[Observations], joints: tuple[str, .
                       min_conf: float) -> dict[int, float]:
     """Each person's height (m) as the rig measures it, by their index in `people` (the rig's
     views): the median over frames of posecam.scale.stature.stature of the triangulation of
-    their 2D keypoints, for those with 5 frames or more. At the rig's scale: the ratios are
+    their 2D keypoints, for those with CALIBRATION.min_stature_frames frames or more. At the rig's scale: the ratios are
     exact, whatever the scale."""
     out = {}
     for i, obs in enumerate(people):
         tri = rig.triangulate(obs.uv, obs.conf, min_conf)
         conf = np.where(np.isfinite(tri).all(axis=-1), obs.conf.max(axis=0), 0.0)
         h = stature(tri, conf, joints)
-        if np.isfinite(h).sum() >= 5:
+        if np.isfinite(h).sum() >= CALIBRATION.min_stature_frames:
             out[i] = float(np.nanmedian(h)) / 1000.0
     return out
 
@@ -134,7 +91,7 @@ def _consensus(assumed: list[CameraCalibration], people: list[Observations], vie
         inliers = Observations(obs.uv, obs.xyz, conf, obs.score)
         fit = estimate_rig(kept, inliers, ConsensusOptions(reference=views.index(ref), min_conf=min_conf, fixed=fixed))
         res = stretch_residuals(fit.rig, kept, inliers, lengths, min_conf)          # (V, P) mm
-        bad = res > OUTLIER_FACTOR * np.nanmedian(res)
+        bad = res > CALIBRATION.outlier_factor * np.nanmedian(res)
         if not bad.any():
             break
         for i, p in zip(*np.nonzero(bad)):
@@ -150,26 +107,26 @@ def _gate(rig: Rig, points: np.ndarray, errors: np.ndarray, obs: Observations, m
     centres = np.stack([c.centre for c in rig.cameras])
     reasons = []
     for i, cam in enumerate(rig.cameras):
-        frames = int(((obs.conf[i] >= min_conf).sum(axis=1) >= MIN_JOINTS_PER_FRAME).sum())
+        frames = int(((obs.conf[i] >= min_conf).sum(axis=1) >= CALIBRATION.min_joints_per_frame).sum())
         depth = cam.to_camera(pts)[:, 2]
         rays = pts[:, None] - centres[None]                                    # (N, V, 3)
         rays /= np.linalg.norm(rays, axis=-1, keepdims=True)
         cos = np.clip(np.einsum("nk,nvk->nv", rays[:, i], rays), -1, 1)
         angles = [np.degrees(np.median(np.arccos(cos[:, j]))) for j in range(len(centres)) if j != i]
         f, w = cam.intrinsics.fx, cam.size[0]
-        if frames < MIN_FRAMES:
-            reasons.append(f"it sees the people in only {frames} usable frames ({MIN_FRAMES} needed)")
-        elif not np.isfinite(errors[i]) or errors[i] > MAX_ERROR_PX:
+        if frames < CALIBRATION.min_frames:
+            reasons.append(f"it sees the people in only {frames} usable frames ({CALIBRATION.min_frames} needed)")
+        elif not np.isfinite(errors[i]) or errors[i] > CALIBRATION.max_error_px:
             reasons.append(f"its reprojection error is {errors[i]:.0f} px")
-        elif np.mean(depth <= 0) > MAX_BEHIND:
+        elif np.mean(depth <= 0) > CALIBRATION.max_behind:
             reasons.append(f"{100 * np.mean(depth <= 0):.0f} % of the fused joints lie behind it")
         elif not FOCAL_WIDTHS[0] * w < f < FOCAL_WIDTHS[1] * w:
             reasons.append(f"its focal length ({f:.0f} px) is implausible")
-        elif max(angles, default=0.0) < MIN_RAY_ANGLE_DEG:
+        elif max(angles, default=0.0) < CALIBRATION.min_ray_angle_deg:
             reasons.append(f"its view differs from the others by only {max(angles, default=0.0):.1f} deg "
                            "(degenerate geometry)")
-        elif spreads and not (spreads[i].rotation_deg <= MAX_ROTATION_SPREAD_DEG
-                              and spreads[i].focal_pct <= MAX_FOCAL_SPREAD_PCT):
+        elif spreads and not (spreads[i].rotation_deg <= CALIBRATION.max_rotation_spread_deg
+                              and spreads[i].focal_pct <= CALIBRATION.max_focal_spread_pct):
             reasons.append(f"the people pin it poorly (its adjustment's Jacobian: rotation ±{spreads[i].rotation_deg:.1f} "
                            f"deg, focal length ±{spreads[i].focal_pct:.0f} %: too little motion or too few frames)")
         else:
@@ -178,11 +135,11 @@ def _gate(rig: Rig, points: np.ndarray, errors: np.ndarray, obs: Observations, m
 
 
 def _usable_frames(people: list[Observations], n_views: int, min_conf: float) -> np.ndarray:
-    """(V,) frames in which each view sees a person (>= MIN_JOINTS_PER_FRAME confident joints)
+    """(V,) frames in which each view sees a person (>= CALIBRATION.min_joints_per_frame confident joints)
     that another view sees too."""
     out = np.zeros(n_views, int)
     for p in people:
-        seen = (p.conf >= min_conf).sum(axis=-1) >= MIN_JOINTS_PER_FRAME          # (V, F)
+        seen = (p.conf >= min_conf).sum(axis=-1) >= CALIBRATION.min_joints_per_frame          # (V, F)
         out += (seen & (seen.sum(axis=0) >= 2)).sum(axis=1)
     return out
 
@@ -201,9 +158,9 @@ def estimate_cameras(assumed: list[CameraCalibration], people: list[Observations
     people = [p for p in people if ((p.conf.max(axis=-1) > 0).sum(axis=0) >= 2).any()]   # seen twice
     usable = _usable_frames(people, len(assumed), min_conf)
     for v in list(views):
-        if v != reference and usable[v] < MIN_FRAMES:
+        if v != reference and usable[v] < CALIBRATION.min_frames:
             warnings.append(f"camera {assumed[v].name} dropped: it sees people that another camera sees "
-                            f"in only {usable[v]} frames ({MIN_FRAMES} needed)")
+                            f"in only {usable[v]} frames ({CALIBRATION.min_frames} needed)")
             views.remove(v)
     while True:
         if len(views) < 2:
@@ -267,7 +224,7 @@ def cameras_from_people(take: Take, association: Association, sync: SyncResult, 
     offsets, in the views whose offset is pinned (not SyncResult.unpinned; with
     BundleOptions.refine_offsets, the bundle adjustment refines the offsets from where they
     are: KeptCameras.offsets), then, while a kept view's people do not move as the reference's (`motion_agreement`
-    below MIN_SAME_MOTION where they move enough to tell), that view dropped and the cameras
+    below SYNC.min_same_motion where they move enough to tell), that view dropped and the cameras
     estimated again without it."""
     ref, min_conf, bundle = take.reference, opts.min_conf, opts.bundle_options
     every = list(range(len(take.names)))
@@ -288,7 +245,7 @@ def cameras_from_people(take: Take, association: Association, sync: SyncResult, 
     agreement = motion_agreement(take, association.people, sync.offsets, min_conf)
     while True:                          # views whose people do not move as the reference's: not one scene
         unrelated = [(agreement[v][0], v) for v in est.views if v in agreement
-                     and agreement[v][1] >= MIN_MOTION and not agreement[v][0] >= MIN_SAME_MOTION]
+                     and agreement[v][1] >= SYNC.min_motion and not agreement[v][0] >= SYNC.min_same_motion]
         if not unrelated:
             return est
         corr, v = min(unrelated)
@@ -318,8 +275,8 @@ def bootstrap_spreads(cameras: KeptCameras, people: list[Observations], joints: 
                       seed: int = 0) -> KeptCameras:
     """The estimated cameras with the spreads a bootstrap gives (one standard deviation of each
     camera's rotation, focal length and centre, at the rig's scale): the bundle adjustment again
-    from the rig, BOOT_REPLICATES times, each on the people (their views the cameras') with
-    every joint and every block of BOOT_BLOCK frames weighed by a multinomial count. The
+    from the rig, CALIBRATION.boot_replicates times, each on the people (their views the cameras') with
+    every joint and every block of CALIBRATION.boot_block frames weighed by a multinomial count. The
     detector's error for a joint in a view is its own in every frame (a bias) and drifts with
     the pose, so the rig's real error is of the size of how far it moves when joints and
     stretches of the take are left out or doubled; the Jacobian's spreads (the gate's) are 1/5 to
@@ -330,19 +287,19 @@ def bootstrap_spreads(cameras: KeptCameras, people: list[Observations], joints: 
         return cameras
     rig = cameras.rig
     obs = Observations.side_by_side(people)
-    boot = replace(opts.bundle_options, max_frames=BOOT_FRAMES, ftol=BOOT_FTOL)
+    boot = replace(opts.bundle_options, max_frames=CALIBRATION.boot_frames, ftol=CALIBRATION.boot_ftol)
     rng = np.random.default_rng(seed)
     n_j, n_f = len(joints), obs.conf.shape[1]
     used = ~left_out(joints, opts.bundle_options.left_out)
-    blocks = -(-n_f // BOOT_BLOCK)
+    blocks = -(-n_f // CALIBRATION.boot_block)
     ref = rig.names.index(rig.reference) if rig.reference else 0
     centres = np.stack([c.centre for c in rig.cameras])
     baseline = np.linalg.norm(centres - centres[ref], axis=1).sum()
     rot, focal, centre = [], [], []
-    for _ in range(BOOT_REPLICATES):
+    for _ in range(CALIBRATION.boot_replicates):
         per_joint = np.zeros(n_j)                    # the joints the adjustment uses, resampled
         per_joint[used] = rng.multinomial(used.sum(), np.full(used.sum(), 1 / used.sum()))
-        per_block = np.repeat(rng.multinomial(blocks, np.full(blocks, 1 / blocks)), BOOT_BLOCK)[:n_f]
+        per_block = np.repeat(rng.multinomial(blocks, np.full(blocks, 1 / blocks)), CALIBRATION.boot_block)[:n_f]
         try:
             fit = bundle_adjust(rig, obs.uv, obs.conf * per_block[None, :, None] * per_joint[None, None], None,
                                 joints, boot)
@@ -353,7 +310,7 @@ def bootstrap_spreads(cameras: KeptCameras, people: list[Observations], joints: 
         rot.append([cv2.Rodrigues(b.rotation @ a.rotation.T)[0].ravel() for a, b in zip(rig.cameras, fit.rig.cameras)])
         focal.append([b.intrinsics.fx / a.intrinsics.fx for a, b in zip(rig.cameras, fit.rig.cameras)])
         centre.append(c)
-    if len(rot) < 3:
+    if len(rot) < CALIBRATION.min_replicates:
         spreads = [CameraSpread(np.inf, np.inf, np.inf) for _ in rig.cameras]
     else:
         rot, focal, centre = np.array(rot), np.array(focal), np.array(centre)      # (B, V, 3), (B, V), (B, V, 3)
@@ -363,7 +320,7 @@ def bootstrap_spreads(cameras: KeptCameras, people: list[Observations], joints: 
 
 
 def bias_floor(rig: Rig, obs: Observations, min_conf: float) -> tuple[np.ndarray, np.ndarray]:
-    """Per camera (V,): the angle (rad) by which the keypoints' bias can turn it, BIAS_FLOOR
+    """Per camera (V,): the angle (rad) by which the keypoints' bias can turn it, CALIBRATION.bias_floor
     times its median reprojection error (the people triangulated through the rig) over the
     extent of the people's keypoints in its image (the RMS distance of every confident keypoint
     from their mean, px), and its distance to the people (mm, at the rig's scale)."""
@@ -380,7 +337,7 @@ def bias_floor(rig: Rig, obs: Observations, min_conf: float) -> tuple[np.ndarray
         e = errors[v][np.isfinite(errors[v])]
         if len(uv) > 1 and e.size:
             extent = float(np.sqrt(((uv - uv.mean(axis=0)) ** 2).sum(axis=1).mean()))
-            angle[v] = BIAS_FLOOR * float(np.median(e)) / max(extent, 1.0)
+            angle[v] = CALIBRATION.bias_floor * float(np.median(e)) / max(extent, 1.0)
         distance[v] = float(np.linalg.norm(cam.centre - centroid))
     return angle, distance
 
@@ -388,7 +345,7 @@ def bias_floor(rig: Rig, obs: Observations, min_conf: float) -> tuple[np.ndarray
 def widened(rig: Rig, obs: Observations, spreads: list[CameraSpread], min_conf: float,
             fixed: frozenset[str] = frozenset()) -> list[CameraSpread]:
     """The bootstrap's spreads widened in quadrature by the bias floor (`bias_floor`, above
-    BIAS_FLOOR): rotation and position but the reference's (the frame), the focal length of
+    CALIBRATION.bias_floor): rotation and position but the reference's (the frame), the focal length of
     every camera whose lens is estimated; `CameraSpread.bootstrap` keeps the bootstrap's own."""
     angle, distance = bias_floor(rig, obs, min_conf)
     ref = rig.names.index(rig.reference) if rig.reference else 0
@@ -405,7 +362,7 @@ def widened(rig: Rig, obs: Observations, spreads: list[CameraSpread], min_conf: 
 def without_loose_cameras(cameras: KeptCameras, people: list[Observations], swaps: np.ndarray, names: list[str],
                           reference: int, helps: str = "") -> tuple[KeptCameras, list[Observations], np.ndarray]:
     """The cameras whose bootstrap rotation spread (its own, before widening) stays within
-    MAX_BOOT_ROTATION_DEG, with the people and swaps (V,) of their views, and as its warnings
+    CALIBRATION.max_boot_rotation_deg, with the people and swaps (V,) of their views, and as its warnings
     one line for each camera dropped; FusionError when fewer than two are left. The others keep
     the rig they were estimated in: a camera the people do not pin pulls little on the rest.
     A kept camera whose widened spread says the people do not pin it (`pinned`) is kept and
@@ -414,7 +371,7 @@ def without_loose_cameras(cameras: KeptCameras, people: list[Observations], swap
     keep, lines = [], []
     for i, (v, spread) in enumerate(zip(cameras.views, cameras.spreads or [])):
         boot = (spread.bootstrap or (spread.rotation_deg,))[0]
-        if v != reference and not boot <= MAX_BOOT_ROTATION_DEG:
+        if v != reference and not boot <= CALIBRATION.max_boot_rotation_deg:
             lines.append(f"camera {names[v]} dropped: a bootstrap over its joints and frames moves its rotation "
                          f"by ±{boot:.0f} deg (the people do not pin it: not the same scene?)")
         else:
@@ -439,17 +396,18 @@ def without_loose_cameras(cameras: KeptCameras, people: list[Observations], swap
 
 def pinned(spread: CameraSpread) -> str | None:
     """Why the people do not pin a camera, from its (widened) spreads: a rotation known to worse
-    than MAX_PINNED_ROTATION_DEG or a focal length to worse than MAX_PINNED_FOCAL_PCT, one
+    than CALIBRATION.max_pinned_rotation_deg or a focal length to worse than CALIBRATION.max_pinned_focal_pct, one
     standard deviation; None where they pin it."""
     bad = []
-    if not spread.rotation_deg <= MAX_PINNED_ROTATION_DEG:
+    if not spread.rotation_deg <= CALIBRATION.max_pinned_rotation_deg:
         bad.append(f"rotation ±{spread.rotation_deg:.1f} deg")
-    if not spread.focal_pct <= MAX_PINNED_FOCAL_PCT:
+    if not spread.focal_pct <= CALIBRATION.max_pinned_focal_pct:
         bad.append(f"focal length ±{spread.focal_pct:.0f} %")
     if not bad:
         return None
-    return (" and ".join(bad) + f", one standard deviation (pinned: within ±{MAX_PINNED_ROTATION_DEG:g} deg and "
-            f"±{MAX_PINNED_FOCAL_PCT:g} %); its poses are fused, its own figures are not to be trusted")
+    rule = CALIBRATION
+    return (" and ".join(bad) + f", one standard deviation (pinned: within ±{rule.max_pinned_rotation_deg:g} deg and "
+            f"±{rule.max_pinned_focal_pct:g} %); its poses are fused, its own figures are not to be trusted")
 
 
 def _largest_sd(x: np.ndarray) -> float:

@@ -11,37 +11,28 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from posecam.multiview.motion_sync import LOWPASS_HZ, Resamples, shifted_pair
+from posecam.multiview.motion_sync import Resamples, shifted_pair
 from posecam.multiview.observations import Take, ViewTrack, lowpass
 from posecam.multiview.options import FuseOptions
+from posecam.multiview.policy import SYNC
 from posecam.skeleton import skeleton_of
-
-COARSE_SHARE = 0.5              # the coarse search's lags leave each pair of views at least this
-                                # share of the shorter one's frames
-COARSE_TRACKS = 3               # the longest tracks of each view that the coarse search pairs
-MIN_BONE_PAIRS = 150            # bone observations two views must share at a lag to score it
-# a long take's searches run on every k-th frame (`sampling_step`; the coarse search's cost grows
-# with frames times lags): the bones are low-passed at LOWPASS_HZ, so SAMPLE_RATE samples a
-# second keep them, and at least SAMPLED_FRAMES of the shorter view are kept
-SAMPLE_RATE = 4 * LOWPASS_HZ
-SAMPLED_FRAMES = 300
 
 
 def sampling_step(fps: float, frames: int) -> int:
     """Every how many frames a search over `frames` frames at `fps` reads its signals."""
-    return max(1, min(int(fps // SAMPLE_RATE), frames // SAMPLED_FRAMES))
+    return max(1, min(int(fps // SYNC.sample_rate), frames // SYNC.sampled_frames))
 
 
 def bone_directions(xyz: np.ndarray, conf: np.ndarray, joints: tuple[str, ...], fps: float,
                     min_conf: float) -> np.ndarray:
     """(F, B, 3) unit vectors of the skeleton's bones in a view's monocular poses (camera
-    frame), low-passed at LOWPASS_HZ; NaN where one of its ends is not seen (conf < min_conf)."""
+    frame), low-passed at SYNC.lowpass_hz; NaN where one of its ends is not seen (conf < min_conf)."""
     idx = skeleton_of(joints).bone_indices
     v = xyz[:, idx[:, 1]] - xyz[:, idx[:, 0]]
     seen = (conf[:, idx[:, 0]] >= min_conf) & (conf[:, idx[:, 1]] >= min_conf) & np.isfinite(v).all(axis=-1)
     with np.errstate(all="ignore"):
         v = v / np.linalg.norm(v, axis=-1, keepdims=True)
-        smooth = lowpass(v, seen, fps, LOWPASS_HZ)
+        smooth = lowpass(v, seen, fps, SYNC.lowpass_hz)
         smooth /= np.linalg.norm(smooth, axis=-1, keepdims=True)
     return np.where(seen[..., None], smooth, np.nan)
 
@@ -73,7 +64,7 @@ def _motion_match(products: np.ndarray, significance: bool = True) -> np.ndarray
     pins it), and under it the correlation r of the bones' deviations from their means (the
     motion; a still pose scores nothing), as its significance atanh(r) sqrt(n) over the n bones
     shared (a short overlap, or a short track, correlates by chance more easily; r itself
-    without `significance`); NaN where fewer than MIN_BONE_PAIRS bones are shared."""
+    without `significance`); NaN where fewer than SYNC.min_bone_pairs bones are shared."""
     h, centred = products[:, :9].reshape(-1, 3, 3), products[:, 9:18].reshape(-1, 3, 3)
     u, _, vt = np.linalg.svd(h)
     d = np.sign(np.linalg.det(u @ vt))
@@ -81,7 +72,7 @@ def _motion_match(products: np.ndarray, significance: bool = True) -> np.ndarray
     corr = np.einsum("lij,lji->l", r, centred) / np.sqrt(np.maximum(products[:, 18] * products[:, 19], 1e-12))
     if significance:
         corr = np.arctanh(np.clip(corr, -0.999, 0.999)) * np.sqrt(products[:, 20])
-    return np.where(products[:, 20] >= MIN_BONE_PAIRS, corr, np.nan)
+    return np.where(products[:, 20] >= SYNC.min_bone_pairs, corr, np.nan)
 
 
 def _resampled_products(a: np.ndarray, b: np.ndarray, resamples: Resamples) -> np.ndarray:
@@ -146,7 +137,7 @@ def epipolar_px(ref: list[ViewTrack], other: list[ViewTrack], pairing: tuple[tup
         seen = (ta.conf[f[ok]] >= min_conf) & (tb.conf[g[ok]] >= min_conf)
         a.append(ta.uv[f[ok]][seen]), b.append(tb.uv[g[ok]][seen])
     a, b = np.concatenate(a), np.concatenate(b)
-    if len(a) < 30:
+    if len(a) < SYNC.epipolar_points:
         return np.inf
     fm, _ = cv2.findFundamentalMat(a.astype(np.float64), b.astype(np.float64), cv2.FM_LMEDS)
     if fm is None or fm.shape != (3, 3):
@@ -196,7 +187,7 @@ def coarse_offset(ref: list[ViewTrack], other: list[ViewTrack], joints: tuple[st
 
 def coarse_offsets(take: Take, opts: FuseOptions) -> list[float]:
     """Every view's whole-frame offset against the reference (`coarse_offset`, on the longest
-    COARSE_TRACKS tracks of each) over every lag that leaves the two views COARSE_SHARE of the
+    SYNC.coarse_tracks tracks of each) over every lag that leaves the two views SYNC.coarse_share of the
     shorter one's frames; 0 where nothing is shared or the lag exceeds FuseOptions.max_offset
     (None: no limit). Who is who need not be known: it runs on the views' tracks, before the association."""
     fps, max_offset = take.fps, opts.max_offset
@@ -205,8 +196,9 @@ def coarse_offsets(take: Take, opts: FuseOptions) -> list[float]:
     for v in range(len(take.names)):
         if v == ref or not take.tracks[v] or not take.tracks[ref]:
             continue
-        found = coarse_offset(take.tracks[ref][:COARSE_TRACKS], take.tracks[v][:COARSE_TRACKS], take.joints, fps,
-                              opts.min_conf, int(COARSE_SHARE * min(take.lengths[ref], take.lengths[v])))
+        tracks = [take.tracks[u][:SYNC.coarse_tracks] for u in (ref, v)]
+        found = coarse_offset(*tracks, take.joints, fps, opts.min_conf,
+                              int(SYNC.coarse_share * min(take.lengths[ref], take.lengths[v])))
         if found is not None and (max_offset is None or abs(found.offset) <= max_offset):
             out[v] = float(found.offset)
     return out

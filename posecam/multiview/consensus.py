@@ -36,34 +36,15 @@ from posecam.geometry.camera import CameraCalibration, Intrinsics, Rig
 from posecam.geometry.floor import robust_sd
 from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.multiview.observations import Observations
-
-# ---- the rules the stages share (one place: the association, the calibration's gate and fusion) ----
-# a focal length the people imply: plausible by posecam.geometry.camera's rule (FOCAL_WIDTHS image
-# widths: the calibration's gate; within FOCAL_RATIOS times the one the monocular poses assumed for
-# a pair of tracks: the association, wider is another person or no geometry); a consensus's factor
-# above MIN_FOCAL_SCALE (else the poses give no focal length at all)
-MIN_FOCAL_SCALE = 0.05
-# the same person across views: a pair of tracks through a calibration reprojects within
-# MAX_PAIR_ANGLE (rad, the median over their frames: 50 px at f = 1700); once associated, a view's
-# pose in one frame within MAX_VIEW_ANGLE of the others' (about 70 px; one frame is noisier than
-# a track's median)
-MAX_PAIR_ANGLE = 0.03
-MAX_VIEW_ANGLE = 0.04
-
-# A monocular pose's depth is this many times less certain than its lateral position.
-DEPTH_NOISE_RATIO = 4.0
-MIN_SHARED_JOINTS = 12
+from posecam.multiview.policy import CONSENSUS
 
 
 @dataclass
 class ConsensusOptions:
     reference: int = 0             # index of the camera that defines the frame of reference
     min_conf: float = MIN_CONFIDENCE
-    max_iter: int = 100            # per stage
-    tol: float = 1e-5              # largest change (rad, or relative) that counts as converged
-    cauchy_scale: float = 2.5      # outlier scale, in robust standard deviations of the residuals
+    max_iter: int = CONSENSUS.max_iter   # per stage
     joint: bool = True             # stage 2 (all views at once); False: stage 1 only, quicker
-    max_frames: int = 300          # frames used, evenly spaced (the cost is linear in them)
     fixed: frozenset[str] = frozenset()   # names of the cameras whose intrinsics are known: held
 
 
@@ -133,7 +114,7 @@ def fit_focal(assumed: CameraCalibration, xyz: np.ndarray, root: np.ndarray, k: 
     ok = w > 0
     rel, root, zt, wv = (z0 - root)[ok], root[ok], target[..., 2][ok], w[ok]
     g = float(np.sum(wv * root * (zt - rel)) / np.sum(wv * root * root))
-    if not np.isfinite(g) or g <= MIN_FOCAL_SCALE:
+    if not np.isfinite(g) or g <= CONSENSUS.min_focal_scale:
         raise FusionError(f"camera {assumed.name}: the poses give no positive focal length")
     out = k.copy()
     out[0], out[1] = g * assumed.intrinsics.fx, g * assumed.intrinsics.fy
@@ -141,7 +122,7 @@ def fit_focal(assumed: CameraCalibration, xyz: np.ndarray, root: np.ndarray, k: 
 
 
 def fuse_points(points: np.ndarray, rotations: np.ndarray, w: np.ndarray,
-                depth_ratio: float = DEPTH_NOISE_RATIO, leave_one_out: bool = False) -> np.ndarray:
+                depth_ratio: float = CONSENSUS.depth_noise_ratio, leave_one_out: bool = False) -> np.ndarray:
     """Confidence-weighted mean of V views' points (V, F, J, 3) in one frame, each view's depth
     axis (third row of its rotation) trusted `depth_ratio`^2 times less than its lateral axes.
 
@@ -222,13 +203,13 @@ def _run_stage(assumed: list[CameraCalibration], obs: Observations, s: _State, w
             target = fuse_points(x, s.rotation, w0, leave_one_out=True)
         else:
             target = np.broadcast_to(x[ref], x.shape)
-        w = _robust_weights(np.linalg.norm(x - target, axis=-1), w0, opts.cauchy_scale)
+        w = _robust_weights(np.linalg.norm(x - target, axis=-1), w0, CONSENSUS.cauchy_scale)
         w = np.where(np.isfinite(target).all(axis=-1), w, 0.0)
         old = s.copy()
         fitted = [i for i in range(len(assumed)) if joint or i != ref]     # the reference: its focal, in stage 2
         for i in fitted:
-            if (w[i] > 0).sum() < MIN_SHARED_JOINTS:
-                raise FusionError(f"camera {assumed[i].name} shares fewer than {MIN_SHARED_JOINTS} confident "
+            if (w[i] > 0).sum() < CONSENSUS.min_shared_joints:
+                raise FusionError(f"camera {assumed[i].name} shares fewer than {CONSENSUS.min_shared_joints} confident "
                                   "joints with the other views")
         moved = [i for i in fitted if i != ref]
         s.rotation[moved], s.translation[moved] = procrustes(target[moved].reshape(len(moved), -1, 3),
@@ -238,7 +219,7 @@ def _run_stage(assumed: list[CameraCalibration], obs: Observations, s: _State, w
             if assumed[i].name not in opts.fixed:
                 s.k[i] = fit_focal(assumed[i], obs.xyz[i], root[i], s.k[i],
                                    target[i] @ s.rotation[i].T + s.translation[i], w[i])
-        if it > 0 and s.change(old) < opts.tol:
+        if it > 0 and s.change(old) < CONSENSUS.tol:
             return it + 1, True
     return opts.max_iter, False
 
@@ -247,13 +228,13 @@ def estimate_rig(assumed: list[CameraCalibration], obs: Observations,
                  options: ConsensusOptions | None = None) -> ConsensusResult:
     """Intrinsics and extrinsics of every camera, relative to the reference camera, from the
     views' time-aligned monocular poses `obs` (V views, the same F frames), made with the
-    views' own cameras `assumed` (name, image size, intrinsics f0); at most `max_frames` of the
+    views' own cameras `assumed` (name, image size, intrinsics f0); at most CONSENSUS.max_frames of the
     frames, evenly spaced, take part."""
     opts = options or ConsensusOptions()
     if len(assumed) < 2:
         raise FusionError(f"camera estimation needs at least two views, got {len(assumed)}")
     n, ref = len(assumed), opts.reference
-    step = -(-obs.conf.shape[1] // opts.max_frames)
+    step = -(-obs.conf.shape[1] // CONSENSUS.max_frames)
     if step > 1:
         obs = obs.frames(step)
     w0 = obs.weights(opts.min_conf)
@@ -263,9 +244,9 @@ def estimate_rig(assumed: list[CameraCalibration], obs: Observations,
     p, _ = _points(assumed, obs, s)
     for i in range(n):
         both = (w0[i] > 0) & (w0[ref] > 0)
-        if both.sum() < MIN_SHARED_JOINTS:
+        if both.sum() < CONSENSUS.min_shared_joints:
             raise FusionError(f"cameras {assumed[i].name} and {assumed[ref].name} see the person together "
-                              f"in fewer than {MIN_SHARED_JOINTS} confident joints")
+                              f"in fewer than {CONSENSUS.min_shared_joints} confident joints")
         s.translation[i] = (p[i][both] - p[ref][both]).mean(axis=0)
     it1, _ = _run_stage(assumed, obs, s, w0, opts, joint=False)
     it2, converged = _run_stage(assumed, obs, s, w0, opts, joint=True) if opts.joint else (0, True)

@@ -1,7 +1,7 @@
 """Fusion of one associated person, frame by frame, in the rig's frame of reference.
 
 Before fusing, each frame is checked: a view whose keypoints miss the triangulation of the
-person's other views by more than MAX_VIEW_ANGLE (median over joints) shows someone else in
+person's other views by more than FUSION.max_view_angle (median over joints) shows someone else in
 that frame (an id switch, a wrong association) and is left out of it, so no fused pose is
 made of two people's joints. With two views that disagree, the one with the lower detection
 score is left out.
@@ -16,9 +16,10 @@ import numpy as np
 
 from posecam.geometry.camera import Intrinsics, Rig
 from posecam.geometry.triangulate import MIN_CONFIDENCE
-from posecam.multiview.consensus import MAX_VIEW_ANGLE, fuse_points, scaled_depths
+from posecam.multiview.consensus import fuse_points, scaled_depths
 from posecam.multiview.observations import Observations
 from posecam.multiview.options import FuseOptions
+from posecam.multiview.policy import FUSION
 
 
 @dataclass
@@ -45,7 +46,7 @@ def camera_space(rig: Rig, assumed: list[Intrinsics], obs: Observations, anchor:
                  min_conf: float = MIN_CONFIDENCE) -> np.ndarray:
     """(V, F, J, 3) each view's monocular poses rebuilt under its camera's intrinsics, in the
     rig's frame. The depth of a monocular pose is its least certain part: where `anchor`
-    (F, J, 3, the triangulation of the views' 2D keypoints) gives three joints or more, each
+    (F, J, 3, the triangulation of the views' 2D keypoints) gives FUSION.anchor_joints or more, each
     view's pose is moved along its depth axis onto it; elsewhere its root depth scales with
     f / f_assumed (posecam.multiview.consensus.scaled_depths)."""
     depths = scaled_depths(obs, np.array([[c.intrinsics.fx, c.intrinsics.fy] for c in rig.cameras]),
@@ -57,7 +58,7 @@ def camera_space(rig: Rig, assumed: list[Intrinsics], obs: Observations, anchor:
             wa = np.where(np.isfinite(target) & np.isfinite(z) & (conf >= min_conf), conf, 0.0)
             shift = np.sum(wa * np.nan_to_num(target - z), axis=-1, keepdims=True) / np.maximum(
                 np.sum(wa, axis=-1, keepdims=True), 1e-9)
-            z = z + np.where((wa > 0).sum(axis=-1, keepdims=True) >= 3, shift, 0.0)
+            z = z + np.where((wa > 0).sum(axis=-1, keepdims=True) >= FUSION.anchor_joints, shift, 0.0)
         xy = cam.normalise(np.nan_to_num(uv)) * z[..., None]
         out.append(cam.to_world(np.concatenate([xy, z[..., None]], axis=-1)))
     return np.stack(out)
@@ -65,7 +66,7 @@ def camera_space(rig: Rig, assumed: list[Intrinsics], obs: Observations, anchor:
 
 def consistent_views(rig: Rig, obs: Observations, min_conf: float) -> np.ndarray:
     """(V, F) the views that see the person in each frame and agree with its other views."""
-    seen = (obs.conf >= min_conf).sum(axis=-1) >= 3
+    seen = (obs.conf >= min_conf).sum(axis=-1) >= FUSION.seen_joints
     keep = seen.copy()
     focal = np.array([c.intrinsics.fx for c in rig.cameras])[:, None]
     frames = np.arange(seen.shape[1])
@@ -77,7 +78,7 @@ def consistent_views(rig: Rig, obs: Observations, min_conf: float) -> np.ndarray
             angle = np.nanmedian(errors, axis=-1) / focal                       # (V, F)
         angle = np.where(keep & np.isfinite(angle), angle, -np.inf)
         worst = np.argmax(angle, axis=0)
-        bad = angle[worst, frames] > MAX_VIEW_ANGLE
+        bad = angle[worst, frames] > FUSION.max_view_angle
         if not bad.any():
             break
         pair = keep.sum(axis=0) == 2
@@ -102,7 +103,7 @@ def fuse_person(rig: Rig, assumed: list[Intrinsics], obs: Observations, opts: Fu
     tri = rig.triangulate(obs.uv, conf, min_conf)
     pts = camera_space(rig, assumed, obs, tri, min_conf)
     # views below min_conf count only where no view reaches it, so every joint has a value
-    w = np.where(conf >= min_conf, conf, 1e-3 * conf)
+    w = np.where(conf >= min_conf, conf, FUSION.faint_weight * conf)
     w = np.where(used[..., None], w + 1e-12, 0.0)
     rot = np.stack([c.rotation for c in rig.cameras])
     fused = fuse_points(pts, rot, w)

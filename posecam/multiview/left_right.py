@@ -13,10 +13,9 @@ import numpy as np
 from posecam.geometry.camera import CameraCalibration, Rig
 from posecam.geometry.triangulate import triangulate
 from posecam.multiview.observations import Observations
+from posecam.multiview.policy import FUSION
 from posecam.results import Recording
 from posecam.skeleton import skeleton_of
-
-SWAP_RATIO = 0.7        # swapped must reproject at most this fraction of the unswapped error
 
 
 def _swap_ratios(cams: list[CameraCalibration], uv: np.ndarray, conf: np.ndarray, flip: np.ndarray) -> np.ndarray:
@@ -51,7 +50,7 @@ def find_swaps(cams: list[CameraCalibration], uv: np.ndarray, conf: np.ndarray, 
     for _ in range(n_views):
         ratios = _swap_ratios(cams, uv, conf, flip)
         best = np.argmin(np.where(np.isfinite(ratios), ratios, np.inf), axis=0)            # (F,)
-        act = ratios[best, frames] < SWAP_RATIO
+        act = ratios[best, frames] < FUSION.swap_ratio
         if not act.any():
             break
         v, f = best[act], frames[act]

@@ -16,19 +16,13 @@ import numpy as np
 
 from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.multiview.observations import PersonTracks, Take, lowpass, shift
-
-LOWPASS_HZ = 3.0                # Butterworth cut-off of the motion signals
-LAG_STEP = 0.1                  # frames: the lag grid before the parabolic refinement
-MIN_MOTION = 45.0               # mm: below this excursion of the joints about the root (the
-                                # median over joints of their low-passed standard deviation over
-                                # time) the people are too still to pin an offset
-BOOTSTRAP = 30                  # resamples of blocks of frames and of joints for the offset's spread
+from posecam.multiview.policy import SYNC
 
 
 def _smoothed(xyz: np.ndarray, conf: np.ndarray, fps: float, min_conf: float) -> tuple[np.ndarray, np.ndarray]:
     """(F, J, 3) joints about the root (joint 0), gaps bridged, low-passed; (F, J) where seen."""
     seen = (conf >= min_conf) & (conf[:, :1] >= min_conf) & np.isfinite(xyz).all(axis=-1)
-    out = lowpass(xyz - xyz[:, :1], seen, fps, LOWPASS_HZ)
+    out = lowpass(xyz - xyz[:, :1], seen, fps, SYNC.lowpass_hz)
     out[:, 0] = np.nan
     return out, seen & np.isfinite(out).all(axis=-1)
 
@@ -56,9 +50,9 @@ def _excursion(smooth: np.ndarray, seen: np.ndarray) -> float:
 
 def keypoint_speed(uv: np.ndarray, conf: np.ndarray, fps: float, min_conf: float = MIN_CONFIDENCE) -> float:
     """Median speed (px a frame) of a view's keypoints (F, J, 2) seen with conf >= min_conf,
-    low-passed at LOWPASS_HZ; NaN where none is seen twice in a row."""
+    low-passed at SYNC.lowpass_hz; NaN where none is seen twice in a row."""
     seen = (conf >= min_conf) & np.isfinite(uv).all(axis=-1)
-    speed = np.linalg.norm(np.gradient(lowpass(uv, seen, fps, LOWPASS_HZ), axis=0), axis=-1)
+    speed = np.linalg.norm(np.gradient(lowpass(uv, seen, fps, SYNC.lowpass_hz), axis=0), axis=-1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         return float(np.nanmedian(np.where(seen, speed, np.nan)))
@@ -90,7 +84,7 @@ class Resamples:
 def motion_correlations(ref: np.ndarray, other: np.ndarray, lag: float, resamples: Resamples) -> np.ndarray:
     """(R,) Pearson correlation of ref (F, K) with other at `lag` (module convention), over every
     signal and frame where both have a value, in each resample (its frames and columns
-    weighted by how often they were drawn); NaN where fewer than 30 values are shared. Each side
+    weighted by how often they were drawn); NaN where fewer than SYNC.min_values values are shared. Each side
     moves by half the lag, so both are interpolated alike (interpolating one side only smooths
     it, and biases the peak towards whole frames)."""
     a, b = shifted_pair(ref, other, lag)
@@ -104,7 +98,7 @@ def motion_correlations(ref: np.ndarray, other: np.ndarray, lag: float, resample
     ma, mb = total(a) / np.maximum(n, 1), total(b) / np.maximum(n, 1)
     sxy, sxx, syy = total(a * b) - n * ma * mb, total(a * a) - n * ma * ma, total(b * b) - n * mb * mb
     corr = sxy / np.maximum(np.sqrt(np.maximum(sxx * syy, 0.0)), 1e-12)
-    return np.where(n >= 30, corr, np.nan)
+    return np.where(n >= SYNC.min_values, corr, np.nan)
 
 
 def motion_correlation(ref: np.ndarray, other: np.ndarray, lag: float) -> float:
@@ -133,21 +127,21 @@ class MotionOffset:
 def motion_offset(score: Callable[[float, Resamples], np.ndarray], n: int, k: int, centre: float, window: float,
                   seed: int = 0) -> MotionOffset:
     """The sub-frame lag at which score(lag, resamples) (a correlation of two views' signals: n
-    frames, k columns, per resample of them: `Resamples`) peaks, on a grid of LAG_STEP frames
+    frames, k columns, per resample of them: `Resamples`) peaks, on a grid of SYNC.lag_step frames
     within `window` of `centre`, refined by a parabola; its spread is that of the peak over
-    BOOTSTRAP resamples of blocks of frames (a tenth of the take each) and of the columns: a
+    SYNC.bootstrap resamples of blocks of frames (a tenth of the take each) and of the columns: a
     monocular pose's errors depend on where the camera stands, so signals that two views see
     differently pull the peak apart, and resampling the frames alone would hide it (Pose2Sim's
     single take, joint speeds: cam03 -0.4 +- 0.8 frames over frames alone, +- 1.2 over frames
     and joints, where the lab rig puts it at +4.2). Every resample is scored at once, lag by lag."""
-    lags = np.round(centre + np.arange(-window, window + LAG_STEP / 2, LAG_STEP), 6)
+    lags = np.round(centre + np.arange(-window, window + SYNC.lag_step / 2, SYNC.lag_step), 6)
     whole = Resamples.whole(n, k)
     corr = np.array([score(o, whole)[0] for o in lags])
     if not np.isfinite(corr).any():
         return MotionOffset(centre, np.nan, np.inf)
     best = _peak(lags, corr)
-    near = lags[np.abs(lags - best) <= 2.0]
-    c = np.stack([score(o, _resamples(n, k, seed)) for o in near], axis=1)      # (BOOTSTRAP, lags)
+    near = lags[np.abs(lags - best) <= SYNC.peak_span]
+    c = np.stack([score(o, _resamples(n, k, seed)) for o in near], axis=1)      # (SYNC.bootstrap, lags)
     peaks = [_peak(near, row) for row in c if np.isfinite(row).any()]
     spread = float(np.std(peaks)) if len(peaks) > 2 else np.inf
     peak = float(np.nanmax(corr)) if np.isfinite(corr).any() else np.nan
@@ -155,12 +149,12 @@ def motion_offset(score: Callable[[float, Resamples], np.ndarray], n: int, k: in
 
 
 def _resamples(n: int, k: int, seed: int) -> Resamples:
-    """BOOTSTRAP resamples of n frames in blocks of a tenth of them (at least 10) and of k
+    """SYNC.bootstrap resamples of n frames in blocks of a tenth of them (at least SYNC.block_frames) and of k
     columns, drawn with replacement."""
     rng = np.random.default_rng(seed)
-    block = max(10, n // 10)
-    frames, columns = np.zeros((BOOTSTRAP, n)), np.zeros((BOOTSTRAP, k))
-    for r in range(BOOTSTRAP):
+    block = max(SYNC.block_frames, n // SYNC.blocks)
+    frames, columns = np.zeros((SYNC.bootstrap, n)), np.zeros((SYNC.bootstrap, k))
+    for r in range(SYNC.bootstrap):
         starts = rng.integers(0, max(n - block, 1), size=max(n // block, 1))
         drawn = np.concatenate([np.arange(s, min(s + block, n)) for s in starts])
         frames[r] = np.bincount(drawn, minlength=n)
@@ -188,13 +182,13 @@ def shared_motion(take: Take, people: list[PersonTracks], v: int,
 
 def holds_still(take: Take, min_conf: float) -> bool:
     """Whether nobody moves in any view (a static trial): every track's joints move less than
-    MIN_MOTION about its root (`_excursion` of the joints as observed: a take too short to
+    SYNC.min_motion about its root (`_excursion` of the joints as observed: a take too short to
     low-pass is judged too). Nothing pins such a take's offsets, and nothing needs them."""
     def excursion(xyz: np.ndarray, conf: np.ndarray) -> float:
         seen = (conf >= min_conf) & (conf[:, :1] >= min_conf) & np.isfinite(xyz).all(axis=-1)
         return _excursion(xyz - xyz[:, :1], seen)
 
-    return all(excursion(t.xyz, t.conf) < MIN_MOTION for tracks in take.tracks for t in tracks)
+    return all(excursion(t.xyz, t.conf) < SYNC.min_motion for tracks in take.tracks for t in tracks)
 
 
 def shared_excursion(take: Take, people: list[PersonTracks], v: int, min_conf: float) -> float | None:

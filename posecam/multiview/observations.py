@@ -24,9 +24,8 @@ from posecam.geometry.camera import CameraCalibration
 from posecam.analysis.filters import butterworth
 from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
 from posecam.io.media import DEFAULT_FPS
+from posecam.multiview.policy import TAKE
 from posecam.results import Recording
-
-MIN_TRACK_FRAMES = 8            # shorter tracks are left out (detector flicker)
 
 
 def shift(a: np.ndarray, offset: float, length: int, fill=np.nan) -> np.ndarray:
@@ -51,10 +50,10 @@ def shift(a: np.ndarray, offset: float, length: int, fill=np.nan) -> np.ndarray:
 def lowpass(a: np.ndarray, seen: np.ndarray, fps: float, hz: float) -> np.ndarray:
     """(F, J, D) tracks low-passed in time (posecam.analysis.filters.butterworth at `hz`: 2nd order,
     forwards and back), each joint's gaps bridged where it is not `seen` (F, J), held before
-    and after; NaN for joints seen in fewer than 15 frames."""
+    and after; NaN for joints seen in fewer than TAKE.lowpass_frames frames."""
     out = np.full(a.shape, np.nan)
     idx = np.arange(len(a))
-    kept = [k for k in range(a.shape[1]) if seen[:, k].sum() >= 15]
+    kept = [k for k in range(a.shape[1]) if seen[:, k].sum() >= TAKE.lowpass_frames]
     if not kept:
         return out
     filled = np.stack([np.stack([np.interp(idx, idx[seen[:, k]], a[seen[:, k], k, d]) for d in range(a.shape[2])],
@@ -225,7 +224,7 @@ def assumed_cameras(names: list[str], recordings: list[Recording]) -> list[Camer
     return [CameraCalibration(name, (r.width, r.height), r.intrinsics) for name, r in zip(names, recordings)]
 
 
-def tracks_of(rec: Recording, view: int, min_frames: int = MIN_TRACK_FRAMES) -> list[ViewTrack]:
+def tracks_of(rec: Recording, view: int, min_frames: int = TAKE.min_track_frames) -> list[ViewTrack]:
     """Every person id of `rec` seen in at least `min_frames` frames, longest first, as observed
     (`Person.observed`: a smoothed recording's keypoints before smoothing, which the estimators
     downstream need, not the smoothed ones that are shown); a pose with doubts

@@ -13,6 +13,7 @@ from posecam.geometry.camera import Rig
 from posecam.multiview.bundle import CameraSpread
 from posecam.multiview.fuse_people import FusedPerson
 from posecam.multiview.observations import Observations
+from posecam.multiview.policy import FUSION
 
 
 @dataclass
@@ -51,9 +52,6 @@ def _finite(x: float, digits: int) -> float | None:
     return round(float(x), digits) if np.isfinite(x) else None
 
 
-MIN_VIEWS = 2       # views that must see a fused joint for it to enter a camera's figures
-
-
 def shared_joints(f: FusedPerson) -> np.ndarray:
     """(F, J) the joints of a fused person that two views or more saw: in views fused in the
     frame (FusedPerson.used), with confidence >= min_conf (FusedPerson.joint_views). A person
@@ -61,7 +59,7 @@ def shared_joints(f: FusedPerson) -> np.ndarray:
     reprojects onto its own keypoints (0 px, whatever the rig) and tells nothing of the camera,
     so it stays out of the reprojection error and the joints used."""
     views = f.joint_views if f.joint_views is not None else np.broadcast_to(f.views[:, None], f.conf.shape)
-    return (views >= MIN_VIEWS) & np.isfinite(f.points).all(axis=-1)
+    return (views >= FUSION.min_views) & np.isfinite(f.points).all(axis=-1)
 
 
 def camera_reports(rig: Rig, offsets: list[float], confidence: list[float], offset_spread: list[float],

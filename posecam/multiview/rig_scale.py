@@ -12,16 +12,15 @@ from posecam.geometry.camera import Rig
 from posecam.multiview.calibrate import KeptCameras, measured_statures
 from posecam.multiview.observations import Observations, Take
 from posecam.multiview.options import FuseOptions
+from posecam.multiview.policy import CALIBRATION
 from posecam.scale.heights import Heights
-
-HEIGHTS_AGREE = 0.10    # given heights whose ratios to the measured ones spread wider disagree with the rig
 
 
 def metric_scale(rig: Rig, people: list[Observations], joints: tuple[str, ...], heights: Heights,
                  min_conf: float) -> tuple[float, str, list[str]]:
     """The factor that brings an estimated rig to the people's given heights, what the table
     says of it, and a warning where the heights given disagree with the relative heights the rig
-    measures (given / measured spread by more than HEIGHTS_AGREE: no one scale fits them all).
+    measures (given / measured spread by more than CALIBRATION.heights_agree: no one scale fits them all).
     The rig gives the people's relative heights exactly (one scale for all): each person's
     height is the median over frames of posecam.scale.stature.stature of the triangulation of its 2D
     keypoints (the rig's geometry alone, not the monocular skeletons' adult size); a list is
@@ -35,7 +34,7 @@ def metric_scale(rig: Rig, people: list[Observations], joints: tuple[str, ...], 
     factor = float(np.median(ratios))
     people_text = ", ".join(f"person {pid} {m:.2f} m ({how})" for pid, (m, how) in sorted(given.items()))
     warnings = []
-    if max(ratios) > (1 + HEIGHTS_AGREE) * min(ratios):
+    if max(ratios) > (1 + CALIBRATION.heights_agree) * min(ratios):
         measured = ", ".join(f"person {pid} {estimated[pid] * factor:.2f} m (given {m:.2f})"
                              for pid, (m, _) in sorted(given.items()))
         warnings.append(f"the heights given disagree with the people's relative heights, which the cameras "

@@ -16,6 +16,7 @@ from posecam.errors import FusionError
 from posecam.geometry.camera import CameraCalibration
 from posecam.geometry.triangulate import reprojection_errors, triangulate
 from posecam.multiview.observations import shift
+from posecam.multiview.policy import SYNC
 
 
 def rig_error(cams: list[CameraCalibration], uv: list[np.ndarray], conf: list[np.ndarray],
@@ -25,8 +26,7 @@ def rig_error(cams: list[CameraCalibration], uv: list[np.ndarray], conf: list[np
     u = np.stack([shift(a, o, n) for a, o in zip(uv, offsets)])
     c = np.stack([shift(a, o, n, 0.0) for a, o in zip(conf, offsets)])
     err = reprojection_errors(cams, triangulate(cams, u, c), u, c)
-    return float(np.nanmedian(err)) if np.isfinite(err).sum() > 50 else np.inf
-
+    return float(np.nanmedian(err)) if np.isfinite(err).sum() > SYNC.rig_min_errors else np.inf
 
 
 @dataclass
@@ -58,7 +58,7 @@ def _subframe(cams, uv, conf, offsets: list[float], i: int) -> float:
 
 
 def estimate_offsets(cams: list[CameraCalibration], uv: list[np.ndarray], conf: list[np.ndarray],
-                     reference: int = 0, max_offset: int = 10, sweeps: int = 4,
+                     reference: int = 0, max_offset: int = SYNC.rig_max_offset, sweeps: int = SYNC.rig_sweeps,
                      start: list[int] | None = None) -> RigOffsets:
     """Each view's offset against the reference (module convention); uv[c] (F_c, K, 2) where the
     K points may be several people's joints side by side (each person's columns the same

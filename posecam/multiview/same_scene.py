@@ -8,12 +8,6 @@ from __future__ import annotations
 from posecam.multiview.motion_sync import motion_correlation, shared_motion
 from posecam.multiview.observations import PersonTracks, Take
 
-# views of one scene move alike: the joint speeds of the people two views share correlate by
-# 0.37-0.83 on Pose2Sim's takes (each pair of cameras, at the offsets found); unrelated walkers
-# can too (OpenCV's vtest.avi against itself 40 s later: 0.61 at the best of a wide search,
-# refused by the bootstrap instead): below this the views are not fused, one scene or not
-MIN_SAME_MOTION = 0.38
-
 
 def motion_agreement(take: Take, people: list[PersonTracks], offsets: list[float],
                      min_conf: float) -> dict[int, tuple[float, float]]:

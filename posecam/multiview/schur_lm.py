@@ -18,8 +18,7 @@ from typing import Protocol
 
 import numpy as np
 
-XTOL = 1e-10            # a step this small against x: nothing left to gain
-MIN_DAMPING = 1e-10     # lambda's floor: every point's 3 x 3 block stays invertible
+from posecam.multiview.policy import BUNDLE
 
 
 class Adjustment(Protocol):
@@ -66,7 +65,7 @@ def solve(problem: Adjustment, x0: np.ndarray, f_scale: float, lower: np.ndarray
     x = np.clip(x0, np.r_[lower, np.full(3 * n_m, -np.inf)], np.r_[upper, np.full(3 * n_m, np.inf)])
     r = problem.residuals(x)
     pr = prior.fun(x) if prior else None
-    cost, nfev, lam, nu = _cost(r, f_scale, pr), 1, 1e-3, 2.0
+    cost, nfev, lam, nu = _cost(r, f_scale, pr), 1, BUNDLE.damping, 2.0
     while nfev < max_nfev:
         sw = (1 + (r / f_scale) ** 2) ** -0.25                             # sqrt of the loss's slope
         cam, pt = problem.blocks(x)
@@ -117,9 +116,9 @@ def solve(problem: Adjustment, x0: np.ndarray, f_scale: float, lower: np.ndarray
             pr_new = prior.fun(x_new) if prior else None
             cost_new, nfev = _cost(r_new, f_scale, pr_new), nfev + 1
             gain = (cost - cost_new) / predicted if predicted > 0 else -1.0
-            small = np.linalg.norm(step) < XTOL * (XTOL + np.linalg.norm(x))
+            small = np.linalg.norm(step) < BUNDLE.xtol * (BUNDLE.xtol + np.linalg.norm(x))
             if gain > 0:
-                lam = max(lam * max(1 / 3, 1 - (2 * gain - 1) ** 3), MIN_DAMPING)
+                lam = max(lam * max(1 / 3, 1 - (2 * gain - 1) ** 3), BUNDLE.min_damping)
                 nu, drop = 2.0, cost - cost_new
                 x, r, pr, cost = x_new, r_new, pr_new, cost_new
                 if drop < ftol * cost or small:

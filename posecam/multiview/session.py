@@ -49,21 +49,12 @@ from posecam.multiview.left_right import fix_people
 from posecam.multiview.motion_sync import holds_still
 from posecam.multiview.observations import Observations, Take
 from posecam.multiview.options import FuseOptions
+from posecam.multiview.policy import CALIBRATION
 from posecam.multiview.report import CameraReport
-from posecam.multiview.rig_scale import HEIGHTS_AGREE
 from posecam.multiview.sync import SyncResult, synchronise
 from posecam.multiview.take_check import check_take, view_names
 from posecam.multiview.world import World, below_floor, floor_world
 from posecam.results import Recording
-
-# A take's camera disagrees with another take's when their own rigs, aligned, turn it by more than
-# MISFIT_DEG or put its centre MISFIT_SHIFT of the rig's size (the cameras' median distance from
-# their centroid) away (`disagreeing`). Pose2Sim's two takes, each calibrated alone, turn a camera
-# by 0.7-2.1 deg and move it by 2-6 % of the rig against the other take (bench/bench_session.py);
-# a camera turned less than MISFIT_DEG is found only where the session's estimate cannot hold it.
-MISFIT_DEG = 10.0
-MISFIT_SHIFT = 0.3
-SIZE_TOLERANCE = 0.02           # a camera's image may differ by this between takes (a crop or pad)
 
 
 @dataclass
@@ -174,7 +165,8 @@ def _session_cameras(takes: dict[str, list[Recording]]) -> tuple[list[str], list
             if name in names:
                 cam = assumed[names.index(name)]
                 w, h = cam.size
-                if abs(rec.width - w) > SIZE_TOLERANCE * w or abs(rec.height - h) > SIZE_TOLERANCE * h:
+                off = CALIBRATION.size_tolerance
+                if abs(rec.width - w) > off * w or abs(rec.height - h) > off * h:
                     raise InputError(f"camera {name} films {w}x{h} in one take and {rec.width}x{rec.height} in take "
                                      f"{take}: one camera keeps its size over a session (name the views after "
                                      "their cameras)")
@@ -284,8 +276,8 @@ def disagreeing(a: Rig, b: Rig) -> dict[str, str]:
     """The cameras two takes' own rigs place differently, name -> how: the rigs aligned by the
     rotation most of their common cameras share (a camera's rotation in rig b is its rotation
     in rig a turned by one rotation Q, for the cameras that stayed put), then by the similarity
-    that brings their centres together; a camera turned by more than MISFIT_DEG from Q, or
-    whose centre lies MISFIT_SHIFT of the rig's size from where the others put it, disagrees."""
+    that brings their centres together; a camera turned by more than CALIBRATION.misfit_deg from Q, or
+    whose centre lies CALIBRATION.misfit_shift of the rig's size from where the others put it, disagrees."""
     names = [n for n in a.names if n in b.names]
     if len(names) < 3:                          # two cameras define the alignment: nothing to tell
         return {}
@@ -294,8 +286,9 @@ def disagreeing(a: Rig, b: Rig) -> dict[str, str]:
     def turned(q1: np.ndarray, q2: np.ndarray) -> float:
         return float(np.degrees(np.linalg.norm(cv2.Rodrigues(q1.T @ q2)[0])))
 
-    best = max(qs, key=lambda q: (sum(turned(q, r) <= MISFIT_DEG for r in qs), -sum(turned(q, r) for r in qs)))
-    inliers = [i for i, r in enumerate(qs) if turned(best, r) <= MISFIT_DEG]
+    within = CALIBRATION.misfit_deg
+    best = max(qs, key=lambda q: (sum(turned(q, r) <= within for r in qs), -sum(turned(q, r) for r in qs)))
+    inliers = [i for i, r in enumerate(qs) if turned(best, r) <= within]
     u, _, vt = np.linalg.svd(sum(qs[i] for i in inliers))      # their mean rotation (chordal)
     q = u @ np.diag([1, 1, np.linalg.det(u @ vt)]) @ vt
     out = {names[i]: f"turned {turned(q, r):.0f} deg" for i, r in enumerate(qs) if i not in inliers}
@@ -307,7 +300,7 @@ def disagreeing(a: Rig, b: Rig) -> dict[str, str]:
         moved = np.linalg.norm(ma + scale * (cb - mb) - ca, axis=1)
         size = float(np.median(np.linalg.norm(ca - ma, axis=1)))
         for i in inliers:
-            if moved[i] > MISFIT_SHIFT * size:
+            if moved[i] > CALIBRATION.misfit_shift * size:
                 out[names[i]] = f"moved {moved[i] / size:.0%} of the rig's size"
     return out
 
@@ -410,7 +403,7 @@ def _scale(rig: Rig, people: list[Observations], blocks: list[int], joints: tupl
         return 1.0, "the tallest person's bone lengths from the pose model (nobody measured for --height)", []
     factor = float(np.median(ratios))
     lines = []
-    if max(ratios) > (1 + HEIGHTS_AGREE) * min(ratios):
+    if max(ratios) > (1 + CALIBRATION.heights_agree) * min(ratios):
         lines.append("the heights given disagree with the people's relative heights, which the cameras measure: "
                      "check --height (each take's list goes to its own people, tallest first)")
     return factor, f"the heights given ({len(ratios)} people over the takes)", lines

@@ -7,10 +7,10 @@ are sub-frame: a view at a fractional offset is interpolated linearly between it
 The stage (`synchronise`), over one module per algorithm:
 - without a rig (what `fuse --sync auto` does with no calibration): where each view's bones move
   as the reference's, in whole frames, before anyone is associated (posecam.multiview.coarse_sync),
-  then within FINE_WINDOW frames of it the sub-frame lag at which the bones of the people the
+  then within SYNC.fine_window frames of it the sub-frame lag at which the bones of the people the
   association found correlate (posecam.multiview.motion_sync), with a spread from a bootstrap
   over blocks of frames and over bones; people too still, or a spread that moves the keypoints
-  by more than MAX_SHIFT_PX, leave the view out with a warning;
+  by more than SYNC.max_shift_px, leave the view out with a warning;
 - with a rig (posecam.multiview.rig_sync): the offsets under which the 2D keypoints of all views,
   triangulated together, reproject with the smallest median error.
 Whether the views show one scene at all (their people's motion agrees at the offsets) is
@@ -27,9 +27,10 @@ import numpy as np
 
 from posecam.geometry.camera import Rig
 from posecam.multiview.coarse_sync import bone_correlations, bone_directions, sampling_step
-from posecam.multiview.motion_sync import MIN_MOTION, keypoint_speed, motion_offset, shared_excursion
+from posecam.multiview.motion_sync import keypoint_speed, motion_offset, shared_excursion
 from posecam.multiview.observations import PersonTracks, Take, ViewTrack, lowpass
 from posecam.multiview.options import FuseOptions
+from posecam.multiview.policy import SYNC
 from posecam.multiview.rig_sync import estimate_offsets
 
 
@@ -42,39 +43,24 @@ class SyncResult:
     unpinned: list[int] = field(default_factory=list)   # views whose offset the motion does not pin: left out
 
 
-
-# px: an offset is pinned when one standard deviation of it (its bootstrap spread) moves its
-# view's keypoints by less than this (the spread times their median speed): less than the
-# detector's own bias per joint, which is what limits the rig (8-12 px on Pose2Sim's takes:
-# bench/bench_rig_limit.py). A spread in frames alone says nothing of the harm: a 1.3-frame
-# spread costs 5 px on Pose2Sim's balancing man and would cost 40 px on a sprinter.
-MAX_SHIFT_PX = 8.0
-FINE_WINDOW = 3                 # frames either way of the coarse lag that the motion correlation scans
-
-
 # ---- the stage: the views' offsets from the associated people ---------------------------------
-
-RIG_MAX_OFFSET = 10             # frames either way that a rig's search tries unless told
-
 
 def synchronise(take: Take, people: list[PersonTracks], rig: Rig | None, start: list[float],
                 opts: FuseOptions) -> SyncResult:
     """Every view's offset (module convention) from the people the association found: with a
     rig (its cameras the take's views, in order), `estimate_offsets` on every person seen twice
-    (within FuseOptions.max_offset, RIG_MAX_OFFSET if None); without, each view's motion against the
-    reference's (`motion_offset`) within FINE_WINDOW frames of its start (`coarse_offsets`), the
+    (within FuseOptions.max_offset, SYNC.rig_max_offset if None); without, each view's motion against the
+    reference's (`motion_offset`) within SYNC.fine_window frames of its start (`coarse_offsets`), the
     view left out (SyncResult.unpinned) with a warning where the motion does not pin it."""
     if rig is not None:
-        return _rig_offsets(take, people, rig, start, RIG_MAX_OFFSET if opts.max_offset is None else opts.max_offset)
+        reach = SYNC.rig_max_offset if opts.max_offset is None else opts.max_offset
+        return _rig_offsets(take, people, rig, start, reach)
     return _motion_offsets(take, people, start, opts.min_conf)
-
-
-RIG_LOWPASS_HZ = 6.0            # the keypoints a rig's sync reads are low-passed at this (`_rig_offsets`)
 
 
 def _rig_offsets(take: Take, people: list[PersonTracks], rig: Rig, start: list[float], max_offset: int) -> SyncResult:
     """`estimate_offsets` of the rig's cameras on every associated person's joints, low-passed
-    at RIG_LOWPASS_HZ (`lowpass`; a joint unseen stays unseen): the keypoints as observed
+    at SYNC.rig_lowpass_hz (`lowpass`; a joint unseen stays unseen): the keypoints as observed
     carry each frame's noise into the parabola that places the offset between frames (the lab
     calibration, single take: 0.91 frame off the bench's offsets and the pelvis 6 mm off unfiltered,
     0.69 and 4 mm filtered; two people: 2.5 frames, 20 mm either way)."""
@@ -94,9 +80,9 @@ def _rig_offsets(take: Take, people: list[PersonTracks], rig: Rig, start: list[f
 
 def _low_passed(track: ViewTrack, fps: float) -> tuple[np.ndarray, np.ndarray]:
     """One person's (uv, conf) in one view (PersonTracks.in_view), the keypoints low-passed at
-    RIG_LOWPASS_HZ where seen, unseen (NaN, 0) elsewhere."""
+    SYNC.rig_lowpass_hz where seen, unseen (NaN, 0) elsewhere."""
     seen = (track.conf > 0) & np.isfinite(track.uv).all(axis=-1)
-    uv = np.where(seen[..., None], lowpass(track.uv, seen, fps, RIG_LOWPASS_HZ), np.nan)
+    uv = np.where(seen[..., None], lowpass(track.uv, seen, fps, SYNC.rig_lowpass_hz), np.nan)
     return uv, np.where(np.isfinite(uv).all(axis=-1), track.conf, 0.0)
 
 
@@ -113,10 +99,10 @@ def _shared_bones(take: Take, people: list[PersonTracks], v: int, min_conf: floa
 
 
 def _motion_offsets(take: Take, people: list[PersonTracks], start: list[float], min_conf: float) -> SyncResult:
-    """Offsets without a rig: per view, the sub-frame lag within FINE_WINDOW frames of its start
+    """Offsets without a rig: per view, the sub-frame lag within SYNC.fine_window frames of its start
     (`coarse_offsets`) at which the bones of the people it shares with the reference move
     alike (`bone_correlations`, `motion_offset`); a view whose offset that does not pin (people
-    too still, a spread that moves its keypoints by more than MAX_SHIFT_PX, a peak at the
+    too still, a spread that moves its keypoints by more than SYNC.max_shift_px, a peak at the
     window's edge) is left out (`unpinned`), with a warning: fused at a wrong offset, its camera
     would be estimated wrong too."""
     ref, n_views = take.reference, len(take.names)
@@ -132,18 +118,18 @@ def _motion_offsets(take: Take, people: list[PersonTracks], start: list[float], 
         a, b = _shared_bones(take, people, v, min_conf)
         sampled = np.arange(0, len(a), sampling_step(take.fps, len(a)))     # a long take's
         m = motion_offset(lambda lag, resamples: bone_correlations(a, b, lag, resamples, sampled), len(sampled),
-                          a.shape[1], start[v], FINE_WINDOW)
+                          a.shape[1], start[v], SYNC.fine_window)
         confidence[v], spread[v] = max(float(np.nan_to_num(m.correlation)), 0.0), m.spread
         speeds = np.array([keypoint_speed(t.uv, t.conf, take.fps, min_conf) for t in
                            (p.in_view(v, take.lengths[v]) for p in people if ref in p.views and v in p.views)])
         speed = float(np.nanmedian(speeds)) if np.isfinite(speeds).any() else np.nan
         why = None
-        if excursion < MIN_MOTION:
+        if excursion < SYNC.min_motion:
             why = f"the people move too little to synchronise it (their joints move {excursion:.0f} mm about the root)"
-        elif not m.spread * speed <= MAX_SHIFT_PX:
+        elif not m.spread * speed <= SYNC.max_shift_px:
             why = (f"its motion pins the offset poorly (best {m.offset:+.1f} ± {m.spread:.1f} frames, which moves "
                    f"its keypoints by ± {m.spread * speed:.0f} px)")
-        elif abs(m.offset - start[v]) >= FINE_WINDOW - 0.5:
+        elif abs(m.offset - start[v]) >= SYNC.fine_window - 0.5:
             why = f"its motion's best offset ({m.offset:+.1f}) lies far from where its bones put it ({start[v]:+.0f})"
         if why is None:
             offsets[v] = m.offset

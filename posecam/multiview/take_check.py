@@ -11,7 +11,7 @@ import numpy as np
 from posecam.errors import FusionError, InputError
 from posecam.multiview.observations import Take
 from posecam.multiview.options import FuseOptions
-from posecam.multiview.sync import RIG_MAX_OFFSET
+from posecam.multiview.policy import SYNC, TAKE
 from posecam.results import Recording
 
 
@@ -24,14 +24,13 @@ def view_names(recordings: list[Recording]) -> list[str]:
     return names
 
 
-MIN_SHARED = 0.5    # share of the shorter view's frames that views lined up by given offsets must share
 REFERENCE = 0       # the view whose camera and frames the fused recording is in: the first
 
 
 def check_lengths(names: list[str], lengths: list[int], opts: FuseOptions) -> str | None:
     """Views of different lengths are what cameras started and stopped by hand give: lined up
     by offsets found without a calibration, or by the offsets given, which must leave each view
-    MIN_SHARED of its frames (or of the reference's, if fewer) in common with the reference
+    TAKE.min_shared of its frames (or of the reference's, if fewer) in common with the reference
     (REFERENCE); a warning line says they differ. Views taken as started together (no offsets, no search
     without a calibration) may differ by at most the search of a calibrated sync (`max_offset`):
     InputError past what they allow."""
@@ -43,12 +42,12 @@ def check_lengths(names: list[str], lengths: list[int], opts: FuseOptions) -> st
         ref, o_ref = lengths[REFERENCE], opts.offsets[REFERENCE]
         for name, n, o in zip(names, lengths, opts.offsets):       # reference frames i with i + o in the view
             shared = max(0, int(np.floor(min(ref, n - (o - o_ref)) - max(0.0, o_ref - o))))
-            if shared < MIN_SHARED * min(n, ref):
+            if shared < TAKE.min_shared * min(n, ref):
                 raise InputError(f"the views have different lengths ({shown} frames) and at the offsets given "
                                  f"{name} shares only {shared} of its frames with {names[REFERENCE]}: "
                                  "check --offsets, or fuse recordings of the same take")
     else:
-        search = opts.max_offset if opts.max_offset is not None else RIG_MAX_OFFSET if sync else 0
+        search = opts.max_offset if opts.max_offset is not None else SYNC.rig_max_offset if sync else 0
         if max(lengths) - min(lengths) > search:
             raise InputError(f"the views have different lengths ({shown} frames): fuse needs "
                              "recordings of the same take; trim them to it, or give --offsets")
@@ -68,7 +67,7 @@ def check_take(recordings: list[Recording], opts: FuseOptions) -> Take:
     names = view_names(recordings)
     differ = check_lengths(names, [len(r.frames) for r in recordings], opts)
     rates = [r.fps for r in recordings if r.fps]
-    if rates and max(rates) > 1.01 * min(rates):
+    if rates and max(rates) > TAKE.fps_tolerance * min(rates):
         raise InputError(f"the views have different frame rates ({', '.join(f'{f:g}' for f in rates)} fps)")
     for name, r in zip(names, recordings):
         if not any(f.people for f in r.frames):
@@ -83,7 +82,7 @@ def check_take(recordings: list[Recording], opts: FuseOptions) -> Take:
     return take
 
 
-def _twins(recordings: list[Recording], max_px: float = 0.5) -> list[tuple[int, int]]:
+def _twins(recordings: list[Recording], max_px: float = TAKE.twin_px) -> list[tuple[int, int]]:
     """Pairs of views whose people sit at the same pixels in most frames they both have."""
     def first(r: Recording) -> dict[int, np.ndarray]:
         return {i: np.stack([p.keypoints_2d for p in f.people]) for i, f in enumerate(r.frames) if f.people}
@@ -92,10 +91,10 @@ def _twins(recordings: list[Recording], max_px: float = 0.5) -> list[tuple[int, 
     out = []
     for a in range(len(recordings)):
         for b in range(a + 1, len(recordings)):
-            common = sorted(set(people[a]) & set(people[b]))[:50]
+            common = sorted(set(people[a]) & set(people[b]))[:TAKE.twin_frames]
             same = [_closest(np.linalg.norm(people[a][i][:, None] - people[b][i][None], axis=-1)) < max_px
                     for i in common]
-            if same and np.mean(same) > 0.8:
+            if same and np.mean(same) > TAKE.twin_share:
                 out.append((a, b))
     return out
 

@@ -11,13 +11,7 @@ from dataclasses import dataclass, field
 
 from posecam.errors import InputError
 
-# Two ranges of standing heights, on purpose: what a user may tell (anyone, a toddler to the
-# tallest adult), and what the feet's plane may make of someone it measures (posecam.scale.metric:
-# a 4-year-old to the tallest adults). A wrong floor (feet cut by the border, off the ground)
-# makes people far too small or tall, so the second is narrower: a plane that makes a person
-# shorter than a 4-year-old is refused as a floor (then each person takes the pose model's size).
-HEIGHT_RANGE_M = (0.5, 2.5)     # m: a --height posecam accepts
-FLOOR_STATURE_M = (1.0, 2.3)    # m: the statures a floor may give the people it measures
+HEIGHT_RANGE_M = (0.5, 2.5)     # m: a --height posecam accepts (a toddler to the tallest adult; the floor's: SCALE)
 
 
 def _metres(text: str) -> float:

@@ -13,11 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-MIN_LINES = 20              # upright people's head-to-feet lines, at least
-MIN_HORIZON = 10            # horizon points (a track's heads and feet at two places), at least
-MAX_FOCAL_SD = 0.10         # relative uncertainty above which the lens is not taken from the people
-MIN_SPREAD = 0.15           # the feet's horizontal span (5-95 %), in image heights, at least
-CHUNK = 10                  # consecutive samples of a track resampled together (bootstrap)
+from posecam.scale.policy import LENS
 
 
 @dataclass(frozen=True)
@@ -46,7 +42,7 @@ def vertical_vanishing_point(heads: np.ndarray, feet: np.ndarray) -> np.ndarray:
     lines = _line(heads, feet)
     length = np.linalg.norm(heads - feet, axis=1)
     w = np.ones(len(lines))
-    for _ in range(3):
+    for _ in range(LENS.reweights):
         a = lines * (w * length)[:, None]
         v = np.linalg.eigh(a.T @ a)[1][:, 0]         # the null vector: least eigenvalue
         r = np.abs(lines @ v)
@@ -67,7 +63,7 @@ def _focal(heads, feet, pairs, principal) -> float | None:
     ok = np.abs(h[:, 2]) > 1e-9
     x = h[ok, :2] / h[ok, 2:3] - principal
     f2 = -(x @ vp)
-    if len(f2) < MIN_HORIZON:
+    if len(f2) < LENS.min_horizon:
         return None
     middle = np.median(f2)          # over all points: the noisy ones fall on both sides of f^2
     return float(np.sqrt(middle)) if middle > 0 else None
@@ -80,25 +76,25 @@ def focal_from_people(heads: np.ndarray, feet: np.ndarray, tracks: np.ndarray, p
     feet at two places (the same person, so the same height) draw two lines that meet on the
     horizon; V and the horizon give f. The uncertainty is the spread over tracks resampled
     (bootstrap); refused when the data do not pin it."""
-    if len(heads) < MIN_LINES:
-        return LensFit(None, np.nan, None, f"too few upright people ({len(heads)} frames; {MIN_LINES} needed)")
+    if len(heads) < LENS.min_lines:
+        return LensFit(None, np.nan, None, f"too few upright people ({len(heads)} frames; {LENS.min_lines} needed)")
     spread = np.subtract(*np.percentile(feet[:, 0], [95, 5]))
-    if spread < MIN_SPREAD * image_height:
+    if spread < LENS.min_spread * image_height:
         return LensFit(None, np.nan, None, f"the people stand in one place (their feet span {spread:.0f} px "
                                            "across): their verticals do not meet at one point")
     v = vertical_vanishing_point(heads, feet)
     point = v[:2] / v[2] if abs(v[2]) > 1e-12 else None
-    if point is None or np.linalg.norm(point - principal) > 50 * image_height:
+    if point is None or np.linalg.norm(point - principal) > LENS.max_vanishing * image_height:
         return LensFit(None, np.nan, v, "the people's verticals stay parallel (a camera looking level): "
                                          "no vertical vanishing point")
-    if np.mean(np.einsum("ij,ij->i", point - feet, feet - heads) > 0) < 0.9:
+    if np.mean(np.einsum("ij,ij->i", point - feet, feet - heads) > 0) < LENS.beyond_feet:
         return LensFit(None, np.nan, v, "the people's verticals meet among the people, not beyond their feet: "
                                          "no vertical vanishing point")
     per_track = []          # (rows, pairs of rows at two places, depths apart) of each track
     for t in np.unique(tracks):
         idx = np.flatnonzero(tracks == t)
         a, b = np.meshgrid(np.arange(len(idx)), np.arange(len(idx)), indexing="ij")
-        far = (a < b) & (np.abs(feet[idx][a, 1] - feet[idx][b, 1]) > 0.05 * image_height)
+        far = (a < b) & (np.abs(feet[idx][a, 1] - feet[idx][b, 1]) > LENS.depth_apart * image_height)
         per_track.append((idx, np.stack([a[far], b[far]], axis=1)))
 
     def focal_of(picked) -> float | None:
@@ -108,30 +104,30 @@ def focal_from_people(heads: np.ndarray, feet: np.ndarray, tracks: np.ndarray, p
             pairs.append(local + n)
             n += len(idx)
         rows, pairs = np.concatenate(rows), np.vstack(pairs)
-        return _focal(heads[rows], feet[rows], pairs, principal) if len(pairs) >= MIN_HORIZON else None
+        return _focal(heads[rows], feet[rows], pairs, principal) if len(pairs) >= LENS.min_horizon else None
 
-    if sum(len(p) for _, p in per_track) < MIN_HORIZON:
+    if sum(len(p) for _, p in per_track) < LENS.min_horizon:
         return LensFit(None, np.nan, v, "nobody walks to places at different depths: no horizon")
     f = focal_of(per_track)
     if f is None:
         return LensFit(None, np.nan, v, "the horizon and the vertical vanishing point disagree (no positive f)")
     rng = np.random.default_rng(seed)
-    if len(per_track) >= 5:     # resample the tracks; with fewer, chunks of consecutive samples
+    if len(per_track) >= LENS.whole_tracks:     # resample the tracks; with fewer, chunks of consecutive samples
         units = per_track
     else:
         units = []
         for idx, local in per_track:
-            for start in range(0, len(idx), CHUNK):
-                keep = (local >= start).all(axis=1) & (local < start + CHUNK).all(axis=1)
-                units.append((idx[start:start + CHUNK], local[keep] - start))
+            for start in range(0, len(idx), LENS.chunk):
+                keep = (local >= start).all(axis=1) & (local < start + LENS.chunk).all(axis=1)
+                units.append((idx[start:start + LENS.chunk], local[keep] - start))
         units = [u for u in units if len(u[0])]
     boot = [fb for fb in (focal_of([units[i] for i in rng.integers(0, len(units), len(units))])
-                          for _ in range(50)) if fb is not None]
-    sd = float(np.std(boot)) if len(boot) >= 10 else np.inf
+                          for _ in range(LENS.bootstrap)) if fb is not None]
+    sd = float(np.std(boot)) if len(boot) >= LENS.min_bootstrap else np.inf
     if not np.isfinite(sd):
         return LensFit(None, sd, v, f"the people do not pin the focal length (f = {f:.0f} px, not found again "
                                     "from most resamplings of them)", f)
-    if not sd / f <= MAX_FOCAL_SD:
+    if not sd / f <= LENS.max_focal_sd:
         return LensFit(None, sd, v, f"the people pin the focal length only to +-{100 * sd / f:.0f} % "
                                     f"(f = {f:.0f} px)", f)
     return LensFit(f, sd, v, "", f)

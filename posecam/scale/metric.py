@@ -32,22 +32,12 @@ from posecam.geometry.camera import DEFAULT_FOCAL_SD, Intrinsics
 from posecam.geometry.floor import Floor, FloorFit, fit_floor, robust_sd
 from posecam.geometry.lift import place_on_keypoints
 from posecam.results import Frame, Person, Recording
-from posecam.scale.heights import FLOOR_STATURE_M, Heights
+from posecam.scale.heights import Heights
 from posecam.scale.lens import LensFit, focal_from_people
+from posecam.scale.policy import SCALE
 from posecam.scale.stature import ANKLE_OF_STATURE, down_and_ankles, segments, stature
 from posecam.skeleton import MIN_CONFIDENCE, skeleton_of
 
-SAMPLES = 512                   # per track: the most frames kept for its statistics
-ADULT_CLUSTER = 0.85            # tracks at least this fraction of the tallest are the adult-sized ones
-MODEL_SD = 0.06                 # relative uncertainty of the pose model's adult size for one person
-GIVEN_SD = 0.057                # relative uncertainty of a root depth whose scale a given height fixes: the
-                                # RMS per-frame error of the depth against the lab, the people's own heights
-                                # given, over the Pose2Sim takes' views (the 1.72 m man's 8: 0.049, his depth
-                                # 1.4-4.0 % long by view; the 1.40 m woman's 4: 0.071): the pose model's
-                                # error in that view, which the typed height (~0.01) does not remove
-MIN_TRACK_CONTACTS = 5          # foot contacts a track needs for the floor to scale it
-REFIT_EVERY = 30                # frames between fits of the floor (and at the end)
-LENS_SAMPLES = 64               # per track: upright frames kept for the lens
 # The pose model's skeleton has one size, whoever the person: the statures of its skeletons (the
 # chain above) over the pedestrians of vtest.avi (tracks of 20 frames and more, each its median)
 # spread by 1.5 % about their median, no more than one 1.72 m adult's do over the 8 lab views of
@@ -55,31 +45,15 @@ LENS_SAMPLES = 64               # per track: upright frames kept for the lens
 # skeleton size is the model's error for that view, not the person's size (the lab views whose
 # track is shorter are the ones placed too near): with nothing else to scale them, tracks are
 # brought to the model's size. bench/bench_depth.py measures it again (m; models not listed keep
-# their tracks' own sizes).
+# their tracks' own sizes). A track too far from it, or measured on too few of its frames, is
+# left unmeasured (`TrackScale.measured`; SCALE.size_off, SCALE.seen_share).
 MODEL_STATURE = {"blazepose-full": 1.678, "blazepose-lite": 1.647}
-# The pose model's skeletons have one size whoever the person (MODEL_STATURE): a track measured
-# further from it than this (relative) was measured on mis-posed frames, not on a person (legs out
-# of view, guessed or folded into it: 2 frames of a man cut at the knees measured 34 % short),
-# and is left unmeasured (`TrackScale.measured`). Whole people's tracks over both Pose2Sim takes' 40
-# views, plain and edited, lie within 3.3 % of it.
-SIZE_OFF = 2 * MODEL_SD
-# A track measured on fewer than this share of its frames has its legs out of view (cut by the
-# border, hidden): the frames measured are the few where the pose model guessed or folded them
-# into view, not the person (the athlete of the single take cut at the knees in cam02: 5 of 100,
-# made 1.27 m tall by a floor fitted to them), and it is left unmeasured too. Whole people's
-# tracks over both takes' 40 views and vtest.avi's 20 are measured on 51-100 % of their frames.
-SEEN_SHARE = 0.25
-LENS_DISAGREES = 2.0            # standard uncertainties between the default lens and the people's for a warning
 # The joints that move the most with the pose (the arms: elbows, wrists, hands) also move the
 # root's depth most when the pose model misplaces them in depth: jumping jacks on the spot swing
 # the root's depth with the arms. Each frame's root is placed again on the trunk and legs (the
 # CORE roles: the same landmarks in every skeleton, so both skeletons keep one root), where at
-# least CORE_JOINTS of them are confident: the trunk's four corners, shoulders and hips, place it
-# alone for someone whose legs are out of view (the views of both takes cut at the knees: mean
-# depth error 188 -> 169 mm with 4 for 6, single take; every plain view within 1 mm).
+# least SCALE.core_joints of them are confident.
 CORE = tuple(f"{side}_{joint}" for side in ("r", "l") for joint in ("shoulder", "hip", "knee", "ankle"))
-CORE_JOINTS = 4
-
 
 
 @dataclass
@@ -97,7 +71,7 @@ class MetricOptions:
 class _Sample:
     """An evenly thinned sample of a stream of rows, at most `size` kept (every 2^k-th row)."""
 
-    def __init__(self, size: int = SAMPLES):
+    def __init__(self, size: int = SCALE.samples):
         self.size, self.stride, self.seen, self.rows = size, 1, 0, []
 
     def add(self, row) -> None:
@@ -114,15 +88,15 @@ class _Track:
     heights: _Sample = field(default_factory=_Sample)     # per-frame stature (mm)
     feet: _Sample = field(default_factory=_Sample)        # (stature, ankles (2, 3)) of frames with the feet seen
     downs: _Sample = field(default_factory=_Sample)       # down directions of upright frames
-    upright: _Sample = field(default_factory=lambda: _Sample(LENS_SAMPLES))   # (head, feet) pixels of upright frames
+    upright: _Sample = field(default_factory=lambda: _Sample(SCALE.lens_samples))   # (head, feet) px of upright frames
 
-    _cache: tuple = (-1, np.nan, MODEL_SD)              # (heights seen, stature, breathing)
+    _cache: tuple = (-1, np.nan, SCALE.model_sd)        # (heights seen, stature, breathing)
 
     def _statistics(self) -> tuple[float, float]:
         if self._cache[0] != self.heights.seen:
             h = np.asarray(self.heights.rows)
             mid = float(np.median(h)) if len(h) else np.nan
-            spread = robust_sd(h) / mid if len(h) >= 3 else MODEL_SD
+            spread = robust_sd(h) / mid if len(h) >= 3 else SCALE.model_sd
             self._cache = (self.heights.seen, mid, spread)
         return self._cache[1], self._cache[2]
 
@@ -167,7 +141,7 @@ class MetricStage:
         self._tracks: dict[int, _Track] = {}
         self._pending: list[Frame] = []
         self._fit: FloorFit | None = None
-        self._since_fit = REFIT_EVERY           # frames observed since the floor was last fitted
+        self._since_fit = SCALE.refit_every     # frames observed since the floor was last fitted
         self.floor: Floor | None = None
         self.floor_refused = ""
         self.lens: LensFit | None = None
@@ -197,7 +171,7 @@ class MetricStage:
         return self._emit(len(self._pending) - self.options.delay)
 
     def flush(self) -> list[Frame]:
-        self._since_fit = REFIT_EVERY       # the last fit sees every frame
+        self._since_fit = SCALE.refit_every     # the last fit sees every frame
         out = self._emit(len(self._pending))
         if self._k is None:
             self._check_lens()
@@ -230,7 +204,7 @@ class MetricStage:
         k = self.rec.intrinsics
         self._k = self.intrinsics = Intrinsics(fit.focal, fit.focal, k.cx, k.cy, f"people (+-{fit.sd:.0f} px)")
         self._pending = [self._relensed(f) for f in self._pending]
-        self._tracks, self._since_fit = {}, REFIT_EVERY
+        self._tracks, self._since_fit = {}, SCALE.refit_every
         for f in self._pending:
             for p in f.people:
                 self._observe(p)
@@ -246,7 +220,7 @@ class MetricStage:
             self.notes.append(f"the people pin the focal length at {fit.focal:.0f} +- {fit.sd:.0f} px over the whole "
                               f"input (the default lens has {k.fx:.0f}; the first {self.options.delay} frames did not "
                               f"pin it): run again with --fx {fit.focal:.0f}")
-        elif np.isfinite(fit.estimate) and abs(fit.estimate - k.fx) > LENS_DISAGREES * fit.sd:
+        elif np.isfinite(fit.estimate) and abs(fit.estimate - k.fx) > SCALE.lens_disagrees * fit.sd:
             self.notes.append(f"the default lens (f = {k.fx:.0f} px) disagrees with the people's geometry "
                               f"(f = {fit.estimate:.0f} +- {fit.sd:.0f} px from their verticals and horizon): "
                               f"depths may be {fit.estimate / k.fx:.1f}x off; give --fx or --intrinsics")
@@ -286,7 +260,7 @@ class MetricStage:
         vertical /= np.linalg.norm(vertical)
         contacts, measured = {}, self._measured()
         for tid, t in self._tracks.items():
-            if len(t.feet.rows) < MIN_TRACK_CONTACTS or tid not in measured:
+            if len(t.feet.rows) < SCALE.min_track_contacts or tid not in measured:
                 continue
             h_track = t.stature
             pts = []
@@ -297,16 +271,16 @@ class MetricStage:
         return fit_floor(contacts, np.array(downs))
 
     def _measured(self) -> dict[int, float]:
-        """The statures (mm) of the tracks measured so far: seen whole on at least SEEN_SHARE of
-        their frames, and at the pose model's size within SIZE_OFF where it is known."""
+        """The statures (mm) of the tracks measured so far: seen whole on at least SCALE.seen_share of
+        their frames, and at the pose model's size within SCALE.size_off where it is known."""
         return {tid: t.stature for tid, t in self._tracks.items()
-                if np.isfinite(t.stature) and t.heights.seen >= SEEN_SHARE * t.frames
-                and (not self._model_mm or abs(t.stature / self._model_mm - 1.0) <= SIZE_OFF)}
+                if np.isfinite(t.stature) and t.heights.seen >= SCALE.seen_share * t.frames
+                and (not self._model_mm or abs(t.stature / self._model_mm - 1.0) <= SCALE.size_off)}
 
     def _scales(self) -> dict[int, TrackScale]:
         """Every track's scale, from the statistics so far."""
         fit = self._fit
-        if self.options.floor and self._since_fit >= REFIT_EVERY:
+        if self.options.floor and self._since_fit >= SCALE.refit_every:
             fit = self._fit = self._floor_fit()
             self._since_fit = 0
         on_floor = fit is not None and fit.floor is not None
@@ -320,12 +294,13 @@ class MetricStage:
         gauge = 1.0
         if relative:
             size = {tid: relative[tid] * stat[tid] for tid in relative}
-            adults = [tid for tid in size if size[tid] >= ADULT_CLUSTER * max(size.values())]
+            adults = [tid for tid in size if size[tid] >= SCALE.adult_cluster * max(size.values())]
             gauge = float(np.median([model[tid] * stat[tid] for tid in adults])
                           / np.median([size[tid] for tid in adults]))
         estimated = {tid: (relative[tid] * gauge * h if tid in relative else self._model_mm or h) / 1000.0
                      for tid, h in stat.items()}
-        odd = {tid: estimated[tid] for tid in relative if not FLOOR_STATURE_M[0] <= estimated[tid] <= FLOOR_STATURE_M[1]}
+        low, high = SCALE.floor_stature_m
+        odd = {tid: estimated[tid] for tid in relative if not low <= estimated[tid] <= high}
         if odd:   # feet out of view or off the ground (someone cut by the border, balancing): not a floor
             tid, metres = next(iter(odd.items()))
             fit = self._fit = FloorFit(None, {}, {}, f"the feet's plane would make person {tid} {metres:.2f} m tall")
@@ -333,17 +308,17 @@ class MetricStage:
             estimated = {tid: (self._model_mm or h) / 1000.0 for tid, h in stat.items()}
         given = self.options.heights.assign(estimated) if self.options.heights else {}
         on_given = [given[tid][0] * 1000.0 / (relative[tid] * stat[tid]) for tid in given if tid in relative]
-        used_gauge, gauge_sd = (float(np.median(on_given)), GIVEN_SD) if on_given else (gauge, MODEL_SD)
+        used_gauge, gauge_sd = (float(np.median(on_given)), SCALE.given_sd) if on_given else (gauge, SCALE.model_sd)
         out = {}
         for tid, h in stat.items():
-            est_sd = float(np.hypot(fit.scale_sd[tid], MODEL_SD)) if tid in relative else MODEL_SD
+            est_sd = float(np.hypot(fit.scale_sd[tid], SCALE.model_sd)) if tid in relative else SCALE.model_sd
             if tid in given:
                 metres, source = given[tid]
-                scale, source, sd = metres * 1000.0 / h, source, GIVEN_SD
+                scale, source, sd = metres * 1000.0 / h, source, SCALE.given_sd
             elif tid in relative:     # known heights on the floor fix its scale for the others too
                 scale, source, sd = relative[tid] * used_gauge, "floor", float(np.hypot(fit.scale_sd[tid], gauge_sd))
             else:
-                scale, source, sd = model[tid], "model", MODEL_SD
+                scale, source, sd = model[tid], "model", SCALE.model_sd
             out[tid] = TrackScale(h, scale, source, estimated[tid], estimated[tid] * est_sd, sd, tid in measured)
         if self.options.floor and fit is not None:
             self.floor = (dataclasses.replace(fit.floor, distance=fit.floor.distance * used_gauge,
@@ -396,7 +371,7 @@ class MetricStage:
         ARM_PARTS), through the lens of the frames given out; as it is where too few are seen."""
         weights = p.confidence * self._core
         k = self.intrinsics
-        if k is None or (weights >= MIN_CONFIDENCE).sum() < CORE_JOINTS:
+        if k is None or (weights >= MIN_CONFIDENCE).sum() < SCALE.core_joints:
             return xyz
         return place_on_keypoints(xyz, p.keypoints_2d, weights, k)
 

@@ -9,6 +9,7 @@ import functools
 
 import numpy as np
 
+from posecam.scale.policy import SCALE
 from posecam.skeleton import MIN_CONFIDENCE, SKELETONS
 
 # The keypoint chain ankle-knee-hip, pelvis-thorax-head (mid-ears) as a fraction of the stature.
@@ -70,9 +71,10 @@ def down_and_ankles(xyz: np.ndarray, joints: tuple[str, ...]) -> tuple[np.ndarra
     ankles = np.stack([xyz[leg[2]] for leg in seg["legs"]])
     head = xyz[list(seg["head"])].mean(axis=0)
     pelvis, thorax = xyz[list(seg["pelvis"])].mean(axis=0), xyz[list(seg["thorax"])].mean(axis=0)
-    straight = all(np.linalg.norm(xyz[h] - xyz[a]) >= 0.95 * (np.linalg.norm(xyz[h] - xyz[k]) + np.linalg.norm(xyz[k] - xyz[a]))
+    straight = all(np.linalg.norm(xyz[h] - xyz[a]) >= SCALE.straight_legs * (np.linalg.norm(xyz[h] - xyz[k])
+                                                                             + np.linalg.norm(xyz[k] - xyz[a]))
                    for h, k, a in seg["legs"])
     down = ankles.mean(axis=0) - head
     down /= np.linalg.norm(down)
     torso = (pelvis - thorax) / np.linalg.norm(pelvis - thorax)
-    return (down if straight and down @ torso > np.cos(np.radians(20)) else None), ankles
+    return (down if straight and down @ torso > np.cos(np.radians(SCALE.upright_deg)) else None), ankles
