@@ -1,7 +1,11 @@
 """Fusion with known cameras: offsets, averaging, triangulation, several people."""
 
+import dataclasses
+from pathlib import Path
+
 import numpy as np
 
+from posecam.io.poses import read_poses
 from posecam.multiview.fuse import fuse_recordings
 from posecam.multiview.options import FuseOptions
 from posecam.geometry.camera import Rig
@@ -163,3 +167,26 @@ def test_a_swap_undone_exchanges_the_monocular_pose_with_the_keypoints():
     assert counts.tolist() == [0, len(swapped), 0, 0]
     for name in ("uv", "xyz", "conf"):
         assert np.array_equal(getattr(fixed, name), getattr(clean, name)), name
+
+
+def test_a_view_that_shows_someone_else_is_left_out_of_those_frames():
+    """Pose2Sim's two-person take (tests/data/two_people_50f) through the rig its four views give,
+    cam02's two ids exchanged in its frames 20-29 (an id switch of its tracker): in the frames
+    where cam02 shows each person the other one, it is left out of their fusion (a view fewer than
+    the take as recorded gives), so no pose is made of two people's joints; elsewhere nothing
+    changes."""
+    recs = [read_poses(Path(__file__).parent / "data" / "two_people_50f" / f"cam0{i}.json")[0] for i in (1, 2, 3, 4)]
+    rig = fuse_recordings(recs)
+    frames = [dataclasses.replace(f, people=[dataclasses.replace(p, id=1 - p.id) for p in f.people])
+              if 20 <= i < 30 else f for i, f in enumerate(recs[1].frames)]
+    switched = [recs[0], dataclasses.replace(recs[1], frames=frames), *recs[2:]]
+    through = FuseOptions(calibration=rig.rig, offsets=rig.offsets)
+    views = [{p.id: p.views for p in f.people} for r in (recs, switched)
+             for f in fuse_recordings(r, through).recording.frames]
+    as_recorded, after = views[:50], views[50:]
+    shown = np.floor(np.arange(50) + rig.offsets[1]).astype(int)      # cam02's frame at each of the take's
+    other = [i for i in range(50) if 20 <= shown[i] and shown[i] + 1 < 30]
+    same = [i for i in range(50) if shown[i] + 1 < 20 or shown[i] >= 30]
+    assert len(other) >= 8 and all(after[i] == {q: n - 1 for q, n in as_recorded[i].items()} for i in other), \
+        [(as_recorded[i], after[i]) for i in other]
+    assert all(after[i] == as_recorded[i] for i in same), [(i, as_recorded[i], after[i]) for i in same]

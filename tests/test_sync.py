@@ -1,14 +1,18 @@
 """The sync's signals without a rig: the bones' motion (the coarse search), the joints' speeds
 (the views' agreement), and a take whose views were cut at different frames."""
 
+from pathlib import Path
+
 import numpy as np
 
+from posecam.io.poses import read_poses
 from posecam.multiview.associate import associate_people
 from posecam.multiview.fuse import fuse_recordings
 from posecam.multiview.take_check import check_take
 from posecam.multiview.options import FuseOptions
 from posecam.multiview.coarse_sync import _bone_products, _resampled_products, bone_correlation, bone_directions, coarse_offsets
-from posecam.multiview.motion_sync import Resamples, motion_correlations, shifted_pair
+from posecam.multiview.motion_sync import Resamples, motion_correlations, motion_signals, shifted_pair
+from posecam.multiview.observations import tracks_of
 from posecam.multiview.same_scene import motion_agreement
 from posecam.results import Recording
 from synth_rig import make_rig, monocular_views, skeleton_motion
@@ -98,3 +102,18 @@ def test_a_resample_weighs_frames_and_columns_as_drawing_them_again_would():
                       np.bincount(columns, minlength=6)[None].astype(float))
     by_index = _bone_products(bones_a[frames][:, columns], bones_b[frames][:, columns], np.zeros(1, int))
     assert np.allclose(_resampled_products(bones_a, bones_b, drawn), by_index, atol=1e-9)
+
+
+def test_a_joint_glimpsed_in_a_few_frames_gives_no_motion():
+    """Pose2Sim's two-person take, cam01 (tests/data/two_people_50f): the shorter person's right
+    elbow and wrist are confident in 13 and 12 of the 50 frames, hidden otherwise. A line drawn
+    between glimpses is no motion: their signals stay unseen, while the left wrist, seen in 44
+    frames, and the joints seen in every frame give a speed wherever they are seen."""
+    rec = read_poses(Path(__file__).parent / "data" / "two_people_50f" / "cam01.json")[0]
+    person = next(t for t in tracks_of(rec, 0) if t.ids == (0,))
+    speed, _ = motion_signals(person.xyz, person.conf, rec.fps)
+    seen = (person.conf >= 0.5).sum(axis=0)
+    glimpsed = [rec.joints.index(j) for j in ("r_elbow", "r_wrist")]
+    assert seen[glimpsed].tolist() == [13, 12] and np.isnan(speed[:, glimpsed]).all()
+    followed = [j for j in range(1, len(rec.joints)) if j not in glimpsed]
+    assert (np.isfinite(speed[:, followed]).sum(axis=0) == seen[followed]).all(), seen
