@@ -16,6 +16,7 @@ from posecam.skeleton import H36M, MIN_CONFIDENCE, Skeleton, skeleton_of
 # astronaut; examples/balance.jpg cut at the waist). So the hips count as seen only with a knee.
 HIP_ROLES = ("mid_hip", "r_hip", "l_hip")       # Skeleton.roles
 KNEE_ROLES = ("r_knee", "l_knee")
+DEFAULT_FPS = 30.0   # the frame rate of an image sequence, and of a video or a recording that gives none
 
 
 @dataclass

@@ -21,8 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from posecam.errors import InputError
-from posecam.io.media import DEFAULT_FPS
-from posecam.results import Frame, Person, Recording
+from posecam.results import DEFAULT_FPS, Frame, Person, Recording
 
 METHODS = ("butterworth", "one_euro")
 MIN_RUN = 4                     # frames; shorter runs are not filtered

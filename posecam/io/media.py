@@ -48,10 +48,10 @@ import numpy as np
 
 from posecam.errors import InputError, warn
 from posecam.io.validate import MAX_PIXELS
+from posecam.results import DEFAULT_FPS
 
 IMAGE_SUFFIXES = (".jpg", ".jpeg", ".png", ".bmp", ".tif", ".tiff", ".webp")   # read as still images
 VIDEO_SUFFIXES = (".mp4", ".avi", ".mov", ".mkv")   # videos posecam writes, and looks for in a take folder
-DEFAULT_FPS = 30.0   # the frame rate of an image sequence, and of a video or a recording that gives none
 READ_AHEAD = 2      # video frames decoded ahead of the one being posed (a thread of their own)
 TIME_ROUNDING = 5e-5  # s: half the last decimal of a pose file's times (4 decimals)
 

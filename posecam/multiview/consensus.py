@@ -1,15 +1,15 @@
 """Camera estimation from the poses themselves: the paper's consensus-based optimisation
-(section 4, eq. 5-11, Algorithm 1) generalised to N cameras in one frame of reference.
+(section 4, eq. 4-13, Algorithm 1) generalised to N cameras in one frame of reference.
 
 Every camera c maps reference-frame points X into its own frame as x_c = R_c X + t_c
-(eq. 5 with R_c = R_{ref,c}); the reference camera keeps R = I, t = 0.
+(eq. 4 with R_c = R_{ref,c}); the reference camera keeps R = I, t = 0.
 
 The depth model. posecam places a monocular pose at the root depth that makes its metric
 skeleton match its 2D size under the intrinsics it was given (f0), so the root depth grows
 with the assumed focal length: z_root = g z0_root with g = f / f0, while the root-relative
 depths stay metric. Each view's pose under candidate intrinsics (fx, fy, cx, cy) = (g f0x,
 g f0y, cx, cy) is therefore rebuilt as z_i = (z0_i - z0_root) + g z0_root, then x, y from
-the 2D keypoints by eq. 4. Square pixels are assumed here (fx / fy stays f0x / f0y);
+the 2D keypoints by eq. 3. Square pixels are assumed here (fx / fy stays f0x / f0y);
 `posecam.multiview.bundle` frees fx and fy and refines everything from the 2D keypoints.
 
 Stage 1 aligns every camera with the reference view alone, as Algorithm 1 does per pair
@@ -75,7 +75,7 @@ def scaled_depths(obs: Observations, k: np.ndarray, k0: np.ndarray) -> np.ndarra
 
 def camera_points(obs: Observations, assumed: list[CameraCalibration], k: np.ndarray) -> np.ndarray:
     """(V, F, J, 3) each view's poses under intrinsics k (V, 4) = (fx, fy, cx, cy), the views'
-    own cameras `assumed` (f0): depth model above, eq. 4."""
+    own cameras `assumed` (f0): depth model above, eq. 3."""
     k0 = np.array([[c.intrinsics.fx, c.intrinsics.fy] for c in assumed])
     z = scaled_depths(obs, k, k0)
     x = (obs.uv[..., 0] - k[:, 2, None, None]) * z / k[:, 0, None, None]

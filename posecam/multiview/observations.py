@@ -23,9 +23,8 @@ import numpy as np
 from posecam.geometry.camera import CameraCalibration
 from posecam.analysis.filters import butterworth
 from posecam.geometry.triangulate import MIN_CONFIDENCE, observation_weights
-from posecam.io.media import DEFAULT_FPS
 from posecam.multiview.policy import TAKE
-from posecam.results import Recording
+from posecam.results import DEFAULT_FPS, Recording
 
 
 def shift(a: np.ndarray, offset: float, length: int, fill=np.nan) -> np.ndarray:
