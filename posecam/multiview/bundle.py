@@ -279,7 +279,7 @@ def _inexact(problem: _Problem, x0: np.ndarray, f_scale: float, lower: np.ndarra
     is a valley and these steps stay near the consensus start, where the monocular depths put
     the people. Two cameras with a lens to estimate cannot tell a lens from a distance (a dolly
     zoom): the exact minimum slides to f = 400 px on Pose2Sim's pairs, a quarter of the lab's,
-    at 1 % lower cost, one fused 70 deg off (docs/benchmarks.md, fourth round). A free principal
+    at 1 % lower cost, one fused 70 deg off (docs/benchmarks.md, fusion: tried and not kept). A free principal
     point trades against the rotations: on a synthetic rig 3 % off centre the exact minimum
     moves it 170 px the wrong way (rotations 9.6 deg off) at the cost this start reaches 1.8 deg
     off (tests/test_consensus.py)."""
