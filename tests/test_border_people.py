@@ -36,7 +36,8 @@ def test_people_at_the_border_are_found(estimator, name):
 def test_the_detector_marks_the_people_the_border_may_cut(name):
     """A detection whose box reaches the image's border is marked `at_border` (the person may be
     cut there); one clear of it is not. On each photo some are and some are not."""
-    from posecam.inference.detector import BORDER_GAP, load_detector
+    from posecam.inference.detector import load_detector
+    from posecam.inference.policy import DETECTION
     from posecam.io.media import read_image
 
     image = read_image(BORDER / name)
@@ -46,7 +47,7 @@ def test_the_detector_marks_the_people_the_border_may_cut(name):
     assert marked == {True, False}, name
     for d in found:
         gap = min(d.box[0], d.box[1], w - d.box[2], h - d.box[3])
-        assert d.at_border == (gap <= BORDER_GAP * np.max(d.box[2:] - d.box[:2])), (name, d.box)
+        assert d.at_border == (gap <= DETECTION.border_gap * np.max(d.box[2:] - d.box[:2])), (name, d.box)
 
 
 def test_a_person_followed_at_the_border_keeps_their_own_crop_beside_a_detector_box():

@@ -64,36 +64,51 @@ def test_the_body_colours_complement_the_network_on_real_pedestrians():
     assert _separation(looks, who) > _separation(network, who) + 0.01
 
 
+def _lost_between(estimator, embedder, first: str, second: str, unseen: int) -> dict[str, dict[str, int]]:
+    """The ids of the hand-labelled people on vtest's frames `first` and `second`, the tracker
+    (10 frames/s) seeing nobody for `unseen` frames in between (as if they were hidden); the
+    people of `first` are confirmed at once there (as if followed for a while before)."""
+    tracker, ids = Tracker(TrackerOptions(still=True), embedder, fps=10.0), {}
+    for step in range(unseen + 1):
+        name = {0: first, unseen: second}.get(step)
+        image = _frame(name) if name else None
+        detections = estimator.detector(image, 40) if name else None
+        tracks = tracker.begin_frame(detections, image)
+        if name:
+            ids[name] = _ids_of_people(tracks, name)
+        found = [name == first] * len(tracks)   # after the first frame the pose model finds nobody
+        tracker.end_frame(tracks, found, [t.keypoints for t in tracks], [t.keypoint_scores for t in tracks],
+                          [t.roi for t in tracks])
+    return ids
+
+
+def _kept_and_wrong(ids: dict[str, dict[str, int]]) -> tuple[int, int]:
+    """The people who took their own id back, and those who took someone else's."""
+    before, after = ids.values()
+    kept = sum(after.get(p) == i for p, i in before.items())
+    wrong = sum(i in before.values() and before.get(p) != i for p, i in after.items())
+    return kept, wrong
+
+
 def test_ids_come_back_after_everyone_was_lost_for_fifteen_frames(estimator):
     """Frames 175 and 190 of vtest with the people unseen in between (as if hidden): motion
     alone (the boxes where they were last) gives them new ids or someone else's; the looks
     give the one they are sure of their own back, and nobody someone else's."""
-    def run(embedder) -> dict[str, dict[str, int]]:
-        # the people of frame 175 are confirmed at once there (as if followed for a while before)
-        tracker, ids = Tracker(TrackerOptions(confirm_hits=1, confirm_frames=1), embedder, fps=10.0), {}
-        for step in range(16):
-            name = {0: "175", 15: "190"}.get(step)
-            image = _frame(name) if name else None
-            detections = estimator.detector(image, 40) if name else None
-            tracks = tracker.begin_frame(detections, image)
-            if name:
-                ids[name] = _ids_of_people(tracks, name)
-            found = [name == "175"] * len(tracks)   # after frame 175 the pose model finds nobody
-            tracker.end_frame(tracks, found, [t.keypoints for t in tracks], [t.keypoint_scores for t in tracks],
-                              [t.roi for t in tracks])
-        return ids
-
-    def kept_and_wrong(ids: dict[str, dict[str, int]]) -> tuple[int, int]:
-        before, after = ids["175"], ids["190"]
-        kept = sum(after.get(p) == i for p, i in before.items())
-        wrong = sum(i in before.values() and before.get(p) != i for p, i in after.items())
-        return kept, wrong
-
-    motion, looks = run(None), run(estimator.embedder)
+    motion = _lost_between(estimator, None, "175", "190", 15)
     assert len(motion["175"]) >= 4 and len(motion["190"]) >= 4   # the detector finds most of the six
-    assert kept_and_wrong(motion) == (0, 1)    # the black jacket took the leather jacket's id
-    kept, wrong = kept_and_wrong(looks)
+    assert _kept_and_wrong(motion) == (0, 1)    # the black jacket took the leather jacket's id
+    kept, wrong = _kept_and_wrong(_lost_between(estimator, estimator.embedder, "175", "190", 15))
     assert kept >= 1 and wrong == 0
+
+
+def test_the_looks_remember_people_ten_seconds_past_their_motion(estimator):
+    """Frames 175 and 205 of vtest, the people unseen for 6 s in between (10 frames/s: twice as
+    long as their motion is kept, TRACKING.max_lost): their looks give one their own id back,
+    nobody someone else's; unseen for 11 s (over TRACKING.reid_seconds) they are forgotten, new
+    ids all."""
+    kept, wrong = _kept_and_wrong(_lost_between(estimator, estimator.embedder, "175", "205", 60))
+    assert kept >= 1 and wrong == 0
+    assert _kept_and_wrong(_lost_between(estimator, estimator.embedder, "175", "205", 110)) == (0, 0)
 
 
 def _ids_of_people(tracks, frame: str) -> dict[str, int]:

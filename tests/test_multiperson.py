@@ -1,6 +1,7 @@
 """Several people: the MoveNet MultiPose detector, crops that hold one person, the tracker."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -12,7 +13,7 @@ from posecam.inference.roi import Roi
 from posecam.io.media import open_media, read_image
 from posecam.geometry.boxes import box_iou
 from posecam.results import Frame, Person
-from posecam.tracking import ConfirmedIds, Tracker, TrackerOptions, foreign_joints
+from posecam.tracking import TRACKING, ConfirmedIds, Tracker, TrackerOptions, foreign_joints
 
 FPS = 10.0      # the frame rate the tracker's scripted videos below play at (searches every 0.5 s = 5 frames)
 
@@ -45,6 +46,35 @@ def test_tiles_find_each_person_once(people):
         assert len(people.detector.tiles(w, h, 40)) >= 4
         confident = [d for d in people.detector(rgb, 40) if d.score >= people.detector.start_score]
         assert len(confident) == count, image
+
+
+VTEST = json.loads((DATA / "vtest_people" / "people.json").read_text())["people"]
+BORDER = json.loads((DATA / "border" / "people.json").read_text())
+MARKED = {**{f"vtest_people/vtest_{f}.jpg": [(p[f], 1.0) for p in VTEST.values()] for f in ("175", "190", "205")},
+          **{f"border/{name}": [(m["box"], m["visible"]) for m in marks] for name, marks in BORDER.items()}}
+
+
+@pytest.mark.parametrize("name", sorted(MARKED))
+def test_the_search_finds_each_person_marked_by_hand_once_and_whole(people, name):
+    """vtest.avi's frames and the border photos, each person's box marked by hand, searched as a
+    video's first frame is (the whole image, its tiles for people 40 px tall, the quarter
+    turns): each confident detection on a marked person (the one it overlaps most, IoU over
+    0.3) is the only one on them, the runs that saw them merged into one by their boxes (vtest
+    175's leather jacket twice, keypoints unlike) or their keypoints (vtest 300's man at the
+    left edge, boxes apart); and it holds 85 % of their height when half of them or more is in
+    view (basketball1's player cut by the left edge: not a tile's detection cut by the tile's
+    top, 74 %)."""
+    from posecam.inference.detector import detect_any_turn
+
+    marks = MARKED[name]
+    boxes = np.array([box for box, _ in marks], float)
+    found = [d for d in detect_any_turn(people.detector, read_image(DATA / name), 40) if d.score >= people.detector.start_score]
+    iou = box_iou(np.array([d.box for d in found]).reshape(-1, 4), boxes)
+    for i, (box, visible) in enumerate(marks):
+        on = [d for d, row in zip(found, iou) if row.argmax() == i and row[i] > 0.3]
+        assert len(on) <= 1, (box, [d.box.round() for d in on])
+        if on and visible >= 0.5:
+            assert min(on[0].box[3], box[3]) - max(on[0].box[1], box[1]) >= 0.85 * (box[3] - box[1]), (box, on[0].box)
 
 
 def test_search_is_set_by_the_people_not_by_max_people():
@@ -134,7 +164,7 @@ def test_ids_survive_a_short_occlusion():
         x = 100 + 5 * f
         a, b = _det([x, 100, x + 80, 300]), _det([600, 100, 680, 300])
         frames.append([b] if 10 <= f < 20 else [a, b])      # a hidden for 10 frames
-    ids = _run(Tracker(TrackerOptions(max_lost=30), fps=FPS), frames)
+    ids = _run(Tracker(fps=FPS), frames)
     first_a = ids[0][0]
     assert ids[25][0] == first_a and ids[25][1] == ids[0][1]
     assert len({t for i in ids for t in i.values()}) == 2
@@ -204,6 +234,13 @@ def test_joints_on_a_neighbour_are_found():
     foreign = foreign_joints(pose, np.ones(k), own, [other])
     assert foreign.tolist() == [False] * 13 + [True] * 4
     assert not foreign_joints(own_kp, np.ones(k), own, [other]).any()
+    # hands joined: the neighbour's right wrist 12 px from his, the pose's 8 px off his own
+    # (nearer the neighbour's, yet within a tenth of his box's diagonal): his still
+    holding = Detection(0.9, other.box, other_kp.copy(), np.ones(k), other.roi)
+    holding.keypoints[10] = own_kp[10] + [12, 0]
+    pose = own_kp.copy()
+    pose[10] += [8, 0]
+    assert not foreign_joints(pose, np.ones(k), own, [holding]).any()
 
 
 def test_min_cost_assignment_matches_scipy_on_random_matrices():
@@ -259,7 +296,7 @@ def test_detector_runs_more_often_while_people_may_be_missing():
 
 
 def test_someone_the_detector_misses_stays_with_the_pose_model():
-    tracker = Tracker(TrackerOptions(coast=2), fps=FPS)
+    tracker = Tracker(fps=FPS, policy=replace(TRACKING, coast=2))
     _follow(tracker, [_det([400, 200, 480, 400])], 1)
     for run in range(3):                                        # detector runs that find nobody
         tracks = tracker.begin_frame([])
@@ -311,6 +348,23 @@ def test_someone_just_lost_is_searched_for_where_they_were():
     assert region[0] <= 700 and region[2] >= 780 and region[0] > 180   # ... around b only
 
 
+def test_no_search_about_someone_lost_past_the_border():
+    """Someone followed beside another is lost, their box carried past the image's right
+    border: the run their loss asks for would search the strip of their region the border
+    leaves, 10 px wide (resized to the detector's input, it holds nobody): nothing is searched
+    (a strip under TRACKING.min_region_px)."""
+    tracker = Tracker(fps=FPS)
+    _follow(tracker, [_det([400, 200, 480, 400]), _det([880, 200, 960, 400])], 12)
+    gone = max(tracker.tracks, key=lambda t: t.box[0])
+    gone.kalman.x[:2] = [1130, 300]                             # box x 1090-1170, its region from 990
+    tracks = tracker.begin_frame(None)
+    tracker.end_frame(tracks, [t is not gone for t in tracks], [None] * 2, [None] * 2, [t.roi for t in tracks])
+    run = tracker.detector_run(1000, 800)
+    assert run is not None and run.asking == [gone]
+    search = tracker.search(run, [(0, 0, 1000, 800)], 1000, 800)
+    assert not search.whole and search.regions == []
+
+
 def test_searches_everywhere_are_scheduled_in_seconds():
     crowd = [_det([100 + 150 * i, 200, 180 + 150 * i, 400]) for i in range(3)]
     assert _follow(Tracker(fps=10), crowd, 20) == list(range(0, 20, 5))        # 0.5 s at 10 frames/s
@@ -338,7 +392,7 @@ def test_ids_are_numbered_only_for_confirmed_tracks():
                                  [None] * len(tracks), [t.roi for t in tracks])
         frame = Frame(f, 0.0, [_person(tracks[i].box) for i in kept])
         released = held.push(frame, [tracks[i] for i in kept], frame)
-        assert len(out) + len(released) >= f + 1 - tracker.options.confirm_frames
+        assert len(out) + len(released) >= f + 1 - tracker.policy.confirm_frames
         out += released
     out += held.flush()
     assert [f.index for f in out] == list(range(30))
@@ -351,7 +405,7 @@ def test_a_person_the_detector_merges_with_a_neighbour_stays_followed():
     """Two overlapping people, the detector finding one of them on 8 runs in a row: the other
     is still followed by the pose model (the misses of someone overlapping a neighbour do not
     count), and lost as usual once apart and missed `coast` times."""
-    tracker = Tracker(TrackerOptions(coast=2), fps=FPS)
+    tracker = Tracker(fps=FPS, policy=replace(TRACKING, coast=2))
     front, behind = [400, 200, 500, 420], [440, 210, 520, 400]
     _follow(tracker, [_det(front), _det(behind)], 12)
     for run in range(8):

@@ -12,7 +12,7 @@ from posecam.inference.detector import Detection
 from posecam.inference.embedder import colour_distance, load_embedder
 from posecam.inference.roi import Roi
 from posecam.io.media import read_image
-from posecam.tracking import TrackerOptions, reid
+from posecam.tracking import TRACKING, reid
 from posecam.tracking.motion import BoxKalman
 from posecam.tracking.track import Track
 
@@ -60,7 +60,7 @@ def test_looks_alone_do_not_bring_back_someone_too_far_or_of_another_height(embe
     """The man in the black jacket, lost one frame ago: his own crop where he was is him again;
     the same crop pasted 4 of his heights away (he walks 1 a second), or stretched to twice his
     height where he was, looks just as much like him and is not him."""
-    image, o = _frame(), TrackerOptions()
+    image, o = _frame(), TRACKING
     box = _box("black_jacket_jeans")
     tall = box[3] - box[1]
     lost = _lost(embedder, image, box, 1)
@@ -77,7 +77,7 @@ def test_looks_alone_do_not_bring_back_someone_too_far_or_of_another_height(embe
 def test_a_lost_persons_motion_match_is_refused_to_someone_who_looks_otherwise(embedder):
     """Where the man in the black jacket was lost, the man in the leather jacket (his crop
     pasted there): the motion matches as well as his own crop does, the looks refuse it."""
-    image, o = _frame(), TrackerOptions()
+    image, o = _frame(), TRACKING
     box = _box("black_jacket_jeans")
     lost = _lost(embedder, image, box, 1)
     other = _pasted(image, _box("leather_jacket_black_trousers"), box)
@@ -92,7 +92,7 @@ def test_the_same_colours_without_the_persons_shape_are_not_him(embedder):
     """The woman in the light blue jacket, lost one frame ago where she was: her crop's pixels
     shuffled keep her colours (the colour gate lets it through) but not her shape; the looks'
     distance gate refuses it, her own crop there is her."""
-    image, o = _frame(), TrackerOptions()
+    image, o = _frame(), TRACKING
     box = _box("light_blue_jacket_bag")
     lost = _lost(embedder, image, box, 1)
     x0, y0, x1, y1 = box.astype(int)
@@ -104,3 +104,74 @@ def test_the_same_colours_without_the_persons_shape_are_not_him(embedder):
     looks = reid.Looks(embedder, shuffled)
     assert colour_distance(looks([d]), np.stack(lost.gallery)).min() < o.reid_colour
     assert not reid.recognised([lost], [d], looks, FPS, o)
+
+
+def test_no_pair_within_the_motion_gate_loses_to_one_out_of_it_whatever_the_looks(embedder):
+    """The man in the black jacket, followed: two detections at the edge of his motion gate
+    are boxes of bare pavement (looks nothing like his: their mixed costs near 0.9), a third is
+    just out of the gate. The looks weigh in among the pairs the gate lets through and never
+    past it: every pair within costs less than any pair out of it, and he takes one within it
+    (the assignment picking the pair out of the gate would leave him with nothing)."""
+    from posecam.tracking.assignment import gated_assignment
+
+    image, o = _frame(), TRACKING
+    box = _box("black_jacket_jeans")
+    followed = _lost(embedder, image, box, 0)
+    pavement = [_detection(np.array(b, float)) for b in ([480, 500, 517, 575], [120, 350, 157, 425])]
+    beyond = _detection(box + [60, 0, 60, 0])
+    motion = np.array([[o.match_cost, o.match_cost, o.match_cost + 0.01]])
+    cost = reid.with_looks([followed], pavement + [beyond], motion, o.match_cost, reid.Looks(embedder, image), o)
+    assert cost[0, :2].min() > motion[0, 2]                         # the looks alone would rank him out of the gate
+    assert cost[0, :2].max() < cost[0, 2]
+    assert gated_assignment(cost, motion, o.match_cost) in ([(0, 0)], [(0, 1)])
+
+
+def test_a_man_of_his_shape_in_other_colours_is_not_him(embedder):
+    """The man in the black jacket, lost where he was, and there his crop with its colours
+    turned (hue +30 deg: someone of his build in other clothes): the looks' distance alone
+    (0.25) would take him back, the clothes' colours alone (0.44) refuse."""
+    import cv2
+
+    image, o = _frame(), TRACKING
+    box = _box("black_jacket_jeans")
+    lost = _lost(embedder, image, box, 1)
+    x0, y0, x1, y1 = box.astype(int)
+    hsv = cv2.cvtColor(image[y0:y1, x0:x1], cv2.COLOR_RGB2HSV)
+    hsv[..., 0] = (hsv[..., 0].astype(int) + 30) % 180
+    recoloured = image.copy()
+    recoloured[y0:y1, x0:x1] = cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)
+    d, looks = _detection(box), reid.Looks(embedder, recoloured)
+    assert lost.appearance_distance(looks([d]))[0] < o.reid_distance
+    assert not reid.recognised([lost], [d], looks, FPS, o)
+
+
+def test_a_detection_like_two_people_lost_by_a_hair_takes_neither_id(embedder):
+    """The man in the black jacket lost twice over (two tracks of him, their crops a box 2 px
+    to either side: a track split in two), and his detection where he was: it is like both,
+    one nearer by 0.003 (under TRACKING.reid_margin), and takes neither id (a new one rather
+    than a coin toss); with one of them alone it takes that one's."""
+    image, o = _frame(), TRACKING
+    box = _box("black_jacket_jeans")
+    left, right = (_lost(embedder, image, box + [dx, 0, dx, 0], 1) for dx in (-2, 2))
+    d, looks = _detection(box), reid.Looks(embedder, image)
+    assert reid.recognised([left], [d], looks, FPS, o) == [(0, 0)]
+    assert reid.recognised([left, right], [d], looks, FPS, o) == []
+
+
+def test_looks_taken_as_a_person_is_followed_bring_them_back_after_a_change(embedder):
+    """The man in the black jacket and the man in the red and navy jacket, followed on frames
+    175 and 190 (a look taken on each: they are more than TRACKING.refresh_every frames apart,
+    and a gallery holds both), then lost: on frame 205 the black jacket is like his look of 190
+    alone (0.31 from 175's: he turned), the red and navy jacket like his of 175 alone (his
+    colours of 190 are 0.24 off); each is recognised."""
+    def frame(name: str) -> np.ndarray:
+        return read_image(DATA / "vtest_people" / f"vtest_{name}.jpg")
+
+    for person in ("black_jacket_jeans", "red_and_navy_jacket"):
+        first, second, back = (_detection(np.array(PEOPLE[person][f], float)) for f in ("175", "190", "205"))
+        t = Track(0, first.roi, BoxKalman(first.box), np.zeros((17, 2)), np.zeros(17), detection=first, number=0)
+        reid.refresh_looks([t], [first], reid.Looks(embedder, frame("175")), 175, TRACKING)
+        t.take(second)
+        reid.refresh_looks([t], [second], reid.Looks(embedder, frame("190")), 190, TRACKING)
+        t.detection, t.lost = None, 15
+        assert reid.recognised([t], [back], reid.Looks(embedder, frame("205")), FPS, TRACKING) == [(0, 0)], person

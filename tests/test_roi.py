@@ -1,7 +1,6 @@
 import numpy as np
 import pytest
 
-from posecam.inference.detector import CROP_KEYPOINT_SCORE
 from posecam.inference.roi import Roi, body_roi
 
 
@@ -47,7 +46,7 @@ HIPS, SHOULDERS = (11, 12), (5, 6)
 def test_body_roi_from_keypoints_is_centred_on_the_hips_and_holds_the_body():
     pts = _standing()
     box = np.concatenate([pts.min(axis=0), pts.max(axis=0)])
-    roi = body_roi(pts, np.ones(17), box, HIPS, SHOULDERS, CROP_KEYPOINT_SCORE)
+    roi = body_roi(pts, np.ones(17), box, HIPS, SHOULDERS)
     assert np.allclose([roi.cx, roi.cy], [300, 400]) and abs(roi.angle) < 1e-9
     corners = roi.box
     assert (corners[:2] <= pts.min(axis=0)).all() and (corners[2:] >= pts.max(axis=0)).all()
@@ -58,7 +57,7 @@ def test_body_roi_turns_with_the_torso():
     pts = _standing()
     lying = np.column_stack([400 + (pts[:, 1] - 400) * -1, 300 + (pts[:, 0] - 300)])  # head to the right
     box = np.concatenate([lying.min(axis=0), lying.max(axis=0)])
-    roi = body_roi(lying, np.ones(17), box, HIPS, SHOULDERS, CROP_KEYPOINT_SCORE)
+    roi = body_roi(lying, np.ones(17), box, HIPS, SHOULDERS)
     assert np.isclose(roi.angle, np.pi / 2)
 
 
@@ -66,7 +65,7 @@ def test_body_roi_falls_back_to_the_box_without_hips():
     pts = _standing()
     conf = np.ones(17)
     conf[list(HIPS)] = 0.0
-    roi = body_roi(pts, conf, np.array([100.0, 200.0, 200.0, 600.0]), HIPS, SHOULDERS, CROP_KEYPOINT_SCORE)
+    roi = body_roi(pts, conf, np.array([100.0, 200.0, 200.0, 600.0]), HIPS, SHOULDERS)
     assert (roi.cx, roi.cy, roi.angle) == (150.0, 400.0, 0.0) and roi.size == 400 * 1.25
 
 
@@ -82,3 +81,27 @@ def test_a_person_cut_by_the_border_is_cropped_past_it():
     assert x1 == pytest.approx(255.0 + 54.0) and x0 < -300.0      # inner side at the box's plus a tenth; far past the edge
     assert y0 < 460.0 and y1 > 1000.0
     assert past_border(np.array([100.0, 460.0, 350.0, 1000.0]), 560, 1920) is None
+
+
+def test_body_roi_holds_arms_raised_above_the_head():
+    """Wrists raised 0.75 of the height above the hips, 2.5 torsos (a crop sized from the torso
+    alone would cut them off): the crop reaches the farthest keypoint seen."""
+    pts = _standing()
+    pts[[9, 10], 1] = 400.0 - 0.75 * 400
+    box = np.concatenate([pts.min(axis=0), pts.max(axis=0)])
+    corners = body_roi(pts, np.ones(17), box, HIPS, SHOULDERS).box
+    assert (corners[:2] <= pts.min(axis=0)).all() and (corners[2:] >= pts.max(axis=0)).all()
+
+
+def test_the_crop_of_someone_the_border_cuts_at_the_hips_is_about_the_part_in_view():
+    """messi5 cut at the hips by the bottom edge, searched for people 40 px tall: a body crop
+    about his hips, on the edge, sized for the legs below them would be 1.9 times his box, half
+    of it past the edge; his crop is the upright square about the part in view instead."""
+    from conftest import DATA
+    from posecam.inference.detector import load_detector
+    from posecam.io.media import read_image
+
+    image = read_image(DATA / "border" / "messi5_bottom_cut.jpg")
+    (messi,) = [d for d in load_detector("movenet")(image, 40) if d.score > 0.5]
+    assert not messi.roi.oriented
+    assert messi.roi.size == pytest.approx(1.25 * np.max(messi.box[2:] - messi.box[:2]))

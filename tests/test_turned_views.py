@@ -16,7 +16,8 @@ from posecam.io.poses import read_poses
 from posecam.multiview.fuse import fuse_recordings
 from posecam.multiview.options import FuseOptions
 from posecam.tracking.motion import BoxKalman
-from posecam.tracking.track import TURNED, Track
+from posecam.tracking.policy import TRACKING
+from posecam.tracking.track import Track
 
 TAKE = Path(__file__).parent / "data" / "two_people_50f"
 
@@ -63,7 +64,7 @@ def _detection(roi: Roi) -> Detection:
 UPRIGHT_BOX = Roi.around_points(np.array([[110.0, 90.0], [310.0, 510.0]]))
 
 
-@pytest.mark.parametrize("angle", [np.pi, -2.5, -np.pi / 2, TURNED + 0.05])
+@pytest.mark.parametrize("angle", [np.pi, -2.5, -np.pi / 2, TRACKING.turned + 0.05])
 def test_a_person_followed_turned_keeps_their_own_crop_beside_a_detector_box(angle):
     """Upside down or lying: the detector's upright box (it could not tell the body's axis) is
     this frame's crop, and the crop the person's own pose gave is kept beside it, for the pose
@@ -86,7 +87,7 @@ def test_no_second_crop_where_the_detector_knows_the_body_or_the_person_is_not_t
     assert track.own_roi is None
     # leaning (the two-person take's adult in an overlap: 49 deg); lost: its crop is old; not
     # told: a pose that turned on its own
-    for track in (_track(TURNED - 0.05), _track(-0.85), _track(np.pi, lost=3), _track(np.pi, told=False)):
+    for track in (_track(TRACKING.turned - 0.05), _track(-0.85), _track(np.pi, lost=3), _track(np.pi, told=False)):
         track.take(_detection(UPRIGHT_BOX))
         assert track.roi == UPRIGHT_BOX and track.own_roi is None
 

@@ -19,6 +19,7 @@ import numpy as np
 
 from posecam.errors import ModelError
 from posecam.geometry.boxes import box_area, box_iou
+from posecam.inference.policy import DETECTION
 from posecam.inference.roi import Roi, body_roi
 from posecam.inference.session import Model, load_model, to_input_tensor
 
@@ -68,12 +69,10 @@ class BlazePoseDetector:
     """BlazePose's SSD detector: heads of near people, with the body ROI from 2 keypoints."""
 
     joints: tuple[str, ...] = ()   # its 4 keypoints are ROI helpers, not body joints
-    default_score = 0.5
 
-    def __init__(self, model: Model, start_score: float = 0.5, nms_iou: float = 0.3):
+    def __init__(self, model: Model, start_score: float = DETECTION.blazepose_score):
         self.model = model
         self.start_score = self.min_score = start_score   # no weak detections: each starts a track
-        self.nms_iou = nms_iou
         spec = model.contract.input
         self.size = int(spec.size[0])
         a = model.contract.anchors
@@ -113,7 +112,7 @@ class BlazePoseDetector:
         half = raw[:, 2:4] / self.scale / 2
         boxes = np.concatenate([centre - half, centre + half], axis=1)
         points = raw[:, 4:12].reshape(-1, 4, 2) / self.scale + anchors[:, None, :]
-        kept = weighted_nms(scores, boxes, points, self.nms_iou)
+        kept = weighted_nms(scores, boxes, points, DETECTION.blazepose_nms_iou)
         unit_to_px = self.size * scale  # letterbox unit square -> image pixels, less the padding
         result = []
         for i in kept:
@@ -123,36 +122,21 @@ class BlazePoseDetector:
         return result
 
 
-# The search: a person this tall in the detector's input is found with a confident score
-# (measured on vtest.avi's hand counts, bench/bench_people.py); the image is searched in
-# tiles small enough to show its smallest people at that height, at most MAX_TILES a side.
-FOUND_PX = 50
-MAX_TILES = 3
-TILE_OVERLAP = 0.25    # each tile reaches this fraction of its width into its neighbours
-WEAK_FRACTION = 1 / 3  # detections down to this fraction of the start score keep tracks alive
-# MoveNet scores a person about as the mean of their 17 keypoints' scores, and a keypoint beyond
-# the image's border scores low whoever the person is: cut in half by the border, a person
-# scores a third of what they score whole (basketball1, basketball2, messi5 cropped: 0.67 ->
-# 0.23, 0.67 -> 0.19, 0.65 -> 0.21), a quarter off 0.8 of it. A detection whose box comes
-# within BORDER_GAP of its longer side to the border is judged on a score raised by 1 / BORDER_SCORE.
-BORDER_GAP = 0.1
-BORDER_SCORE = 0.6
-
-
 class MoveNetDetector:
     """MoveNet MultiPose: up to 6 people per run, each a box and 17 scored COCO keypoints.
 
     `input_size` is the long side an image (or a tile) is resized to (the contract's default
     when None). Asked for people of `person_px` pixels, the image is also searched in
-    overlapping tiles, as many as showing them at FOUND_PX in the input needs.
+    overlapping tiles, as many as showing them at DETECTION.found_px in the input needs (at most
+    its max_tiles a side). MoveNet scores a person about as the mean of their keypoints' scores,
+    and a keypoint past the image's border scores low: a detection the border may cut is judged
+    on a score raised by 1 / border_score.
     """
 
-    default_score = 0.25   # people seen from behind or half hidden score 0.3 to 0.5
-
-    def __init__(self, model: Model, start_score: float = default_score, input_size: int | None = None):
+    def __init__(self, model: Model, start_score: float = DETECTION.movenet_score, input_size: int | None = None):
         self.model = model
         self.start_score = start_score
-        self.min_score = start_score * WEAK_FRACTION
+        self.min_score = start_score * DETECTION.weak_share
         spec = model.contract.input
         self.multiple = spec.multiple or 32
         self.input_size = int(input_size or max(spec.size))
@@ -178,15 +162,16 @@ class MoveNetDetector:
 
     def tiles(self, width: int, height: int, person_px: float | None) -> list[tuple[int, int, int, int]]:
         """The tiles (x0, y0, x1, y1) searched besides the whole image for people `person_px`
-        tall: a grid whose tiles show them at FOUND_PX in the input, overlapping by TILE_OVERLAP;
+        tall: a grid whose tiles show them at `found_px` in the input, overlapping by `tile_overlap`;
         none when the whole image already does (or `person_px` is None)."""
         if not person_px:
             return []
-        reach = self.input_size * person_px / FOUND_PX     # image pixels one run covers at that scale
-        nx, ny = (int(np.clip(round(side / reach), 1, MAX_TILES)) for side in (width, height))
+        p = DETECTION
+        reach = self.input_size * person_px / p.found_px     # image pixels one run covers at that scale
+        nx, ny = (int(np.clip(round(side / reach), 1, p.max_tiles)) for side in (width, height))
         if nx == ny == 1:
             return []
-        tw, th = min(width, round(width / nx * (1 + TILE_OVERLAP))), min(height, round(height / ny * (1 + TILE_OVERLAP)))
+        tw, th = min(width, round(width / nx * (1 + p.tile_overlap))), min(height, round(height / ny * (1 + p.tile_overlap)))
         return [(x0, y0, x0 + tw, y0 + th) for x0 in np.linspace(0, width - tw, nx).round().astype(int)
                 for y0 in np.linspace(0, height - th, ny).round().astype(int)]
 
@@ -194,14 +179,14 @@ class MoveNetDetector:
                  tiles: list[tuple[int, int, int, int]] | None = None, whole: bool = True) -> list[Detection]:
         """People in the image, most confident first: one run on the whole image (unless not
         `whole`), and one on each of `tiles` (None: every tile that shows people `person_px`
-        tall at FOUND_PX, see `tiles`; any region of the image, each resized to the input). A
+        tall at `found_px`, see `tiles`; any region of the image, each resized to the input). A
         person cut by a tile's inner edge is left to the tile or the whole image that holds
         them, and the detections of one person are merged."""
         h, w = image_rgb.shape[:2]
         found = self._detect(image_rgb, np.zeros(2)) if whole else []
         for x0, y0, x1, y1 in self.tiles(w, h, person_px) if tiles is None else tiles:
             inner = np.array([x0 > 0, y0 > 0, x1 < w, y1 < h])   # tile edges inside the image
-            edge = 0.01 * max(x1 - x0, y1 - y0)
+            edge = DETECTION.tile_edge * max(x1 - x0, y1 - y0)
             for d in self._detect(image_rgb[y0:y1, x0:x1], np.array([x0, y0], float)):
                 gap = np.abs(d.box - [x0, y0, x1, y1])
                 if not (inner & (gap < edge)).any():
@@ -225,28 +210,28 @@ class MoveNetDetector:
             points = kp[:, [1, 0]] * [in_w, in_h] * to_image + offset
             box = row[3 * k:3 * k + 4][[1, 0, 3, 2]] * [in_w, in_h, in_w, in_h] * to_image + np.tile(offset, 2)
             conf = np.clip(kp[:, 2], 0.0, 1.0)
-            result.append(Detection(score, box, points, conf,
-                                    body_roi(points, conf, box, self._hips, self._shoulders, CROP_KEYPOINT_SCORE)))
+            result.append(Detection(score, box, points, conf, body_roi(points, conf, box, self._hips, self._shoulders)))
         return result
 
 
 def _judged_in_view(d: Detection, width: int, height: int) -> Detection:
-    """`d` with its score raised by 1 / BORDER_SCORE (at most to 1) when its box reaches the
-    image's border (within BORDER_GAP of its longer side): the border may cut the person."""
+    """`d` with its score raised by 1 / `border_score` (at most to 1) when its box reaches the
+    image's border (within `border_gap` of its longer side): the border may cut the person."""
     gap = min(d.box[0], d.box[1], width - d.box[2], height - d.box[3])   # < 0: the box reaches beyond
-    if gap > BORDER_GAP * float(np.max(d.box[2:] - d.box[:2])):
+    if gap > DETECTION.border_gap * float(np.max(d.box[2:] - d.box[:2])):
         return d
-    return replace(d, score=min(1.0, d.score / BORDER_SCORE), at_border=True)
+    return replace(d, score=min(1.0, d.score / DETECTION.border_score), at_border=True)
 
 
-def _merge(detections: list[Detection], iou: float = 0.5, same: float = 0.5) -> list[Detection]:
+def _merge(detections: list[Detection]) -> list[Detection]:
     """One detection per person: the most confident of those whose boxes overlap (IoU above
-    `iou`) or whose keypoints agree (OKS above `same`: a person cut by a tile's edge)."""
+    `merge_iou`) or whose keypoints agree (OKS above `merge_oks`: a person cut by a tile's edge)."""
     kept: list[Detection] = []
     for d in sorted(detections, key=lambda d: -d.score):
         overlap = box_iou(d.box, np.array([k.box for k in kept]))[0]
-        if not any(o > iou or oks(d.keypoints, d.keypoint_scores, k.keypoints, k.keypoint_scores,
-                                  float(box_area(k.box))) > same for o, k in zip(overlap, kept)):
+        if not any(o > DETECTION.merge_iou or oks(d.keypoints, d.keypoint_scores, k.keypoints, k.keypoint_scores,
+                                                  float(box_area(k.box))) > DETECTION.merge_oks
+                   for o, k in zip(overlap, kept)):
             kept.append(d)
     return kept
 
@@ -282,21 +267,13 @@ def turned_back(points: np.ndarray, turns: int, width: int, height: int) -> np.n
 COCO_SIGMAS = np.array([.026, .025, .025, .035, .035, .079, .079, .072, .072, .062, .062,
                         .107, .107, .087, .087, .089, .089])
 
-# Keypoint scores in the detector's joints, two rules and their one home. Wherever people are
-# matched by their keypoints (OKS, a neighbour's joints on a pose, the box of a track's seen
-# keypoints), a keypoint, a detection's or a pose's at the detector's joints, counts as seen from
-# SEEN_KEYPOINT_SCORE. The keypoints that place the pose model's crop (MoveNet's body ROI: hips,
-# shoulders, the farthest keypoint) need CROP_KEYPOINT_SCORE: a wrong one turns or stretches it.
-SEEN_KEYPOINT_SCORE = 0.3
-CROP_KEYPOINT_SCORE = 0.4
-
-
 def oks(points_a: np.ndarray, conf_a: np.ndarray, points_b: np.ndarray, conf_b: np.ndarray,
         area: float) -> float:
-    """Object keypoint similarity of two (K, 2) keypoint sets over the joints both see (0 if none)."""
+    """Object keypoint similarity of two (K, 2) keypoint sets over the joints both see (scored
+    DETECTION.seen_keypoint_score or more; 0 if none)."""
     if len(points_a) != len(points_b):
         return 0.0
-    both = (conf_a >= SEEN_KEYPOINT_SCORE) & (conf_b >= SEEN_KEYPOINT_SCORE)
+    both = (conf_a >= DETECTION.seen_keypoint_score) & (conf_b >= DETECTION.seen_keypoint_score)
     if not both.any():
         return 0.0
     k = 2 * (COCO_SIGMAS if len(points_a) == len(COCO_SIGMAS) else np.full(len(points_a), 0.07))
@@ -310,10 +287,10 @@ Detector = BlazePoseDetector | MoveNetDetector
 def load_detector(name_or_path: str, threads: int | None = None, min_score: float | None = None,
                   input_size: int | None = None, device: str = "cpu") -> Detector:
     """A bundled detector by name (see contract.DETECTORS) or a detector .onnx file, decoded as its
-    metadata says. `min_score` is the score that starts a track (None: the detector's
-    `default_score`, kept as its `start_score`); MoveNet's detections down to WEAK_FRACTION of
+    metadata says. `min_score` is the score that starts a track (None: the detector's policy's,
+    DETECTION, kept as its `start_score`); MoveNet's detections down to DETECTION.weak_share of
     it are kept too (they keep tracks alive), BlazePose's from it (`min_score` of each)."""
     model = load_model(name_or_path, threads, kind="detector", device=device)
     if model.contract.decoder == "movenet_multipose":
-        return MoveNetDetector(model, MoveNetDetector.default_score if min_score is None else min_score, input_size)
-    return BlazePoseDetector(model, BlazePoseDetector.default_score if min_score is None else min_score)
+        return MoveNetDetector(model, DETECTION.movenet_score if min_score is None else min_score, input_size)
+    return BlazePoseDetector(model, DETECTION.blazepose_score if min_score is None else min_score)

@@ -8,6 +8,8 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from posecam.inference.policy import CROP, DETECTION
+
 # BlazePose's ROI: centred on the hip centre, side 2 * |scale point - hip centre| * 1.25,
 # rotated so that the hip -> scale-point direction points up in the crop.
 ROI_SCALE = 1.25
@@ -81,21 +83,15 @@ class Roi:
         return np.concatenate([corners.min(axis=0), corners.max(axis=0)])
 
 
-# A body ROI from scored keypoints (MoveNet's): the same alignment as BlazePose's detector, whose
-# scale point lies on the circle about the hip centre that holds the whole body.
-REACH_MARGIN = 1.0     # circle radius over the farthest visible keypoint's distance (head top, feet)
-TORSO_REACH = 1.6      # ... and at least this many hip-to-shoulder lengths (legs hidden)
-MAX_BOX_RATIO = 1.6    # largest ROI side over the box's longer side (upright body: about 1.3)
-
-
 def body_roi(points: np.ndarray, conf: np.ndarray, box: np.ndarray, hips: tuple[int, int],
-             shoulders: tuple[int, int], min_score: float) -> Roi:
-    """Rotated ROI centred on the hip midpoint, upright along hips -> shoulders, sized to hold
-    every visible keypoint (scored `min_score` and more: the detector's CROP_KEYPOINT_SCORE);
-    an upright square about `box` (x0, y0, x1, y1) when the hips or both shoulders are not
-    visible, or when the keypoints' ROI is far larger than the box (keypoints guessed outside
-    the image)."""
-    seen = conf >= min_score
+             shoulders: tuple[int, int]) -> Roi:
+    """A body ROI from scored keypoints (MoveNet's), aligned as BlazePose's detector aligns it:
+    centred on the hip midpoint, upright along hips -> shoulders, its scale point on the circle
+    about the hips that holds every visible keypoint (scored CROP.keypoint_score and more:
+    `reach_margin` of the farthest's distance, at least `torso_reach` torsos); an upright square
+    about `box` (x0, y0, x1, y1) when the hips or both shoulders are not visible, or when the
+    keypoints' ROI is over `max_box_ratio` of the box's side (keypoints guessed outside the image)."""
+    seen = conf >= CROP.keypoint_score
     hip_idx, top_idx = list(hips), [i for i in shoulders if seen[i]]
     if seen[hip_idx].all() and top_idx:
         centre = points[hip_idx].mean(axis=0)
@@ -103,28 +99,25 @@ def body_roi(points: np.ndarray, conf: np.ndarray, box: np.ndarray, hips: tuple[
         torso = float(np.hypot(*up))
         if torso > 1e-6:
             reach = float(np.max(np.linalg.norm(points[seen] - centre, axis=1)))
-            radius = max(REACH_MARGIN * reach, TORSO_REACH * torso)
+            radius = max(CROP.reach_margin * reach, CROP.torso_reach * torso)
             roi = Roi.from_alignment_points(centre, centre + up / torso * radius)
-            if roi.size <= MAX_BOX_RATIO * float(np.max(box[2:] - box[:2])):
+            if roi.size <= CROP.max_box_ratio * float(np.max(box[2:] - box[:2])):
                 return roi
     return Roi.around_points(np.asarray(box, np.float64).reshape(2, 2))
 
 
-CUT_GAP = 0.1          # a box this close to the border (fraction of its longer side) may be cut by it
-CUT_REACH = 1.6        # the side of a cut person's crop over their box's longer side
-
-
 def past_border(box: np.ndarray, width: int, height: int) -> Roi | None:
     """An upright ROI for a person whose box (x0, y0, x1, y1) the image's border may cut (it
-    comes within CUT_GAP of its longer side of it): a square CUT_REACH times that side, its
-    inner sides a tenth of it beyond the box's and reaching past the cut sides, where the rest
-    of the body is (the crop is padded there); None when the box is clear of the border."""
+    comes within DETECTION.border_gap of its longer side of it): a square CROP.cut_reach times
+    that side, its inner sides `cut_pad` of it beyond the box's and reaching past the cut sides,
+    where the rest of the body is (the crop is padded there); None when the box is clear of the
+    border."""
     long_side = float(np.max(box[2:] - box[:2]))
-    gap = CUT_GAP * long_side
+    gap = DETECTION.border_gap * long_side
     cut = np.array([box[0] <= gap, box[1] <= gap, box[2] >= width - gap, box[3] >= height - gap])
     if not cut.any():
         return None
-    side, pad = CUT_REACH * long_side, 0.1 * long_side
+    side, pad = CROP.cut_reach * long_side, CROP.cut_pad * long_side
     centre = (box[:2] + box[2:]) / 2
     for axis in (0, 1):
         if cut[axis] and not cut[axis + 2]:        # cut at the low side: the square ends past the high side

@@ -21,16 +21,17 @@ The tracker also says when to run the detector and where (`schedule`: `Tracker.d
 has seen are, which sets how finely the detector's tiles cut the image.
 
 Modules, each importing only those below it: tracker and ids on top, then schedule and reid,
-assignment, track, motion.
+assignment, track, motion; every threshold is the policy's (`policy.TRACKING`).
 """
 
 from posecam.inference.detector import oks
 from posecam.tracking.assignment import foreign_joints, min_cost_assignment, unambiguous_pairs
 from posecam.tracking.ids import ConfirmedIds, number_people
 from posecam.tracking.motion import BoxKalman
+from posecam.tracking.policy import TRACKING, TrackingPolicy
 from posecam.tracking.schedule import DetectorRun, Search
 from posecam.tracking.track import Track, TrackerOptions
 from posecam.tracking.tracker import Tracker
 
-__all__ = ["BoxKalman", "ConfirmedIds", "DetectorRun", "Search", "Track", "Tracker", "TrackerOptions",
-           "foreign_joints", "min_cost_assignment", "number_people", "oks", "unambiguous_pairs"]
+__all__ = ["TRACKING", "BoxKalman", "ConfirmedIds", "DetectorRun", "Search", "Track", "Tracker", "TrackerOptions",
+           "TrackingPolicy", "foreign_joints", "min_cost_assignment", "number_people", "oks", "unambiguous_pairs"]

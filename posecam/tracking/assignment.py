@@ -7,7 +7,9 @@ from __future__ import annotations
 import numpy as np
 
 from posecam.geometry.boxes import box_iou
-from posecam.inference.detector import SEEN_KEYPOINT_SCORE, Detection, oks
+from posecam.inference.detector import Detection, oks
+from posecam.inference.policy import DETECTION
+from posecam.tracking.policy import TRACKING, TrackingPolicy
 from posecam.tracking.track import Track
 
 
@@ -94,23 +96,25 @@ def gated_assignment(cost: np.ndarray, motion: np.ndarray, max_cost: float) -> l
     return [(i, j) for i, j in zip(rows, cols) if motion[i, j] <= max_cost and np.isfinite(cost[i, j])]
 
 
-def same_pose(kp: np.ndarray, sc: np.ndarray, other: Track) -> bool:
-    """Whether a pose (keypoints, scores) duplicates the track `other`'s (OKS over 0.7)."""
+def same_pose(kp: np.ndarray, sc: np.ndarray, other: Track, p: TrackingPolicy) -> bool:
+    """Whether a pose (keypoints, scores) duplicates the track `other`'s (OKS over `same_pose`)."""
     area = float(np.prod(np.clip(other.box[2:] - other.box[:2], 1, None)))
-    return len(kp) == len(other.keypoints) and oks(kp, sc, other.keypoints, other.keypoint_scores, area) > 0.7
+    return len(kp) == len(other.keypoints) and oks(kp, sc, other.keypoints, other.keypoint_scores, area) > p.same_pose
 
 
 def foreign_joints(points: np.ndarray, conf: np.ndarray, own: Detection, others: list[Detection]) -> np.ndarray:
     """(K,) mask of a pose's joints (detector joint order) that lie on a neighbour: nearer to a
-    neighbour's keypoint than to the own detection's, within 15 % of the own box's diagonal of
-    the neighbour's and off the own one by more than 10 %."""
+    neighbour's keypoint than to the own detection's, within TRACKING.foreign_near of the own box's
+    diagonal of the neighbour's and off the own one by more than its foreign_off."""
     if not others or not len(own.keypoints):
         return np.zeros(len(points), bool)
     scale = float(np.hypot(*(own.box[2:] - own.box[:2])))
     d_own = np.linalg.norm(points - own.keypoints, axis=-1)
-    d_own[own.keypoint_scores < SEEN_KEYPOINT_SCORE] = np.inf
+    seen = DETECTION.seen_keypoint_score
+    d_own[own.keypoint_scores < seen] = np.inf
     d_other = np.full(len(points), np.inf)
     for o in others:
         d = np.linalg.norm(points - o.keypoints, axis=-1)
-        d_other = np.minimum(d_other, np.where(o.keypoint_scores >= SEEN_KEYPOINT_SCORE, d, np.inf))
-    return (conf >= SEEN_KEYPOINT_SCORE) & (d_other < d_own) & (d_own > 0.1 * scale) & (d_other < 0.15 * scale)
+        d_other = np.minimum(d_other, np.where(o.keypoint_scores >= seen, d, np.inf))
+    return (conf >= seen) & (d_other < d_own) & (d_own > TRACKING.foreign_off * scale) & \
+        (d_other < TRACKING.foreign_near * scale)

@@ -54,7 +54,7 @@ class ConfirmedIds(Generic[Item]):
             frame, tracks, item = self._held[0]
             alive = {id(t) for t in self.tracker.tracks}
             waiting = any(t.number is None and id(t) in alive for t in tracks)
-            if waiting and not final and len(self._held) <= self.tracker.options.confirm_frames:
+            if waiting and not final and len(self._held) <= self.tracker.policy.confirm_frames:
                 break
             self._held.popleft()
             number_people(frame, tracks)

@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
+from posecam.tracking.policy import TRACKING
+
 
 class BoxKalman:
-    """Constant-velocity Kalman filter on (cx, cy, w, h), noise relative to the box height (as ByteTrack)."""
+    """Constant-velocity Kalman filter on (cx, cy, w, h), noise relative to the box height (as
+    ByteTrack: TRACKING's position_noise, velocity_noise)."""
 
-    POS, VEL = 1 / 20, 1 / 160
+    POS, VEL = TRACKING.position_noise, TRACKING.velocity_noise
 
     def __init__(self, box: np.ndarray):
         self.x = np.concatenate([_xywh(box), np.zeros(4)])

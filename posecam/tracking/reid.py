@@ -22,7 +22,8 @@ from posecam.geometry.boxes import box_iou
 from posecam.inference.detector import Detection
 from posecam.inference.embedder import AppearanceEmbedder, colour_distance
 from posecam.tracking.assignment import unambiguous_pairs
-from posecam.tracking.track import Track, TrackerOptions
+from posecam.tracking.policy import TrackingPolicy
+from posecam.tracking.track import Track
 
 
 class Looks:
@@ -42,12 +43,12 @@ class Looks:
 
 
 def with_looks(tracks: list[Track], detections: list[Detection], motion: np.ndarray, max_cost: float,
-               looks: Looks | None, o: TrackerOptions) -> np.ndarray:
+               looks: Looks | None, p: TrackingPolicy) -> np.ndarray:
     """The matching cost: `motion`, except for the pairs within the motion gate of a track
     with a gallery that is lost or ambiguous: (1 - w) * motion + w * appearance distance
     (w: `appearance_weight`), and out of the gate (inf) for a lost one whose looks differ
-    by more than `unlike`. The pairs out of the motion gate then cost 1 more than motion,
-    above every mixed cost (<= 1), so that no mixed pair loses to one the gate refuses.
+    by more than `unlike`. The pairs out of the motion gate then cost `out_of_gate` (1) more than
+    motion, above every mixed cost (<= 1), so that no mixed pair loses to one the gate refuses.
     `looks` None (no embedder): `motion`."""
     gated = motion <= max_cost
     lost = np.array([t.lost > 0 for t in tracks])[:, None]
@@ -57,19 +58,19 @@ def with_looks(tracks: list[Track], detections: list[Detection], motion: np.ndar
         return motion
     cols = np.flatnonzero(looked.any(axis=0))
     vectors = looks([detections[j] for j in cols])
-    cost, w = motion.copy(), o.appearance_weight
+    cost, w = motion.copy(), p.appearance_weight
     for i in np.flatnonzero(looked.any(axis=1)):
         d = np.minimum(tracks[i].appearance_distance(vectors), 1.0)
         sel = looked[i, cols]
         cost[i, cols[sel]] = (1 - w) * motion[i, cols[sel]] + w * d[sel]
         if tracks[i].lost > 0:
-            cost[i, cols[sel & (d > o.unlike)]] = np.inf
-    cost[~gated] += 1.0
+            cost[i, cols[sel & (d > p.unlike)]] = np.inf
+    cost[~gated] += p.out_of_gate
     return cost
 
 
 def reid_cost(lost: list[Track], looks: list[np.ndarray], boxes: np.ndarray, ages: np.ndarray, fps: float,
-              o: TrackerOptions) -> np.ndarray:
+              p: TrackingPolicy) -> np.ndarray:
     """(len(lost), N) cost of recognising each of N candidates (their appearance vectors,
     boxes, frames since first seen) as one of the people `lost`: the smallest cosine
     distance of their looks to the person's gallery, inf where the colours alone are
@@ -83,39 +84,38 @@ def reid_cost(lost: list[Track], looks: list[np.ndarray], boxes: np.ndarray, age
     heights = boxes[:, 3] - boxes[:, 1]
     was = np.array([t.kalman.x[3] for t in lost])
     ratio = np.maximum(heights[None] / np.maximum(was[:, None], 1.0), was[:, None] / np.maximum(heights[None], 1.0))
-    # nobody walks faster than about a body height a second
     centres = (boxes[:, :2] + boxes[:, 2:]) / 2
     away = np.linalg.norm(centres[None] - np.array([t.kalman.x[:2] for t in lost])[:, None], axis=-1)
     seconds = np.maximum(np.array([t.lost for t in lost])[:, None], ages[None]) / fps
-    cost[(colours > o.reid_colour) | (ratio > o.reid_height) | (away > was[:, None] * (1.0 + o.reid_speed * seconds))] = np.inf
+    cost[(colours > p.reid_colour) | (ratio > p.reid_height) | (away > was[:, None] * (1.0 + p.reid_speed * seconds))] = np.inf
     return cost
 
 
 def recognised(lost: list[Track], detections: list[Detection], looks: Looks, fps: float,
-               o: TrackerOptions) -> list[tuple[int, int]]:
+               p: TrackingPolicy) -> list[tuple[int, int]]:
     """Pairs (index into `lost`, index into `detections`) of a person lost whom a detection
     resembles (`reid_cost` under `reid_distance`) clearly more than anyone else (`unambiguous_pairs`)."""
     cost = reid_cost(lost, [f[None] for f in looks(detections)], np.array([d.box for d in detections]),
-                     np.zeros(len(detections)), fps, o)
-    return unambiguous_pairs(cost, o.reid_distance, o.reid_margin)
+                     np.zeros(len(detections)), fps, p)
+    return unambiguous_pairs(cost, p.reid_distance, p.reid_margin)
 
 
-def returning(lost: list[Track], track: Track, fps: float, o: TrackerOptions) -> Track | None:
+def returning(lost: list[Track], track: Track, fps: float, p: TrackingPolicy) -> Track | None:
     """The person of `lost` whom the looks of a track's first frames recognise (`reid_cost`,
     unambiguously: someone who came back, first seen cut by the image's border or half hidden)."""
-    cost = reid_cost(lost, [np.stack(track.gallery)], track.box[None], np.array([track.shown]), fps, o)
-    pairs = unambiguous_pairs(cost, o.reid_distance, o.reid_margin)
+    cost = reid_cost(lost, [np.stack(track.gallery)], track.box[None], np.array([track.shown]), fps, p)
+    pairs = unambiguous_pairs(cost, p.reid_distance, p.reid_margin)
     return lost[pairs[0][0]] if pairs else None
 
 
 def refresh_looks(tracks: list[Track], detections: list[Detection], looks: Looks, frame: int,
-                  o: TrackerOptions) -> None:
+                  p: TrackingPolicy) -> None:
     """Add to the galleries of the `tracks` matched on this frame (number `frame`) whose newest
     vector is `refresh_every` frames old (or missing), from their detection's crop when it
     overlaps no other detection's box (a crop with a neighbour in it would describe two
     people) and lies inside the image (someone entering or leaving is cut)."""
     due = [t for t in tracks if t.detection is not None
-           and (t.looked < 0 or frame - t.looked >= o.refresh_every)]
+           and (t.looked < 0 or frame - t.looked >= p.refresh_every)]
     boxes = np.array([d.box for d in detections])
     h, w = looks.image.shape[:2]
     clean = []
@@ -127,5 +127,5 @@ def refresh_looks(tracks: list[Track], detections: list[Detection], looks: Looks
     if not clean:
         return
     for t, f in zip(clean, looks([t.detection for t in clean])):
-        t.gallery = (t.gallery + [f])[-o.gallery:]
+        t.gallery = (t.gallery + [f])[-p.gallery:]
         t.looked = frame

@@ -14,10 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from posecam.geometry.boxes import box_iou
-from posecam.tracking.track import Track, TrackerOptions
-
-MIN_REGION_PX = 16   # a search region narrower than this (clipped at the image's border) is not searched
-WHOLE_SHARE = 0.5    # search regions covering more of the image than this: the whole image is searched instead
+from posecam.tracking.policy import TrackingPolicy
+from posecam.tracking.track import Track
 
 
 @dataclass
@@ -37,7 +35,7 @@ class Search:
 
 
 def detector_run(tracks: list[Track], lost_now: set[int], since_detection: int, fps: float,
-                 width: int, height: int, o: TrackerOptions) -> DetectorRun | None:
+                 width: int, height: int, redetect_every: int, p: TrackingPolicy) -> DetectorRun | None:
     """Whether the detector runs on this frame (None: not), `since_detection` frames after its
     last run, in a video at `fps` frames a second. Everywhere on the first frame and while
     nobody is followed; every `search_every` seconds while people may be missing (someone
@@ -50,39 +48,39 @@ def detector_run(tracks: list[Track], lost_now: set[int], since_detection: int, 
     if not active:
         return DetectorRun([])
     boxes = np.array([t.box for t in active])
-    margin = o.edge * np.array([width, height])
+    margin = p.edge * np.array([width, height])
     at_edge = ((boxes[:, :2] < margin) | (boxes[:, 2:] > [width, height] - margin)).any(axis=1)
     speed = np.array([np.hypot(*t.kalman.x[4:6]) / max(t.kalman.x[3], 1.0) for t in active])
-    missing = (at_edge & (speed > o.walking)).any() or len(active) >= o.crowd
-    every = max(1, round(o.search_every * fps))
-    if since_detection >= (min(every, o.redetect_every) if missing else o.redetect_every):
+    missing = (at_edge & (speed > p.walking)).any() or len(active) >= p.crowd
+    every = max(1, round(p.search_every * fps))
+    if since_detection >= (min(every, redetect_every) if missing else redetect_every):
         return DetectorRun([])
     iou = np.triu(box_iou(boxes, boxes), 1)
     near = (iou > 0).any(axis=0) | (iou > 0).any(axis=1)
-    young = {t.id for t in active if t.hits < o.confirm_hits} if since_detection >= every else set()
+    young = {t.id for t in active if t.hits < p.confirm_hits} if since_detection >= every else set()
     near_ids = {t.id for t, n in zip(active, near) if n}
     asking = [t for t in tracks if t.id in lost_now | young | near_ids]
     return DetectorRun(asking) if asking else None
 
 
 def search(run: DetectorRun, tiles: list[tuple[int, int, int, int]], width: int, height: int,
-           o: TrackerOptions) -> Search:
+           p: TrackingPolicy) -> Search:
     """Where a detector run looks: on a run that some people alone ask for, only around them:
     each one's box padded by `search_pad` of its height, boxes that overlap merged while the
     merged region spans at most `search_span` heights of its smallest person (the detector
     resizes each region to its input: they fill at least 1 / `search_span` of its side); only
     the people whose centre lies in those regions count as missed if not found (`searched`);
-    regions covering more than WHOLE_SHARE of the image give way to the whole image, in one
+    regions covering more than `whole_share` of the image give way to the whole image, in one
     run. Else the whole image and all the detector's `tiles`."""
     if not run.asking:
         return Search(True, tiles)
-    regions = _merged_regions([(t.box + o.search_pad * (t.box[3] - t.box[1]) * np.array([-1, -1, 1, 1]),
-                                float(t.box[3] - t.box[1])) for t in run.asking], o.search_span)
+    regions = _merged_regions([(t.box + p.search_pad * (t.box[3] - t.box[1]) * np.array([-1, -1, 1, 1]),
+                                float(t.box[3] - t.box[1])) for t in run.asking], p.search_span)
     clipped = [tuple(int(v) for v in np.clip(np.round(box), 0, [width, height, width, height]))
                for box in regions]
-    if sum((x1 - x0) * (y1 - y0) for x0, y0, x1, y1 in clipped) > WHOLE_SHARE * width * height:
+    if sum((x1 - x0) * (y1 - y0) for x0, y0, x1, y1 in clipped) > p.whole_share * width * height:
         return Search(True, [])   # people that tall: the whole image shows them as well, in one run
-    return Search(False, [r for r in clipped if r[2] - r[0] >= MIN_REGION_PX and r[3] - r[1] >= MIN_REGION_PX])
+    return Search(False, [r for r in clipped if r[2] - r[0] >= p.min_region_px and r[3] - r[1] >= p.min_region_px])
 
 
 def searched(tracks: list[Track], where: Search | None) -> np.ndarray:

@@ -12,13 +12,15 @@ import numpy as np
 from dataclasses import replace
 
 from posecam.geometry.boxes import box_iou, boxes_overlap
-from posecam.inference.detector import SEEN_KEYPOINT_SCORE, Detection
+from posecam.inference.detector import Detection
 from posecam.inference.embedder import AppearanceEmbedder
+from posecam.inference.policy import DETECTION
 from posecam.inference.roi import Roi
 from posecam.results import Dropped
 from posecam.tracking import reid, schedule
 from posecam.tracking.assignment import gated_assignment, motion_cost, same_pose
 from posecam.tracking.motion import BoxKalman
+from posecam.tracking.policy import TRACKING, TrackingPolicy
 from posecam.tracking.reid import Looks
 from posecam.tracking.schedule import DetectorRun, Search
 from posecam.tracking.track import Track, TrackerOptions
@@ -26,11 +28,13 @@ from posecam.tracking.track import Track, TrackerOptions
 
 class Tracker:
     """Ids, motion and ROIs of the people followed in one video of `fps` frames a second: the
-    caller says the rate (the tracker assumes none; posecam.estimate gives it the media's)."""
+    caller says the rate (the tracker assumes none; posecam.estimate gives it the media's), by
+    the rules of `policy` (in one image, `options.still`: everyone confirmed at once)."""
 
     def __init__(self, options: TrackerOptions | None = None, embedder: AppearanceEmbedder | None = None, *,
-                 fps: float):
+                 fps: float, policy: TrackingPolicy = TRACKING):
         self.options = options or TrackerOptions()
+        self.policy = replace(policy, confirm_hits=1, confirm_frames=1) if self.options.still else policy
         self.embedder = embedder             # None: ids from motion alone
         self.fps = fps                       # the video's frame rate: the searches' schedule, the re-id memory and reach
         self.tracks: list[Track] = []
@@ -46,13 +50,13 @@ class Tracker:
         """Whether to run the detector on this frame (a `width` x `height` image), and for
         whom (None: no run; see `schedule.detector_run`)."""
         return schedule.detector_run(self.tracks, self._lost_now, self._since_detection, self.fps,
-                                     width, height, self.options)
+                                     width, height, self.options.redetect_every, self.policy)
 
     def search(self, run: DetectorRun, tiles: list[tuple[int, int, int, int]], width: int, height: int) -> Search:
         """Where `run` looks: around the people who alone ask for it, else the whole image and
         the detector's `tiles` (see `schedule.search`); hand it to `begin_frame` with the
         detections."""
-        return schedule.search(run, tiles, width, height, self.options)
+        return schedule.search(run, tiles, width, height, self.policy)
 
     def person_px(self) -> float | None:
         """The height (px) of the smallest person confirmed so far in this video (None: nobody yet)."""
@@ -78,10 +82,10 @@ class Tracker:
         its detection if any): those matched, those recognised, those born, and those the
         detector missed while the pose model still follows them (for up to `coast` detector
         runs in a row; only the people where it looked count as missed)."""
-        o = self.options
+        o, p = self.options, self.policy
         self._frame += 1
         for t in self.tracks:
-            if t.lost <= o.max_lost:   # a person lost longer is looked for by appearance only
+            if t.lost <= p.max_lost:   # a person lost longer is looked for by appearance only
                 t.kalman.predict(keep_size=t.lost > 0)
             t.detection = None
         self.refused = []
@@ -95,10 +99,10 @@ class Tracker:
         looks = Looks(self.embedder, image_rgb) if self.embedder is not None and image_rgb is not None else None
         high = [d for d in detections if d.score >= o.high_score]
         low = [d for d in detections if o.low_score <= d.score < o.high_score]
-        pool = [t for t in self.tracks if t.lost <= o.max_lost]
-        left = self._match(pool, high, o.match_cost, looks)
+        pool = [t for t in self.tracks if t.lost <= p.max_lost]
+        left = self._match(pool, high, p.match_cost, looks)
         pool = [t for t in pool if t.detection is None]
-        self._match(pool, low, o.low_match_cost, looks)
+        self._match(pool, low, p.low_match_cost, looks)
         searched = schedule.searched(self.tracks, search)
         # a person overlapping another followed person is often merged with them by the
         # detector: such a miss does not count (the pose model still follows both; end_frame
@@ -111,7 +115,7 @@ class Tracker:
         for t, looked, merged in zip(self.tracks, searched, overlap):
             if t.detection is not None:
                 t.unseen = 0
-            elif t.lost == 0 and t.shown and (t.unseen < o.coast or not looked or merged):
+            elif t.lost == 0 and t.shown and (t.unseen < p.coast or not looked or merged):
                 t.unseen += int(looked and not merged)   # the detector missed someone the pose model still follows
             else:
                 t.lost += 1
@@ -125,7 +129,7 @@ class Tracker:
             self.tracks.append(Track(self._next_id, d.roi, BoxKalman(d.box), d.keypoints, d.keypoint_scores, detection=d))
             self._next_id += 1
         if looks is not None:
-            reid.refresh_looks(self.tracks, detections, looks, self._frame, o)
+            reid.refresh_looks(self.tracks, detections, looks, self._frame, p)
         return self.active()
 
     def probes(self, width: int, height: int) -> list[Track]:
@@ -138,7 +142,7 @@ class Tracker:
         found takes their id back, unless its pose overlaps someone kept this frame."""
         out, followed = [], [t.box for t in self.tracks if t.lost == 0]
         for t in self.tracks:
-            if t.number is None or not 0 < t.lost <= self.options.probe_frames or t.seen_box is None:
+            if t.number is None or not 0 < t.lost <= self.policy.probe_frames or t.seen_box is None:
                 continue
             centre = (t.box[:2] + t.box[2:]) / 2
             if not (0 <= centre[0] < width and 0 <= centre[1] < height) or any(boxes_overlap(t.box, b) for b in followed):
@@ -155,8 +159,8 @@ class Tracker:
 
     def _remembered(self, track: Track) -> int:
         """Frames an unseen track is kept: `reid_seconds` if its looks are known, else `max_lost`."""
-        o = self.options
-        return max(round(o.reid_seconds * self.fps), o.max_lost) if self.embedder is not None and track.gallery else o.max_lost
+        p = self.policy
+        return max(round(p.reid_seconds * self.fps), p.max_lost) if self.embedder is not None and track.gallery else p.max_lost
 
     def _match(self, tracks: list[Track], detections: list[Detection], max_cost: float,
                looks: Looks | None) -> list[Detection]:
@@ -166,7 +170,7 @@ class Tracker:
         if not tracks or not detections:
             return list(detections)
         motion = motion_cost(tracks, detections)
-        cost = reid.with_looks(tracks, detections, motion, max_cost, looks, self.options)
+        cost = reid.with_looks(tracks, detections, motion, max_cost, looks, self.policy)
         used = set()
         for i, j in gated_assignment(cost, motion, max_cost):
             tracks[i].take(detections[j])
@@ -182,7 +186,7 @@ class Tracker:
         if looks is None or not lost or not detections:
             return detections
         used = set()
-        for i, j in reid.recognised(lost, detections, looks, self.fps, self.options):
+        for i, j in reid.recognised(lost, detections, looks, self.fps, self.policy):
             t, d = lost[i], detections[j]
             t.kalman = BoxKalman(d.box)
             t.unseen = 0
@@ -203,24 +207,24 @@ class Tracker:
             t = tracks[i]
             kp, sc = keypoints[i], keypoint_scores[i]
             over = t.lost > 0 and kp is not None and any(boxes_overlap(_box_of(kp, sc), tracks[j].box) for j in kept)
-            if not found[i] or over or (kp is not None and any(same_pose(kp, sc, tracks[j]) for j in kept)):
+            if not found[i] or over or (kp is not None and any(same_pose(kp, sc, tracks[j], self.policy) for j in kept)):
                 if t.lost == 0 and t.shown > 0:   # someone followed is lost (not a false start)
                     self._lost_now.add(t.id)
                 t.lost = max(t.lost, 1)
                 continue
             t.lost = 0
             if t.detection is None and kp is not None:
-                if (sc >= SEEN_KEYPOINT_SCORE).sum() >= 2:
+                if (sc >= DETECTION.seen_keypoint_score).sum() >= 2:
                     t.kalman.update(_box_of(kp, sc))
                 t.keypoints, t.keypoint_scores = kp, sc
             t.roi, t.seen_box = next_rois[i], t.box.copy()
             t.shown += 1
             kept.append(i)
-            if t.hits >= self.options.confirm_hits:
+            if t.hits >= self.policy.confirm_hits:
                 h = float(t.box[3] - t.box[1])
                 self._smallest = h if self._smallest is None else min(self._smallest, h)
-            if t.number is None and t.shown >= self.options.confirm_frames and \
-                    (t.hits >= self.options.confirm_hits or t.unseen == 0):
+            if t.number is None and t.shown >= self.policy.confirm_frames and \
+                    (t.hits >= self.policy.confirm_hits or t.unseen == 0):
                 t.number = self._number_of(t)
         self._forget()
         return sorted(kept)
@@ -234,11 +238,11 @@ class Tracker:
     def _number_of(self, track: Track) -> int:
         """The id of a track being confirmed: that of a person lost whom the looks of its first
         frames recognise (`reid.returning`), else a new one."""
-        o = self.options
+        p = self.policy
         lost = [t for t in self.tracks if t.number is not None and t.lost > 0 and t.gallery]
-        found = reid.returning(lost, track, self.fps, o) if lost and track.gallery else None
+        found = reid.returning(lost, track, self.fps, p) if lost and track.gallery else None
         if found is not None:
-            track.gallery = (found.gallery + track.gallery)[-o.gallery:]
+            track.gallery = (found.gallery + track.gallery)[-p.gallery:]
             self.tracks.remove(found)
             return found.number
         number, self._next_number = self._next_number, self._next_number + 1
@@ -246,8 +250,8 @@ class Tracker:
 
 
 def _box_of(keypoints: np.ndarray, scores: np.ndarray) -> np.ndarray:
-    """(4,) bounds of the keypoints seen (scored SEEN_KEYPOINT_SCORE or more; all of them when
-    fewer than 2 are)."""
-    seen = keypoints[scores >= SEEN_KEYPOINT_SCORE]
+    """(4,) bounds of the keypoints seen (scored DETECTION.seen_keypoint_score or more; all of
+    them when fewer than 2 are)."""
+    seen = keypoints[scores >= DETECTION.seen_keypoint_score]
     seen = seen if len(seen) >= 2 else keypoints
     return np.concatenate([seen.min(axis=0), seen.max(axis=0)])
