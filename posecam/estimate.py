@@ -44,7 +44,7 @@ from posecam.io.media import DEFAULT_FPS, Media, expand_inputs, open_media
 from posecam.options import EstimatorOptions, PredictOptions
 from posecam.results import Dropped, Frame, Person, Recording
 from posecam.skeleton import BLAZEPOSE33, BLAZEPOSE_LANDMARKS, H36M_JOINTS, SKELETONS, blazepose_to_h36m, skeleton_of
-from posecam.tracking import ConfirmedIds, Track, Tracker, TrackerOptions, foreign_joints, number_people
+from posecam.tracking import ConfirmedIds, Track, Tracker, TrackerOptions, foreign_joints, number_people, oks
 from posecam.tracking.schedule import Search
 
 @dataclass(frozen=True)
@@ -62,6 +62,10 @@ class FramePolicy:
     # (set with the neighbour check on the two-person take, where one or two joints on the other
     # person are the overlap of a hand or a foot; not re-measured since)
     retry_foreign_joints: int = 3
+    # judge: a doubted pose (presence below --min-presence) is kept when it matches the detector's
+    # keypoints of the person at this OKS, COCO's loosest match (its AP@0.5); taken out, the
+    # two-person take's cam03 and vtest.avi's people change
+    agree_oks: float = 0.5
 
 
 POLICY = FramePolicy()
@@ -354,7 +358,8 @@ class PoseEstimator:
         `retry_foreign_joints` or more joints on a neighbour is tried again from each of
         `crops_to_try`, the first pose kept winning. Joints that still fall on a neighbour lose their confidence
         (so the lift places the root without them), and the pose is refused ("neighbour") when
-        most of its joints do. The rules: FramePolicy."""
+        most of its joints do. A doubted pose is kept when it agrees with the detector's
+        keypoints of the person (OKS >= `agree_oks`). The rules: FramePolicy."""
         own = track.detection
         if track.own_roi is not None:   # the detector's upright box or the crop the person's own pose gave
             mine = self.pose_model(image_rgb, [track.own_roi])[0]
@@ -388,15 +393,16 @@ class PoseEstimator:
             conf = c.confidence.copy()
             conf[idx[foreign]] = 0.0
             c = replace(c, confidence=conf)
-        return c, None if c.score >= min_presence else "presence"
+        area = float(np.prod(own.box[2:] - own.box[:2]))
+        agrees = oks(c.keypoints_2d[idx], c.confidence[idx], own.keypoints, own.keypoint_scores, area) >= POLICY.agree_oks
+        return c, None if c.score >= min_presence or agrees else "presence"
 
     def _tracker(self, video: bool = True, fps: float | None = None) -> Tracker:
         """A tracker for one input at `fps` frames a second (None: DEFAULT_FPS); the looks are
         only for a video's frames (one image has no one to recognise), and in one image every
         person found is confirmed at once."""
         o, d = self.options, self.detector
-        return Tracker(TrackerOptions(o.max_people, o.redetect_every, high_score=d.start_score, low_score=d.min_score,
-                                      **({} if video else {"confirm_hits": 1, "confirm_frames": 1})),
+        return Tracker(TrackerOptions(o.max_people, o.redetect_every, d.start_score, d.min_score, still=not video),
                        self.embedder if video else None, fps=fps or DEFAULT_FPS)
 
     def _confirmed(self, decoded: Iterable[tuple[int, float, np.ndarray]], k: Intrinsics | None,

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import InitVar, dataclass, field
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -81,10 +81,3 @@ class TrackerOptions:
     high_score: float = 0.3         # a detection this confident may start a track (the detector's start_score) ...
     low_score: float = 0.1          # ... one this confident only keeps a track alive (its min_score)
     still: bool = False             # one image: every person found is confirmed at once
-    # posecam.estimate's spelling of `still` until it passes it: confirm_hits=1, confirm_frames=1
-    confirm_hits: InitVar[int | None] = None
-    confirm_frames: InitVar[int | None] = None
-
-    def __post_init__(self, confirm_hits: int | None, confirm_frames: int | None) -> None:
-        if (confirm_hits, confirm_frames) == (1, 1):
-            object.__setattr__(self, "still", True)
