@@ -46,6 +46,7 @@ def test_jobs_and_ray_together_are_refused_before_any_work(tmp_path, command):
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(shutil.which("ray") is None, reason="Ray is not installed (pip install -e '.[ray]')")
 def test_ray_runs_one_task_per_input_on_a_local_instance(tmp_path):
     r = run_posecam("predict", *INPUTS, "--out-dir", tmp_path, "--format", "csv", "--ray")

@@ -66,7 +66,8 @@ def _rotation_errors(cams, result):
             for c in cams[1:] if c.name in est}
 
 
-@pytest.mark.parametrize("n_people", [2, pytest.param(3, marks=pytest.mark.slow)])
+@pytest.mark.slow
+@pytest.mark.parametrize("n_people", [2, 3])
 def test_several_people_rotations_within_1_deg(n_people):
     """People crossing paths, one person missed by one view for a while, one view that sees only
     one person, an id switch in another view: the rig is still found to within a degree."""

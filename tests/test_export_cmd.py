@@ -114,6 +114,7 @@ def test_runtime_model_back_projects(exported):
         assert ((p.confidence >= 0) & (p.confidence <= 1)).all()
 
 
+@pytest.mark.slow
 def test_cli_export_verify_quantize_and_predict(peaked, tmp_path):
     out = tmp_path / "m.onnx"
     r = run_posecam("export", peaked[1], "-o", out, "--verify", "--quantize", "int8",
@@ -157,6 +158,7 @@ def test_cli_refusals(exported, tmp_path):
                     "pip install")
 
 
+@pytest.mark.slow
 def test_paper_default_model_exports_and_verifies_on_the_bundled_photos(tmp_path):
     """The first thing a user tries: save_checkpoint(ResNetU(), ...), then export --verify with no --images."""
     save_checkpoint(ResNetU(), tmp_path / "ck.pt")

@@ -7,6 +7,7 @@ import json
 
 import cv2
 import numpy as np
+import pytest
 
 from conftest import DATA, run_posecam
 from posecam.viz.fusion_grid import TILE_SIDE
@@ -18,6 +19,7 @@ def _synthetic_views(tmp_path, n_frames=25):
     return write_take(tmp_path, n_frames)
 
 
+@pytest.mark.slow
 def test_fused_video_has_every_frame_and_names_it(tmp_path):
     cams, paths, calib = _synthetic_views(tmp_path)
     video, still, out = tmp_path / "grid.mp4", tmp_path / "grid.png", tmp_path / "fused.json"

@@ -84,6 +84,7 @@ def test_a_stream_that_ends_is_read_to_its_end(mjpeg, tmp_path):
     assert all(f["people"] and "angles" in f["people"][0] for f in frames[5:])
 
 
+@pytest.mark.slow
 def test_ctrl_c_ends_a_live_stream_with_complete_files(mjpeg, tmp_path):
     url, out, video = mjpeg(None), tmp_path / "live.json", tmp_path / "live.mp4"
     proc = subprocess.Popen([sys.executable, "-m", "posecam", "predict", url, "-o", str(out), "--viz", str(video)],

@@ -104,6 +104,7 @@ def test_manifest_errors_name_the_line(tmp_path):
         read_manifest(tmp_path / "m.jsonl")
 
 
+@pytest.mark.slow
 def test_training_loss_falls(tmp_path):
     torch.set_num_threads(2)
     opts = TrainOptions(MANIFEST, tmp_path / "ck.pt", backbone="mobilenetv2", input_size=128, head_channels=64,

@@ -205,6 +205,7 @@ def test_session_folders_are_read_as_pose2sim_lays_them_out(tmp_path):
         session_takes([str(tmp_path / "session"), str(tmp_path / "session" / "Trial_1")])
 
 
+@pytest.mark.slow
 def test_posecam_calibrate_writes_a_rig_that_fuse_reads_in_step(tmp_path, takes, session):
     """The command gives the API's rig (to the pose files' rounding), in metres with Z up, marked
     unsynchronised; `posecam fuse` through it finds the take's offsets unasked and writes world

@@ -88,6 +88,7 @@ def test_offsets_given_line_up_views_of_different_lengths(lengths, offsets, shar
             check_lengths(["a", "b"], list(lengths), FuseOptions(offsets=offsets))
 
 
+@pytest.mark.slow
 def test_out_dir_writes_what_dash_o_writes(tmp_path):
     """`--out-dir` (the batch task) and `-o` (the command) stream through one path: the same
     smoothed frames, byte for byte past the header."""
@@ -138,6 +139,7 @@ def test_pose_files_with_joints_posecam_does_not_know_are_refused_in_one_line(es
     assert r.exit_code == 2 and "neither posecam's 17 joints" in r.stderr and len(r.stderr.splitlines()) == 1, r.stderr
 
 
+@pytest.mark.slow
 def test_fuse_views_are_predicted_with_the_options_given(estimator):
     """The detection options reach every view: the two-person clip gives two people a frame
     with the defaults and one with max_people=1, from one estimator built for the options."""
