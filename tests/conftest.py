@@ -4,10 +4,17 @@ from pathlib import Path
 import pytest
 
 import posecam  # noqa: F401  -- first: it sets OpenCV's image-size limit, which cv2 reads when a test module loads it
+from posecam.options import EstimatorOptions
+from posecam.tracking.track import TrackerOptions
 
 DATA = Path(__file__).parent / "data"
 EXAMPLES = Path(__file__).parent.parent / "examples"
 
+
+# The tracker as the estimator sets it up (EstimatorOptions' max_people and redetect_every), with
+# round detector scores that the tests' scripted detections are scored against.
+TRACKER = TrackerOptions(max_people=EstimatorOptions().max_people, redetect_every=EstimatorOptions().redetect_every,
+                         high_score=0.3, low_score=0.1)
 
 def run_posecam(*args: str, cwd: Path | None = None) -> "Run":
     """Run the real `posecam` CLI, in this process (click's CliRunner): its exit code, stdout and

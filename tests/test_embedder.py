@@ -2,14 +2,15 @@
 tracker giving a person lost for a while their id back by it."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from conftest import DATA, assert_same_onnx_model, run_posecam
+from conftest import DATA, TRACKER, assert_same_onnx_model, run_posecam
 from posecam.inference.embedder import colour_histograms, load_embedder
 from posecam.io.media import read_image
-from posecam.tracking import Tracker, TrackerOptions, unambiguous_pairs
+from posecam.tracking import Tracker, unambiguous_pairs
 
 PEOPLE = json.loads((DATA / "vtest_people" / "people.json").read_text())["people"]
 FRAMES = ("175", "190", "205")
@@ -68,7 +69,7 @@ def _lost_between(estimator, embedder, first: str, second: str, unseen: int) -> 
     """The ids of the hand-labelled people on vtest's frames `first` and `second`, the tracker
     (10 frames/s) seeing nobody for `unseen` frames in between (as if they were hidden); the
     people of `first` are confirmed at once there (as if followed for a while before)."""
-    tracker, ids = Tracker(TrackerOptions(still=True), embedder, fps=10.0), {}
+    tracker, ids = Tracker(replace(TRACKER, still=True), embedder, fps=10.0), {}
     for step in range(unseen + 1):
         name = {0: first, unseen: second}.get(step)
         image = _frame(name) if name else None

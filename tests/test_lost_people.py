@@ -6,7 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from conftest import DATA
+from conftest import DATA, TRACKER
 from posecam import PredictOptions
 from posecam.geometry.boxes import box_iou
 from posecam.inference.detector import Detection
@@ -40,7 +40,7 @@ def _lose(tracker: Tracker) -> None:
 
 
 def test_a_person_just_lost_is_looked_for_where_their_motion_puts_them_and_keeps_their_id():
-    tracker = Tracker(fps=FPS)
+    tracker = Tracker(TRACKER, fps=FPS)
     _walk(tracker, 20)
     (track,) = tracker.tracks
     number, roi = track.number, track.roi
@@ -58,7 +58,7 @@ def test_a_person_just_lost_is_looked_for_where_their_motion_puts_them_and_keeps
 
 
 def test_no_probe_for_the_unconfirmed_the_long_lost_those_who_left_or_over_someone_followed():
-    tracker = Tracker(fps=FPS, policy=replace(TRACKING, probe_frames=3))
+    tracker = Tracker(TRACKER, fps=FPS, policy=replace(TRACKING, probe_frames=3))
     _walk(tracker, 20)
     (track,) = tracker.tracks
     for _ in range(3):
@@ -66,25 +66,25 @@ def test_no_probe_for_the_unconfirmed_the_long_lost_those_who_left_or_over_someo
         assert tracker.probes(1000, 800) == [track]
     _lose(tracker)
     assert track.lost == 4 and tracker.probes(1000, 800) == []        # lost longer than probe_frames
-    tracker = Tracker(fps=FPS)
+    tracker = Tracker(TRACKER, fps=FPS)
     _walk(tracker, 20)
     _lose(tracker)
     assert tracker.probes(300, 800) == []                # his box's centre (x ~ 350) is off the image
-    tracker = Tracker(fps=FPS)
+    tracker = Tracker(TRACKER, fps=FPS)
     _walk(tracker, 20)
     (track,) = tracker.tracks
     _lose(tracker)                                       # his box carried on: x ~ 310-390
     tracks = tracker.begin_frame([_det([380, 150, 440, 300])])   # someone small beside him: a new track
     assert len(tracks) == 1 and tracks[0] is not track and track.lost > 0
     assert tracker.probes(1000, 800) == []               # a crop there would find the one followed
-    tracker = Tracker(fps=FPS)
+    tracker = Tracker(TRACKER, fps=FPS)
     _walk(tracker, 2)                                    # a false start: lost before it is confirmed
     _lose(tracker)
     assert tracker.tracks == [] and tracker.probes(1000, 800) == []
 
 
 def test_a_probe_that_finds_someone_already_followed_gives_them_up():
-    tracker = Tracker(fps=FPS)
+    tracker = Tracker(TRACKER, fps=FPS)
     _walk(tracker, 20)
     (track,) = tracker.tracks
     _lose(tracker)
@@ -143,7 +143,7 @@ def test_a_probe_whose_pose_lands_on_someone_kept_gives_way():
     """Two people walking apart; the one behind is lost and looked for where he was, but the
     pose found there reaches onto the one followed (a pose model gives one person a crop): not
     his, so the probe finds nobody."""
-    tracker = Tracker(fps=FPS)
+    tracker = Tracker(TRACKER, fps=FPS)
     for f in range(20):
         run = tracker.detector_run(1000, 800)
         dets = [_det([100 + 10 * f, 200, 180 + 10 * f, 400]), _det([600, 200, 680, 400])]

@@ -6,14 +6,14 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from conftest import DATA, run_posecam
+from conftest import DATA, TRACKER, run_posecam
 from posecam import EstimatorOptions, PoseEstimator
 from posecam.inference.detector import Detection
 from posecam.inference.roi import Roi
 from posecam.io.media import open_media, read_image
 from posecam.geometry.boxes import box_iou
 from posecam.results import Frame, Person
-from posecam.tracking import TRACKING, ConfirmedIds, Tracker, TrackerOptions, foreign_joints
+from posecam.tracking import TRACKING, ConfirmedIds, Tracker, foreign_joints
 
 FPS = 10.0      # the frame rate the tracker's scripted videos below play at (searches every 0.5 s = 5 frames)
 
@@ -154,7 +154,7 @@ def test_ids_survive_a_crossing():
     for f in range(30):
         xa, xb = 100 + 10 * f, 400 - 10 * f
         frames.append([_det([xa, 100, xa + 80, 300]), _det([xb, 110, xb + 80, 310])])
-    ids = _run(Tracker(fps=FPS), frames)
+    ids = _run(Tracker(TRACKER, fps=FPS), frames)
     assert all(i == ids[0] for i in ids), ids
 
 
@@ -164,7 +164,7 @@ def test_ids_survive_a_short_occlusion():
         x = 100 + 5 * f
         a, b = _det([x, 100, x + 80, 300]), _det([600, 100, 680, 300])
         frames.append([b] if 10 <= f < 20 else [a, b])      # a hidden for 10 frames
-    ids = _run(Tracker(fps=FPS), frames)
+    ids = _run(Tracker(TRACKER, fps=FPS), frames)
     first_a = ids[0][0]
     assert ids[25][0] == first_a and ids[25][1] == ids[0][1]
     assert len({t for i in ids for t in i.values()}) == 2
@@ -179,7 +179,7 @@ def test_someone_hidden_while_walking_away_is_found_again_at_their_last_size():
         return [100 + 4 * f, 300 - h, 100 + 4 * f + h / 2.5, 300]
     frames = [[_det(walking(f))] for f in range(20)] + [[] for _ in range(28)] + \
              [[_det(np.array(walking(19)) + [4 * (f - 19), 0, 4 * (f - 19), 0])] for f in range(48, 52)]
-    ids = _run(Tracker(fps=FPS), frames)
+    ids = _run(Tracker(TRACKER, fps=FPS), frames)
     assert ids[-1] == {0: ids[0][0]}, ids[-5:]
 
 
@@ -189,9 +189,9 @@ def test_a_track_is_not_matched_to_someone_who_does_not_overlap_it():
     not the old one's id; a weak detection there does not keep the old track either."""
     walk = [[_det([100 + 5 * f, 100, 180 + 5 * f, 300])] for f in range(10)]
     far = [900, 120, 980, 320]
-    ids = _run(Tracker(fps=FPS), walk + [[_det(far)]])
+    ids = _run(Tracker(TRACKER, fps=FPS), walk + [[_det(far)]])
     assert ids[-1] == {0: ids[0][0] + 1}, ids[-2:]
-    tracker = Tracker(TrackerOptions(high_score=0.5, low_score=0.1), fps=FPS)
+    tracker = Tracker(replace(TRACKER, high_score=0.5), fps=FPS)
     _run(tracker, walk + [[_det(far, 0.2)]])
     assert tracker.tracks[0].lost == 1 and len(tracker.tracks) == 1
 
@@ -202,7 +202,7 @@ def test_weak_detections_are_matched_under_a_tighter_gate():
     not kept by it; a weak one a tenth of a box to the side (cost 0.18) keeps it."""
     still = [[_det([100, 100, 180, 300])] for _ in range(10)]
     for dx, kept in ((40, False), (8, True)):
-        tracker = Tracker(TrackerOptions(high_score=0.5, low_score=0.1), fps=FPS)
+        tracker = Tracker(replace(TRACKER, high_score=0.5), fps=FPS)
         ids = _run(tracker, still + [[_det([100 + dx, 100, 180 + dx, 300], 0.2)]])
         assert (ids[-1] == {0: ids[0][0]}) is kept and (tracker.tracks[0].lost == 0) is kept, (dx, ids[-1])
 
@@ -210,17 +210,17 @@ def test_weak_detections_are_matched_under_a_tighter_gate():
 def test_a_track_moves_on_with_its_speed_while_unseen():
     """The box filter's prediction: someone walking 8 px a frame, unseen for 6 frames, is
     predicted near where the walk took them (not where they were last seen)."""
-    tracker = Tracker(fps=FPS)
+    tracker = Tracker(TRACKER, fps=FPS)
     _run(tracker, [[_det([100 + 8 * f, 100, 180 + 8 * f, 300])] for f in range(15)] + [[] for _ in range(6)])
     (track,) = tracker.tracks
     assert abs(track.box[0] - (100 + 8 * 20)) < 12, track.box
 
 
 def test_a_weak_detection_keeps_a_track_but_does_not_start_one():
-    tracker = Tracker(TrackerOptions(high_score=0.5, low_score=0.1), fps=FPS)
+    tracker = Tracker(replace(TRACKER, high_score=0.5), fps=FPS)
     ids = _run(tracker, [[_det([0, 0, 100, 200], 0.9)], [_det([5, 0, 105, 200], 0.2)]])
     assert ids == [{0: 0}, {0: 0}]
-    assert _run(Tracker(TrackerOptions(high_score=0.5, low_score=0.1), fps=FPS), [[_det([0, 0, 100, 200], 0.2)]]) == [{}]
+    assert _run(Tracker(replace(TRACKER, high_score=0.5), fps=FPS), [[_det([0, 0, 100, 200], 0.2)]]) == [{}]
 
 
 def test_joints_on_a_neighbour_are_found():
@@ -285,18 +285,18 @@ def _follow(tracker, dets, frames, width=1000, height=800):
 
 def test_detector_runs_more_often_while_people_may_be_missing():
     alone = [_det([400, 200, 480, 400])]                        # one person in the middle
-    asked = _follow(Tracker(fps=FPS), alone, 45)                       # (10 frames/s: searches every 0.5 s = 5 frames)
+    asked = _follow(Tracker(TRACKER, fps=FPS), alone, 45)                       # (10 frames/s: searches every 0.5 s = 5 frames)
     assert asked[:3] == [0, 5, 10] and asked[3:] == [25, 40]    # confirmed after 3 runs: every 15 frames
     standing = [_det([960, 200, 1000, 400])]                    # standing at the right edge: every 15
-    assert _follow(Tracker(fps=FPS), standing, 45)[3:] == [25, 40]
+    assert _follow(Tracker(TRACKER, fps=FPS), standing, 45)[3:] == [25, 40]
     entering = lambda f: [_det([960 - 2 * f, 200, 1000 - 2 * f, 400])]   # walking in at the edge: every 5
-    assert _follow(Tracker(fps=FPS), entering, 25) == list(range(0, 25, 5))    # (it leaves the edge at frame 25)
+    assert _follow(Tracker(TRACKER, fps=FPS), entering, 25) == list(range(0, 25, 5))    # (it leaves the edge at frame 25)
     crowd = [_det([100 + 150 * i, 200, 180 + 150 * i, 400]) for i in range(3)]   # 3 people: every 5
-    assert _follow(Tracker(fps=FPS), crowd, 40) == list(range(0, 40, 5))
+    assert _follow(Tracker(TRACKER, fps=FPS), crowd, 40) == list(range(0, 40, 5))
 
 
 def test_someone_the_detector_misses_stays_with_the_pose_model():
-    tracker = Tracker(fps=FPS, policy=replace(TRACKING, coast=2))
+    tracker = Tracker(TRACKER, fps=FPS, policy=replace(TRACKING, coast=2))
     _follow(tracker, [_det([400, 200, 480, 400])], 1)
     for run in range(3):                                        # detector runs that find nobody
         tracks = tracker.begin_frame([])
@@ -308,7 +308,7 @@ def test_someone_the_detector_misses_stays_with_the_pose_model():
 
 def test_a_run_for_an_overlap_alone_searches_only_around_those_people():
     tiles = [(0, 0, 600, 450), (400, 0, 1000, 450), (0, 350, 600, 800), (400, 350, 1000, 800)]
-    tracker = Tracker(fps=FPS)
+    tracker = Tracker(TRACKER, fps=FPS)
     pair = [_det([100, 100, 180, 300]), _det([150, 110, 230, 310])]     # overlapping, top left
     apart = _det([800, 500, 880, 700])                                  # alone, bottom right
     asked = _follow(tracker, pair + [apart], 9)
@@ -336,7 +336,7 @@ def test_a_run_for_an_overlap_alone_searches_only_around_those_people():
 
 
 def test_someone_just_lost_is_searched_for_where_they_were():
-    tracker = Tracker(fps=FPS)
+    tracker = Tracker(TRACKER, fps=FPS)
     a, b = _det([100, 100, 180, 300]), _det([700, 100, 780, 300])
     _follow(tracker, [a, b], 30)                                # both followed and confirmed
     assert tracker.detector_run(1000, 800) is None              # nobody missing, no run due
@@ -353,7 +353,7 @@ def test_no_search_about_someone_lost_past_the_border():
     border: the run their loss asks for would search the strip of their region the border
     leaves, 10 px wide (resized to the detector's input, it holds nobody): nothing is searched
     (a strip under TRACKING.min_region_px)."""
-    tracker = Tracker(fps=FPS)
+    tracker = Tracker(TRACKER, fps=FPS)
     _follow(tracker, [_det([400, 200, 480, 400]), _det([880, 200, 960, 400])], 12)
     gone = max(tracker.tracks, key=lambda t: t.box[0])
     gone.kalman.x[:2] = [1130, 300]                             # box x 1090-1170, its region from 990
@@ -367,8 +367,8 @@ def test_no_search_about_someone_lost_past_the_border():
 
 def test_searches_everywhere_are_scheduled_in_seconds():
     crowd = [_det([100 + 150 * i, 200, 180 + 150 * i, 400]) for i in range(3)]
-    assert _follow(Tracker(fps=10), crowd, 20) == list(range(0, 20, 5))        # 0.5 s at 10 frames/s
-    assert _follow(Tracker(fps=20), crowd, 40) == list(range(0, 40, 10))       # ... at 20 frames/s
+    assert _follow(Tracker(TRACKER, fps=10), crowd, 20) == list(range(0, 20, 5))        # 0.5 s at 10 frames/s
+    assert _follow(Tracker(TRACKER, fps=20), crowd, 40) == list(range(0, 40, 10))       # ... at 20 frames/s
 
 
 def _person(box) -> Person:
@@ -382,7 +382,7 @@ def test_ids_are_numbered_only_for_confirmed_tracks():
     from their first frame on; the false start (matched 3 times, missed at 8, before it was
     followed for `confirm_frames`) takes none and its poses are listed as dropped
     ("unconfirmed"); every frame comes out, in order, at most `confirm_frames` late."""
-    tracker = Tracker(fps=FPS)
+    tracker = Tracker(TRACKER, fps=FPS)
     held, out = ConfirmedIds(tracker), []
     a, b, c = [400, 200, 480, 400], [100, 500, 160, 620], [700, 200, 780, 400]
     for f in range(30):
@@ -405,7 +405,7 @@ def test_a_person_the_detector_merges_with_a_neighbour_stays_followed():
     """Two overlapping people, the detector finding one of them on 8 runs in a row: the other
     is still followed by the pose model (the misses of someone overlapping a neighbour do not
     count), and lost as usual once apart and missed `coast` times."""
-    tracker = Tracker(fps=FPS, policy=replace(TRACKING, coast=2))
+    tracker = Tracker(TRACKER, fps=FPS, policy=replace(TRACKING, coast=2))
     front, behind = [400, 200, 500, 420], [440, 210, 520, 400]
     _follow(tracker, [_det(front), _det(behind)], 12)
     for run in range(8):

@@ -73,11 +73,12 @@ def _told_turned(roi: Roi, before: bool) -> bool:
 
 @dataclass(frozen=True)
 class TrackerOptions:
-    """What a caller sets for one video; the rules are the tracker's policy (policy.TRACKING).
-    posecam.options.EstimatorOptions takes the first two, the detector gives the scores."""
+    """What a caller sets for one video, without defaults: the estimator gives its options'
+    (posecam.options.EstimatorOptions) and its detector's scores; the rules are the tracker's
+    policy (policy.TRACKING)."""
 
-    max_people: int = 20            # most people followed at once
-    redetect_every: int = 15        # frames between detector runs while nobody may be missing
-    high_score: float = 0.3         # a detection this confident may start a track (the detector's start_score) ...
-    low_score: float = 0.1          # ... one this confident only keeps a track alive (its min_score)
+    max_people: int                 # most people followed at once
+    redetect_every: int             # frames between detector runs while nobody may be missing
+    high_score: float               # a detection this confident may start a track (the detector's start_score) ...
+    low_score: float                # ... one this confident only keeps a track alive (its min_score)
     still: bool = False             # one image: every person found is confirmed at once

@@ -31,9 +31,9 @@ class Tracker:
     caller says the rate (the tracker assumes none; posecam.estimate gives it the media's), by
     the rules of `policy` (in one image, `options.still`: everyone confirmed at once)."""
 
-    def __init__(self, options: TrackerOptions | None = None, embedder: AppearanceEmbedder | None = None, *,
+    def __init__(self, options: TrackerOptions, embedder: AppearanceEmbedder | None = None, *,
                  fps: float, policy: TrackingPolicy = TRACKING):
-        self.options = options or TrackerOptions()
+        self.options = options
         self.policy = replace(policy, confirm_hits=1, confirm_frames=1) if self.options.still else policy
         self.embedder = embedder             # None: ids from motion alone
         self.fps = fps                       # the video's frame rate: the searches' schedule, the re-id memory and reach
