@@ -16,7 +16,9 @@ import numpy as np
 import pytest
 
 from conftest import DATA, run_posecam, the_subject
-from posecam.io.trc import to_y_up, trc_paths, write_trc
+from posecam.io.atomic import OutputSet
+from posecam.io.markers import write_markers
+from posecam.io.trc import to_y_up, trc_paths
 
 REPO = Path(__file__).resolve().parent.parent
 SIDE_PYTHON = Path(os.environ.get("POSECAM_OPENSIM_PYTHON", REPO / ".cache" / "osim-venv" / "bin" / "python"))
@@ -60,6 +62,12 @@ def read_back(paths: list[Path]) -> list[dict]:
     return json.loads(r.stdout)
 
 
+def write(path, rec, y_up=False):
+    """The marker files of `rec` (TRC or C3D by the suffix), staged and committed as the commands do."""
+    with OutputSet([], per_person=path) as out:
+        return write_markers(path, rec, y_up, out)
+
+
 def as_array(rows) -> np.ndarray:
     return np.array([[np.nan if v is None else v for v in row] for row in rows], float)
 
@@ -73,7 +81,7 @@ def clip(estimator):
 def test_round_trip_through_opensim_and_pose2sim(clip, tmp_path):
     rec = dataclasses.replace(clip, frames=[dataclasses.replace(f, people=list(f.people)) for f in clip.frames])
     rec.frames[5].people = []                               # a frame where the person is missing
-    (path,) = write_trc(tmp_path / "balance.trc", rec)
+    (path,) = write(tmp_path / "balance.trc", rec)
     (doc,) = read_back([path])
     truth = np.stack([f.people[0].keypoints_3d if f.people else np.full((17, 3), np.nan) for f in rec.frames])
     truth = truth.reshape(len(truth), -1) / 1000.0
@@ -100,7 +108,7 @@ def test_one_file_per_person_and_y_up(clip, tmp_path):
         frames.append(dataclasses.replace(f, people=people))
     rec = dataclasses.replace(clip, frames=frames)
     first_id = clip.frames[0].people[0].id
-    paths = write_trc(tmp_path / "two.trc", rec, y_up=True)
+    paths = write(tmp_path / "two.trc", rec, y_up=True)
     assert paths == trc_paths(tmp_path / "two.trc", [first_id, 7]) == [tmp_path / f"two_id{first_id}.trc", tmp_path / "two_id7.trc"]
     docs = read_back(paths)
     assert len(docs[0]["osim_time"]) == 30 and len(docs[1]["osim_time"]) == 20
@@ -131,11 +139,10 @@ def test_c3d_read_back_by_ezc3d(clip, tmp_path):
     rate, units, millimetres within 0.1 mm, the missing frame as NaN."""
     pytest.importorskip("c3d")
     ezc3d = pytest.importorskip("ezc3d")
-    from posecam.io.c3d import write_c3d
 
     rec = dataclasses.replace(clip, frames=[dataclasses.replace(f, people=list(f.people)) for f in clip.frames])
     rec.frames[7].people = []
-    (path,) = write_c3d(tmp_path / "balance.c3d", rec)
+    (path,) = write(tmp_path / "balance.c3d", rec)
     c = ezc3d.c3d(str(path))
     point = c["parameters"]["POINT"]
     assert point["LABELS"]["value"] == list(rec.joints) and point["UNITS"]["value"] == ["mm"]

@@ -9,16 +9,13 @@ one file per person id (NAME_id<ID>.c3d when there are several), the same axes a
 from __future__ import annotations
 
 import io
-import os
 import warnings
-from pathlib import Path
 
 import numpy as np
 
 from posecam.errors import InputError
-from posecam.io.atomic import OutputSet
 from posecam.io.media import DEFAULT_FPS
-from posecam.io.trc import to_y_up, trajectory, trc_paths, write_files
+from posecam.io.trc import to_y_up, trajectory
 from posecam.results import Recording
 
 INSTALL_HINT = "pip install 'posecam[c3d]' (the c3d package)"
@@ -51,15 +48,3 @@ def c3d_bytes(rec: Recording, person_id: int, y_up: bool = False) -> bytes:
         warnings.simplefilter("ignore", UserWarning)        # "No analog data found in file."
         writer.write(buffer)
     return buffer.getvalue()
-
-
-def write_c3d(path: str | os.PathLike, rec: Recording, y_up: bool = False,
-              outputs: OutputSet | None = None) -> list[Path]:
-    """Write one C3D file per person of `rec` (named as posecam.io.trc.trc_paths); returns the paths."""
-    writer_module()
-    ids = rec.person_ids
-    if not ids:
-        raise InputError(f"no person found in {rec.source}: nothing to write to {path}")
-    paths = trc_paths(path, ids)
-    write_files([(p, c3d_bytes(rec, pid, y_up)) for pid, p in zip(ids, paths)], outputs)
-    return paths

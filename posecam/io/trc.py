@@ -20,7 +20,6 @@ from pathlib import Path
 import numpy as np
 
 from posecam.errors import InputError
-from posecam.io.atomic import OutputSet, atomic_path
 from posecam.io.media import DEFAULT_FPS, exact_times
 from posecam.results import Recording, Track
 
@@ -73,27 +72,3 @@ def trc_paths(path: str | os.PathLike, ids: list[int]) -> list[Path]:
     if len(ids) == 1:
         return [path]
     return [path.with_name(f"{path.stem}_id{pid}{path.suffix}") for pid in ids]
-
-
-def write_files(files: list[tuple[Path, bytes]], outputs: OutputSet | None = None) -> None:
-    """Write each (path, content): staged in `outputs` (committed with the command's other
-    outputs), or else each file atomically on its own."""
-    for path, content in files:
-        if outputs is None:
-            with atomic_path(path) as tmp:
-                tmp.write_bytes(content)
-        else:
-            tmp = outputs.extra(path)
-            tmp.write_bytes(content)
-            outputs.adopt(path, tmp)
-
-
-def write_trc(path: str | os.PathLike, rec: Recording, y_up: bool = False,
-              outputs: OutputSet | None = None) -> list[Path]:
-    """Write one TRC file per person of `rec` (see trc_paths); returns the paths written."""
-    ids = rec.person_ids
-    if not ids:
-        raise InputError(f"no person found in {rec.source}: nothing to write to {path}")
-    paths = trc_paths(path, ids)
-    write_files([(p, trc_text(rec, pid, p.name, y_up).encode()) for pid, p in zip(ids, paths)], outputs)
-    return paths
