@@ -190,23 +190,6 @@ class PoseWriter:
         return f', "floor": {_dumps(floor.to_dict())}' if floor is not None else ""
 
 
-def write_json(out: TextIO, recordings: list[Recording]) -> None:
-    """The JSON document, one frame per line, written as it is made."""
-    _write(PoseWriter(out, "json"), recordings)
-
-
-def write_csv(out: TextIO, recordings: list[Recording], angles: tuple[str, ...] = ()) -> None:
-    _write(PoseWriter(out, "csv", angles), recordings)
-
-
-def _write(writer: PoseWriter, recordings: list[Recording]) -> None:
-    for r in recordings:
-        writer.begin(r)
-        for f in r.frames:
-            writer.frame(f)
-    writer.close()
-
-
 def write_poses(path: str | os.PathLike, recordings: list[Recording], angles: tuple[str, ...] = ()) -> None:
     """Write JSON or CSV, chosen by the file extension, atomically and frame by frame; `angles`:
     the CSV's angle columns (JSON writes each person's angles when it has them)."""
@@ -214,7 +197,12 @@ def write_poses(path: str | os.PathLike, recordings: list[Recording], angles: tu
     if suffix not in POSE_SUFFIXES:
         raise InputError(f"output must end in .json or .csv, got {path}")
     with atomic_path(path) as tmp, open(tmp, "w", encoding="utf-8", newline="") as out:
-        write_json(out, recordings) if suffix == ".json" else write_csv(out, recordings, angles)
+        writer = PoseWriter(out, suffix[1:], angles)
+        for r in recordings:
+            writer.begin(r)
+            for f in r.frames:
+                writer.frame(f)
+        writer.close()
 
 
 MAX_INPUTS = 10000       # inputs in one pose file
