@@ -224,27 +224,25 @@ def assumed_cameras(names: list[str], recordings: list[Recording]) -> list[Camer
 
 
 def tracks_of(rec: Recording, view: int, min_frames: int = TAKE.min_track_frames) -> list[ViewTrack]:
-    """Every person id of `rec` seen in at least `min_frames` frames, longest first, as observed
-    (`Person.observed`: a smoothed recording's keypoints before smoothing, which the estimators
+    """Every person id of `rec` seen in at least `min_frames` frames, longest first (then by
+    first appearance), as observed (`Track`, the keypoints before smoothing, which the estimators
     downstream need, not the smoothed ones that are shown); a pose with doubts
     (posecam.analysis.doubts) counts as unseen."""
     n, j = len(rec.frames), len(rec.joints)
-    ids: dict[int, list[int]] = {}
-    for i, f in enumerate(rec.frames):
-        for p in f.people:
-            if not p.doubts:
-                ids.setdefault(p.id, []).append(i)
     tracks = []
-    for pid, frames in ids.items():
-        if len(frames) < min_frames:
+    for t in rec.tracks():
+        sound = np.array([p is not None and not p.doubts for p in t.people])
+        if sound.sum() < min_frames:
             continue
+        rows = t.rows[sound]
         uv, xyz = np.full((n, j, 2), np.nan), np.full((n, j, 3), np.nan)
         conf, score = np.zeros((n, j)), np.zeros(n)
-        for i in frames:
-            p = next(q for q in rec.frames[i].people if q.id == pid and not q.doubts)
-            (uv[i], xyz[i]), conf[i], score[i] = p.observed(), p.confidence, p.score
-        tracks.append(ViewTrack(view, (pid,), uv, xyz, conf, score))
-    return sorted(tracks, key=lambda t: -int(t.seen.sum()))
+        uv[rows], xyz[rows], conf[rows] = t.observed_2d[sound], t.observed_3d[sound], t.confidence[sound]
+        score[rows] = [p.score for p, s in zip(t.people, sound) if s]
+        first = t.people[int(np.argmax(sound))]
+        order = (rows[0], next(k for k, q in enumerate(rec.frames[rows[0]].people) if q is first))
+        tracks.append((order, ViewTrack(view, (t.id,), uv, xyz, conf, score)))
+    return [v for _, v in sorted(tracks, key=lambda o: (-int(o[1].seen.sum()), o[0]))]
 
 
 @dataclass
