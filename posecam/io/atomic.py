@@ -101,30 +101,25 @@ def _alive(pid: int) -> bool:
     return True
 
 
+def _entries(folder: str | os.PathLike, pattern: re.Pattern) -> list[os.DirEntry]:
+    try:
+        return [e for e in os.scandir(folder) if pattern.match(e.name)]
+    except OSError:
+        return []
+
+
 def remove_stale(folder: str | os.PathLike) -> None:
     """Remove the temporary files and staging folders that a killed posecam run left in
     `folder` (their process is gone), with a warning naming each."""
-    try:
-        entries = [e for e in os.scandir(folder) if e.name.startswith(".posecam-")]
-    except OSError:
-        return
-    for entry in entries:
-        match = _STALE.match(entry.name)
-        if not match or _alive(int(match.group(1))):
-            continue
-        if _remove(Path(folder) / entry.name, entry):
+    for entry in _entries(folder, _STALE):
+        if not _alive(int(_STALE.match(entry.name).group(1))) and _remove(Path(folder) / entry.name, entry):
             warn(f"removed {printable(Path(folder) / entry.name)}, left over from an interrupted posecam run")
 
 
 def remove_run_staging(folder: str | os.PathLike, tag: str) -> None:
     """Remove what the tasks of batch run `tag` staged in `folder` (once they have all ended:
     a task killed before its clean-up leaves its staging folder)."""
-    own = re.compile(rf"^\.posecam-\d+-{re.escape(tag)}-")
-    try:
-        entries = [e for e in os.scandir(folder) if own.match(e.name)]
-    except OSError:
-        return
-    for entry in entries:
+    for entry in _entries(folder, re.compile(rf"^\.posecam-\d+-{re.escape(tag)}-")):
         _remove(Path(folder) / entry.name, entry)
 
 
@@ -185,7 +180,7 @@ def per_person_pattern(path: str | os.PathLike) -> re.Pattern:
 
 
 @contextmanager
-def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[Path]:
+def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path in the target's folder; rename it onto `path` on success.
 
     On any error, including Ctrl-C, the temporary file is removed and `path` is left untouched.
@@ -196,7 +191,7 @@ def atomic_path(path: str | os.PathLike, suffix: str | None = None) -> Iterator[
         raise OutputError(f"cannot write {target}: folder {folder} does not exist")
     held = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})   # as in OutputSet._stage
     try:
-        fd, tmp = tempfile.mkstemp(prefix=_prefix(), suffix=suffix or _suffix(target), dir=folder)
+        fd, tmp = tempfile.mkstemp(prefix=_prefix(), suffix=_suffix(target), dir=folder)
         os.close(fd)
     except OSError as exc:
         raise OutputError(f"cannot write {target}: {_describe(exc)}") from None
@@ -356,16 +351,15 @@ class OutputSet:
 
     def __exit__(self, kind: type[BaseException] | None, exc: BaseException | None,
                  tb: TracebackType | None) -> None:
-        committed_elsewhere = False
         try:
             if kind is None or issubclass(kind, ReaderLeft):
                 # a closed stdout (`| head`) is the reader leaving, not a failed output
                 staged = self._verified()
-                if _deferred is not None:
-                    _deferred.append(staged)
-                    committed_elsewhere = True
-                else:
+                if _deferred is None:
                     staged.commit()
+                else:   # the run's own process commits or removes them
+                    _deferred.append(staged)
+                    self._folders = {}
             elif issubclass(kind, PosecamError):   # name the user's file, not its temporary one
                 message = str(exc)
                 for target, tmp in self._staged.items():
@@ -377,9 +371,8 @@ class OutputSet:
                 if target is not None:
                     raise OutputError(f"cannot write {target}: {_describe(exc)}") from None
         finally:
-            if not committed_elsewhere:
-                for stage in self._folders.values():
-                    shutil.rmtree(stage, ignore_errors=True)
+            for stage in self._folders.values():
+                shutil.rmtree(stage, ignore_errors=True)
 
     def _verified(self) -> StagedOutputs:
         raise_if_signalled()   # a Ctrl-C that a library swallowed still stops the commit
@@ -409,11 +402,8 @@ class StagedOutputs:
                 check_output(target, self.inputs)
             self._rename_all()
         finally:
-            self.discard()
-
-    def discard(self) -> None:
-        for stage in self.folders:
-            shutil.rmtree(stage, ignore_errors=True)
+            for stage in self.folders:
+                shutil.rmtree(stage, ignore_errors=True)
 
     def _rename_all(self) -> None:
         done: list[tuple[Path, Path | None]] = []
