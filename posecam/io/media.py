@@ -180,13 +180,6 @@ class Media:
                  "(a truncated or damaged video?)")
 
 
-class _Failed:
-    """What a reader thread raised, handed to the thread reading its frames."""
-
-    def __init__(self, error: BaseException):
-        self.error = error
-
-
 def read_ahead(items: Iterator, depth: int = READ_AHEAD) -> Iterator:
     """`items` (a video's frames) produced in a thread of their own, at most `depth` ahead of
     the one the caller holds: OpenCV decodes without Python's lock, so the next frame is decoded
@@ -212,7 +205,7 @@ def read_ahead(items: Iterator, depth: int = READ_AHEAD) -> Iterator:
                     return
             hand(done)
         except BaseException as exc:  # noqa: BLE001 -- raised again in the caller's thread
-            hand(_Failed(exc))
+            hand(exc)
         finally:
             items.close()
 
@@ -220,8 +213,8 @@ def read_ahead(items: Iterator, depth: int = READ_AHEAD) -> Iterator:
     reader.start()
     try:
         while (item := waiting.get()) is not done:
-            if isinstance(item, _Failed):
-                raise item.error
+            if isinstance(item, BaseException):   # what the reader raised
+                raise item
             yield item
     finally:
         stop.set()
