@@ -19,7 +19,6 @@ from posecam.errors import InputError, warn
 from posecam.io.calibration import is_calibration, is_filestorage, read_calibration
 from posecam.io.exif import focal_length_35mm
 from posecam.io.validate import MAX_PIXEL, Field, read_small, shown_value
-from posecam.io.media import check_input
 
 
 @dataclass
@@ -238,10 +237,8 @@ def _resolve(opts: IntrinsicsOptions, width: int, height: int, image_path: str |
         cy = opts.cy if opts.cy is not None else height / 2.0
         return Intrinsics(fx, fy, cx, cy, source="flags")
     if opts.file:
-        path = check_input(opts.file, "intrinsics file")
-        if not path.is_file():
-            raise InputError(f"intrinsics file {path} is a folder")
-        if is_calibration(path):
+        path = Path(opts.file)
+        if is_calibration(path):   # checks it is a readable file first
             return _from_toml(path, opts.camera, width, height)
         data = read_small(path, "intrinsics")
         if opts.camera is not None:
