@@ -37,3 +37,17 @@ def test_the_crops_to_try_start_upright_on_the_box_and_reach_past_a_cut_border()
     assert len(plain) == 4 and len(past) == 5
     assert plain[0].angle == 0.0
     assert np.allclose([c.angle - roi.angle for c in plain[1:]], [np.pi / 2, -np.pi / 2, np.pi])
+
+
+def test_a_doubted_pose_the_detector_agrees_with_is_kept():
+    """With every pose doubted (--min-presence 1.0: the pose model's presence of a clear player
+    is 0.999 at most), the poses that match the detector's keypoints of their person (OKS >=
+    FramePolicy.agree_oks) are kept: both of basketball2's players, nobody dropped. Without the
+    rule the player at 0.999 is dropped as "presence"."""
+    from posecam import EstimatorOptions, PoseEstimator
+    from posecam.io.media import read_image
+
+    doubting = PoseEstimator(EstimatorOptions(min_presence=1.0))
+    frame = doubting.predict_image(read_image(Path(__file__).parent / "data" / "basketball2.png"),
+                                   options=PredictOptions(metric=None))
+    assert len(frame.people) == 2 and not frame.dropped
