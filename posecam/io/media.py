@@ -162,7 +162,10 @@ class Media:
         # without --end, read to the video's real end (a declared count may be off)
         stop = wanted.stop if self.selection and self.selection.end is not None else None
         index, ok = wanted.start, True
-        clock = VideoClock(self.path, self.fps) if self.kind != "stream" else None
+        # a file's frame times are the container's (its presentation times), so that a
+        # variable-frame-rate video gets its real times; a live source's, and a file's once its
+        # container gives none (or times that do not increase), are index / fps
+        timed, last = self.kind != "stream", -1.0
         with _stream_capture(str(self.path)) if self.kind == "stream" else _video_capture(self.path) as cap:
             if index:
                 _seek(cap, index)
@@ -170,7 +173,15 @@ class Media:
                 ok, bgr = cap.read()
                 if not ok:
                     break
-                time = clock.time(cap, index) if clock else index / self.fps
+                time = index / self.fps
+                if timed:
+                    seconds = cap.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
+                    if np.isfinite(seconds) and seconds >= 0 and seconds > last:
+                        time = last = seconds
+                    else:
+                        timed = False
+                        warn(f"{self.path} gives no frame times from frame {index} on; times are frame / "
+                             f"{self.fps:g} fps (wrong if its frame rate varies)")
                 yield index, time, cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB)
                 index += wanted.step
                 for _ in range(wanted.step - 1):   # skipped frames: grabbed, not decoded into images
@@ -228,29 +239,6 @@ def _seek(cap: cv2.VideoCapture, index: int) -> None:
     for _ in range(index):
         if not cap.grab():
             return
-
-
-class VideoClock:
-    """Each frame's time from the container (its presentation time, OpenCV's CAP_PROP_POS_MSEC),
-    so that a variable-frame-rate video gets its real times, not index / fps. A container that
-    gives none (or times that do not increase) falls back to index / fps, with a warning."""
-
-    def __init__(self, path: Path, fps: float):
-        self.path, self.fps = path, fps
-        self.last: float | None = None
-        self.failed = False
-
-    def time(self, cap: cv2.VideoCapture, index: int) -> float:
-        """The time in s of the frame `cap` just read (frame `index`)."""
-        if not self.failed:
-            seconds = cap.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
-            if np.isfinite(seconds) and seconds >= 0 and (self.last is None or seconds > self.last):
-                self.last = seconds
-                return seconds
-            self.failed = True
-            warn(f"{self.path} gives no frame times from frame {index} on; times are frame / "
-                 f"{self.fps:g} fps (wrong if its frame rate varies)")
-        return index / self.fps
 
 
 @contextmanager
