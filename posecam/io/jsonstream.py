@@ -75,43 +75,39 @@ class JsonStream:
         self.i = end
         return value
 
-    def keys(self) -> Iterator[str]:
-        """Enter an object: yield each key; the caller reads its value before the next."""
-        self._expect("{")
-        if self._peek() == "}":
+    def _members(self, opening: str, closing: str) -> Iterator[int]:
+        """Enter an object or an array: yield the count of members read so far before each;
+        the caller reads the member before the next."""
+        self._expect(opening)
+        if self._peek() == closing:
             self.i += 1
             return
+        n = 0
         while True:
+            yield n
+            n += 1
+            if self._peek() != ",":
+                self._expect(closing)
+                return
+            self.i += 1
+
+    def keys(self) -> Iterator[str]:
+        """Enter an object: yield each key; the caller reads its value before the next."""
+        for _ in self._members("{", "}"):
             if self._peek() != '"':
                 raise self.error("expected a key")
             key = self.value()
             self._expect(":")
             yield key
-            if self._peek() == ",":
-                self.i += 1
-                continue
-            self._expect("}")
-            return
 
     def items(self, most: int, field: str) -> Iterator[int]:
         """Enter an array: yield the index of each item; the caller reads the item before the
         next. More than `most` items: InputError naming `field` (the file and the place in it),
         before the one over is read."""
-        self._expect("[")
-        if self._peek() == "]":
-            self.i += 1
-            return
-        n = 0
-        while True:
+        for n in self._members("[", "]"):
             if n >= most:
                 raise InputError(f"{field}: must hold at most {most} entries")
             yield n
-            n += 1
-            if self._peek() == ",":
-                self.i += 1
-                continue
-            self._expect("]")
-            return
 
     def end(self) -> None:
         if self._peek():
