@@ -276,21 +276,16 @@ def check_input(path: str | os.PathLike, what: str = "") -> Path:
     return path
 
 
-def _read_bytes(path: Path) -> bytes:
-    check_input(path)
-    try:
-        return path.read_bytes()
-    except OSError as exc:
-        raise InputError(f"{path} cannot be read ({exc.strerror})") from None
-
-
 def read_image(path: str | os.PathLike) -> np.ndarray:
     """RGB uint8 image (EXIF orientation applied) or InputError; refused before decoding when
     its header claims more than MAX_PIXELS (any format, under the `posecam` command, which sets
     OpenCV's own limit to it too)."""
     path = Path(path)
-    check_image_size(path)
-    data = _read_bytes(path)
+    check_image_size(path)   # a readable regular file, too
+    try:
+        data = path.read_bytes()
+    except OSError as exc:
+        raise InputError(f"{path} cannot be read ({exc.strerror})") from None
     try:
         with _native_stderr_silenced():
             bgr = cv2.imdecode(np.frombuffer(data, np.uint8), cv2.IMREAD_COLOR)
