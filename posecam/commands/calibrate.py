@@ -2,22 +2,17 @@
 
 from __future__ import annotations
 
-import math
 from typing import TYPE_CHECKING
 
 import click
 
 from posecam.commands.common import (estimator_options, height_option, intrinsics_options, make_estimator_options,
-                                     make_intrinsics_options, progress_bar, frame_progress, report_written,
-                                     stdout_report, shown, warn)
-from posecam.commands.fuse import camera_table
+                                     make_intrinsics_options, progress_bar, frame_progress, report_table,
+                                     report_written, stdout_report, shown, with_spinner)
+from posecam.commands.fuse import camera_table, px_text, spreads_comment
 
 if TYPE_CHECKING:
     from posecam.multiview.session import SessionResult
-
-
-def _px(value: float) -> str:
-    return f"{value:.1f}" if math.isfinite(value) else "-"
 
 
 def print_session(result: SessionResult, console) -> None:
@@ -25,19 +20,13 @@ def print_session(result: SessionResult, console) -> None:
     reprojection error through the session's rig beside the take's own cameras'."""
     console.print(camera_table(result.cameras, f"posecam calibrate: cameras ({len(result.takes)} takes)",
                                offsets=False))
-    from rich.table import Table
-
-    table = Table(title="takes")
-    table.add_column("take", overflow="fold")
-    table.add_column("camera", overflow="fold")
-    for col in ("offset\nframes", "reproj.\npx", "own\npx"):
-        table.add_column(col, justify="right", no_wrap=True)
+    table = report_table("takes", ("take", "camera", "offset\nframes", "reproj.\npx", "own\npx"), folded=2)
     for take in result.takes:
         for i, cam in enumerate(take.cameras):
             out = " (left out)" if cam in take.left_out else ""
             table.add_row(shown(take.name) if i == 0 else "", shown(cam) + out,
                           "still" if take.still else f"{take.offsets[i]:.2f}".rstrip("0").rstrip("."),
-                          _px(take.reprojection_px[i]), _px(take.own_px[i]))
+                          px_text(take.reprojection_px[i]), px_text(take.own_px[i]))
     console.print(table)
     console.print(f"world: {result.world}")
     console.print(f"metric scale: {result.scale_source}")
@@ -53,13 +42,7 @@ def toml_comments(result: SessionResult) -> dict[str, str]:
     for rep in result.cameras:
         offsets = ", ".join(f"{t.name} {t.offsets[t.cameras.index(rep.name)]:g}" for t in result.takes
                             if rep.name in t.cameras)
-        line = f"offsets (frames): {offsets}; reprojection {_px(rep.reprojection_px)} px"
-        if rep.spread is not None:
-            s = rep.spread
-            focal = "held (given)" if rep.intrinsics_fixed else f"{s.focal_pct:.1f} %"
-            line += (f"; one standard deviation: rotation {s.rotation_deg:.2f} deg, focal {focal}, "
-                     f"position {s.position_mm:.0f} mm")
-        out[rep.name] = line
+        out[rep.name] = f"offsets (frames): {offsets}; reprojection {px_text(rep.reprojection_px)} px{spreads_comment(rep)}"
     return out
 
 
@@ -84,8 +67,6 @@ def calibrate_command(takes, output, free_intrinsics, heights, **flags) -> None:
     (cam01.mp4 of each take); a take may lack one. Each take's offsets are found on their own.
     Then fuse the takes through it: posecam fuse TAKE... --calibration FILE.toml --out-dir DIR.
     """
-    from rich.console import Console
-
     from posecam.commands.common import check_output
     from posecam.io.atomic import OutputSet
     from posecam.io.calibration import write_toml
@@ -102,11 +83,7 @@ def calibrate_command(takes, output, free_intrinsics, heights, **flags) -> None:
     opts = FuseOptions(heights=Heights.parse(heights), free_intrinsics=free_intrinsics)
     with progress_bar() as progress:
         recordings = load_session(list(takes), estimator, intrinsics, on_frame=frame_progress(progress))
-    err = Console(stderr=True, highlight=False)
-    with err.status("calibrating") as status:
-        result = calibrate_session(recordings, opts, progress=lambda msg: status.update(msg))
-    for line in result.warnings:
-        warn(line)
+    result = with_spinner("calibrating", lambda progress: calibrate_session(recordings, opts, progress=progress))
     with staged:
         write_toml(staged.path(output), result.rig.cameras,
                    {"frame": result.world, "takes": ", ".join(t.name for t in result.takes), "synchronised": False},

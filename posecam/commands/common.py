@@ -55,34 +55,39 @@ ESTIMATOR_FLAGS = ("device", "model", "skeleton", "detector", "max_people", "min
                    "threads")
 
 
-def estimator_options(f: Callable) -> Callable:
-    """The model and detection flags of `predict` and `fuse` (its video inputs), read by
-    `make_estimator_options`; their defaults are EstimatorOptions'."""
-    o = EstimatorOptions
-    for opt in reversed([
-        click.option("--device", type=click.Choice(["cpu", "cuda"]), default=o.device, show_default=True,
-                     help="Run the pose model on the CPU or on an NVIDIA GPU (needs onnxruntime-gpu)."),
-        click.option("--model", default=o.model, show_default=True,
-                     help=f"{', '.join(POSE_MODELS)} or a posecam .onnx file."),
-        click.option("--skeleton", type=click.Choice(["17", "33"]), default=o.skeleton, show_default=True,
-                     help="17 Human3.6M-style joints (root: pelvis) or all 33 BlazePose landmarks (root: mid_hip, "
-                          "the hips' midpoint)."),
-        click.option("--detector", type=click.Choice(list(DETECTORS)), default=o.detector, show_default=True,
-                     help="Person detector: movenet (MoveNet MultiPose: whole bodies, up to 6 per run) or blazepose "
-                          "(BlazePose's: heads of near, frontal people)."),
-        click.option("--max-people", type=click.IntRange(1, MAX_PEOPLE), default=o.max_people, show_default=True,
-                     help="Most people kept per image or video; the search for people is the same whatever it "
-                          "is (the people over it are counted in the summary and listed in the JSON's \"dropped\")."),
-        click.option("--min-detection-score", type=Bounded(0, 1),
-                     show_default="the detector's own: movenet 0.25, blazepose 0.5",
-                     help="Person detector score, 0 to 1, below which a person is not looked at."),
-        click.option("--min-presence", type=Bounded(0, 1), default=o.min_presence, show_default=True,
-                     help="Pose model presence, 0 to 1, below which a person is dropped."),
-        click.option("--threads", type=click.IntRange(1, 256), show_default="CPU cores, at most 8",
-                     help="CPU threads for onnxruntime."),
-    ]):
-        f = opt(f)
-    return f
+def options(*opts: Callable) -> Callable:
+    """One decorator of several click options, shown in --help in the order given."""
+    def decorate(f: Callable) -> Callable:
+        for opt in reversed(opts):
+            f = opt(f)
+        return f
+    return decorate
+
+
+# the model and detection flags of `predict` and `fuse` (its video inputs), read by
+# `make_estimator_options`; their defaults are EstimatorOptions'
+estimator_options = options(
+    click.option("--device", type=click.Choice(["cpu", "cuda"]), default=EstimatorOptions.device, show_default=True,
+                 help="Run the pose model on the CPU or on an NVIDIA GPU (needs onnxruntime-gpu)."),
+    click.option("--model", default=EstimatorOptions.model, show_default=True,
+                 help=f"{', '.join(POSE_MODELS)} or a posecam .onnx file."),
+    click.option("--skeleton", type=click.Choice(["17", "33"]), default=EstimatorOptions.skeleton, show_default=True,
+                 help="17 Human3.6M-style joints (root: pelvis) or all 33 BlazePose landmarks (root: mid_hip, "
+                      "the hips' midpoint)."),
+    click.option("--detector", type=click.Choice(list(DETECTORS)), default=EstimatorOptions.detector, show_default=True,
+                 help="Person detector: movenet (MoveNet MultiPose: whole bodies, up to 6 per run) or blazepose "
+                      "(BlazePose's: heads of near, frontal people)."),
+    click.option("--max-people", type=click.IntRange(1, MAX_PEOPLE), default=EstimatorOptions.max_people, show_default=True,
+                 help="Most people kept per image or video; the search for people is the same whatever it "
+                      "is (the people over it are counted in the summary and listed in the JSON's \"dropped\")."),
+    click.option("--min-detection-score", type=Bounded(0, 1),
+                 show_default="the detector's own: movenet 0.25, blazepose 0.5",
+                 help="Person detector score, 0 to 1, below which a person is not looked at."),
+    click.option("--min-presence", type=Bounded(0, 1), default=EstimatorOptions.min_presence, show_default=True,
+                 help="Pose model presence, 0 to 1, below which a person is dropped."),
+    click.option("--threads", type=click.IntRange(1, 256), show_default="CPU cores, at most 8",
+                 help="CPU threads for onnxruntime."),
+)
 
 
 def make_estimator_options(kwargs: dict) -> EstimatorOptions:
@@ -95,10 +100,9 @@ def smooth_option(what: str) -> Callable:
     return click.option("--smooth/--no-smooth", default=PredictOptions.smooth, show_default=True, help=what)
 
 
-def floor_option(f: Callable) -> Callable:
-    """--floor/--no-floor (MetricOptions.floor's default)."""
-    return click.option("--floor/--no-floor", default=MetricOptions.floor, show_default=True,
-                        help="Fit the ground plane under everyone's feet (static camera) and put each person on it.")(f)
+# --floor/--no-floor (MetricOptions.floor's default)
+floor_option = click.option("--floor/--no-floor", default=MetricOptions.floor, show_default=True,
+                            help="Fit the ground plane under everyone's feet (static camera) and put each person on it.")
 
 
 def make_predict_options(smooth: bool, frames: FrameSelection | None, heights: tuple[str, ...],
@@ -115,25 +119,20 @@ def intrinsics_options(per_camera: bool = False) -> Callable:
     camera_help = ("Camera names inside the --intrinsics calibration, one per view in the order of the inputs "
                    "(cam01,cam02,...); default: matched to the views' names." if per_camera else
                    "Camera name inside the --intrinsics calibration (needs --intrinsics).")
-
-    def decorate(f: Callable) -> Callable:
-        for opt in reversed([
-            click.option("--fx", type=Bounded(0, MAX_PIXEL, open_lo=True), show_default="from --intrinsics, else EXIF, else a 28 mm-equivalent lens",
-                         help="Focal length in pixels (x)."),
-            click.option("--fy", type=Bounded(0, MAX_PIXEL, open_lo=True), help="Focal length in pixels (y); defaults to fx."),
-            click.option("--cx", type=Bounded(-MAX_PIXEL, MAX_PIXEL), help="Principal point x in pixels; defaults to the image centre."),
-            click.option("--cy", type=Bounded(-MAX_PIXEL, MAX_PIXEL), help="Principal point y in pixels; defaults to the image centre."),
-            click.option("--intrinsics", "intrinsics_file", type=click.Path(),
-                         help="JSON with fx, fy, cx, cy (or a 3x3 matrix), OpenCV's FileStorage YAML/XML "
-                              "(camera_matrix), a ROS camera_info YAML, or a calibration: anipose/Pose2Sim TOML "
-                              "or Qualisys .qca.txt (with --camera). A file that gives its image size must suit "
-                              "the input's: the same picture at another resolution is scaled (with a warning), "
-                              "another shape refused."),
-            click.option("--camera", help=camera_help),
-        ]):
-            f = opt(f)
-        return f
-    return decorate
+    return options(
+        click.option("--fx", type=Bounded(0, MAX_PIXEL, open_lo=True), show_default="from --intrinsics, else EXIF, else a 28 mm-equivalent lens",
+                     help="Focal length in pixels (x)."),
+        click.option("--fy", type=Bounded(0, MAX_PIXEL, open_lo=True), help="Focal length in pixels (y); defaults to fx."),
+        click.option("--cx", type=Bounded(-MAX_PIXEL, MAX_PIXEL), help="Principal point x in pixels; defaults to the image centre."),
+        click.option("--cy", type=Bounded(-MAX_PIXEL, MAX_PIXEL), help="Principal point y in pixels; defaults to the image centre."),
+        click.option("--intrinsics", "intrinsics_file", type=click.Path(),
+                     help="JSON with fx, fy, cx, cy (or a 3x3 matrix), OpenCV's FileStorage YAML/XML "
+                          "(camera_matrix), a ROS camera_info YAML, or a calibration: anipose/Pose2Sim TOML "
+                          "or Qualisys .qca.txt (with --camera). A file that gives its image size must suit "
+                          "the input's: the same picture at another resolution is scaled (with a warning), "
+                          "another shape refused."),
+        click.option("--camera", help=camera_help),
+    )
 
 
 def make_intrinsics_options(kwargs: dict) -> IntrinsicsOptions:
@@ -143,12 +142,11 @@ def make_intrinsics_options(kwargs: dict) -> IntrinsicsOptions:
     return IntrinsicsOptions(*(kwargs.pop(n) for n in ("fx", "fy", "cx", "cy", "intrinsics_file", "camera")))
 
 
-def height_option(f: Callable) -> Callable:
-    """--height, shared by `predict` and `fuse` (parsed by posecam.scale.heights.Heights.parse)."""
-    return click.option("--height", "heights", multiple=True, metavar="M[,M...]|ID=M",
-                        help="People's heights in metres, which fix their metric scale: one value for everyone, "
-                             "a list matched to the people tallest first (1.72,1.21), or per id (--height 0=1.72 "
-                             "--height 1=1.21).")(f)
+# --height, shared by `predict` and `fuse` (parsed by posecam.scale.heights.Heights.parse)
+height_option = click.option("--height", "heights", multiple=True, metavar="M[,M...]|ID=M",
+                             help="People's heights in metres, which fix their metric scale: one value for everyone, "
+                                  "a list matched to the people tallest first (1.72,1.21), or per id (--height 0=1.72 "
+                                  "--height 1=1.21).")
 
 
 @contextmanager
@@ -173,15 +171,12 @@ def stop_on_interrupt() -> Iterator[threading.Event]:
         signal.signal(signal.SIGINT, previous)
 
 
-def frame_options(f: Callable) -> Callable:
-    """--start, --end and --stride, shared by `predict` and `fuse`, read by `make_frame_selection`."""
-    for opt in reversed([
-        click.option("--start", metavar="N|Ts", help="First frame to read: a frame number (120) or a time (2s, 1.5s); default: 0."),
-        click.option("--end", metavar="N|Ts", help="Stop before this frame (a frame number or a time, e.g. 4s); default: the end."),
-        click.option("--stride", metavar="N|Ts", help="Read every Nth frame (a number of frames, or a time such as 0.1s); default: 1."),
-    ]):
-        f = opt(f)
-    return f
+# --start, --end and --stride, shared by `predict` and `fuse`, read by `make_frame_selection`
+frame_options = options(
+    click.option("--start", metavar="N|Ts", help="First frame to read: a frame number (120) or a time (2s, 1.5s); default: 0."),
+    click.option("--end", metavar="N|Ts", help="Stop before this frame (a frame number or a time, e.g. 4s); default: the end."),
+    click.option("--stride", metavar="N|Ts", help="Read every Nth frame (a number of frames, or a time such as 0.1s); default: 1."),
+)
 
 
 def make_frame_selection(kwargs: dict) -> FrameSelection | None:
@@ -192,42 +187,46 @@ def make_frame_selection(kwargs: dict) -> FrameSelection | None:
     return FrameSelection(start, end, stride) if (start, end, stride) != (None, None, None) else None
 
 
-def angle_options(f: Callable) -> Callable:
-    """--angles and --plot, shared by `predict` and `fuse` (posecam.analysis.angles, posecam.viz.plot)."""
-    f = click.option("--plot", type=click.Path(),
-                     help="FILE.png or FILE.html: each person's joint angles and root depth over time.")(f)
-    return click.option("--angles", is_flag=True,
-                        help="Add each person's joint and segment angles (degrees, Sports2D's and ISB's conventions, "
-                             "from the smoothed joints) to -o FILE.json or FILE.csv.")(f)
+# --angles and --plot, shared by `predict` and `fuse` (posecam.analysis.angles, posecam.viz.plot)
+angle_options = options(
+    click.option("--angles", is_flag=True,
+                 help="Add each person's joint and segment angles (degrees, Sports2D's and ISB's conventions, "
+                      "from the smoothed joints) to -o FILE.json or FILE.csv."),
+    click.option("--plot", type=click.Path(),
+                 help="FILE.png or FILE.html: each person's joint angles and root depth over time."),
+)
 
 
-def check_angles(angles: bool, output: str | None, plot: str | None) -> None:
-    """Refuse --angles without a JSON/CSV output to hold them, and a --plot of the wrong kind."""
+def check_pose_outputs(output: str | None, viz3d: str | None, angles: bool, plot: str | None) -> str | None:
+    """Refuse, before any work, a -o, --viz3d or --plot of the wrong kind and --angles without a
+    JSON/CSV output to hold them; the markers file (-o FILE.trc or FILE.c3d), if -o is one."""
+    from posecam.io.markers import MARKER_SUFFIXES
     from posecam.io.poses import POSE_SUFFIXES
+    from posecam.viz.render3d import VIEW3D_SUFFIXES
 
-    if angles and not (output and Path(output).suffix.lower() in POSE_SUFFIXES):
+    check_output(output, (*POSE_SUFFIXES, *MARKER_SUFFIXES), "output")
+    check_output(viz3d, VIEW3D_SUFFIXES, "--viz3d")
+    suffix = Path(output).suffix.lower() if output else ""
+    if angles and suffix not in POSE_SUFFIXES:
         raise InputError("--angles writes the angles into -o FILE.json or FILE.csv; give one (or only --plot)")
     check_output(plot, (".png", ".html"), "--plot")
+    return output if suffix in MARKER_SUFFIXES else None
 
 
 def many_options(unit: str) -> Callable:
     """The --out-dir/--format/--jobs/--ray options of `predict` (unit "input") and `fuse` ("take")."""
-    def decorate(f: Callable) -> Callable:
-        for opt in reversed([
-            click.option("--out-dir", type=click.Path(),
-                         help=f"Write one file per {unit} into this folder (DIR/<{unit} name>.json or .csv); "
-                              f"{unit}s whose file is already there are skipped."),
-            click.option("--format", "out_format", type=click.Choice(["json", "csv"]), default="json",
-                         show_default=True, help="File format with --out-dir."),
-            click.option("--jobs", type=click.IntRange(1, 64), default=1, show_default=True,
-                         help=f"Local worker processes with --out-dir, one {unit} each at a time."),
-            click.option("--ray", "ray_address", is_flag=False, flag_value="", default=None,
-                         help=f"Run one task per {unit} on a Ray cluster at ADDRESS (or a local instance when "
-                              "no address is given); needs --out-dir and `pip install 'ray>=2.9'`."),
-        ]):
-            f = opt(f)
-        return f
-    return decorate
+    return options(
+        click.option("--out-dir", type=click.Path(),
+                     help=f"Write one file per {unit} into this folder (DIR/<{unit} name>.json or .csv); "
+                          f"{unit}s whose file is already there are skipped."),
+        click.option("--format", "out_format", type=click.Choice(["json", "csv"]), default="json",
+                     show_default=True, help="File format with --out-dir."),
+        click.option("--jobs", type=click.IntRange(1, 64), default=1, show_default=True,
+                     help=f"Local worker processes with --out-dir, one {unit} each at a time."),
+        click.option("--ray", "ray_address", is_flag=False, flag_value="", default=None,
+                     help=f"Run one task per {unit} on a Ray cluster at ADDRESS (or a local instance when "
+                          "no address is given); needs --out-dir and `pip install 'ray>=2.9'`."),
+    )
 
 
 def progress_bar() -> Progress:
@@ -259,11 +258,8 @@ def check_output(path: str | None, suffixes: tuple[str, ...], what: str) -> None
 
 def refuse_alone(option: str, needs: str, given_with: bool) -> None:
     """Refuse an option typed on the command line without the one it depends on (`needs`)."""
-    from click.core import ParameterSource
-
-    ctx = click.get_current_context()
-    if ctx.get_parameter_source(option) == ParameterSource.COMMANDLINE and not given_with:
-        flag = next(p.opts[0] for p in ctx.command.params if p.name == option)
+    flag = typed(option)
+    if flag and not given_with:
         raise InputError(f"{flag} needs {needs}")
 
 
@@ -279,28 +275,11 @@ def typed(option: str) -> str | None:
     return (param.secondary_opts[0] if param.secondary_opts and value is False else param.opts[0])
 
 
-def refuse_typed(options: tuple[str, ...], needs: str, given_with: bool) -> None:
-    """`refuse_alone` for several options: the first of them typed, refused without `needs`."""
-    for option in options:
-        refuse_alone(option, needs, given_with)
-
-
 def warn_alone(option: str, note: str, given_with: bool) -> None:
     """Warn that an option typed on the command line does nothing here (`note` says why)."""
     flag = typed(option)
     if flag and not given_with:
         warn(f"{flag} {note}")
-
-
-def report_console():
-    """Where summaries go: stdout (no command writes poses to stdout; errors and warnings go to stderr)."""
-    from rich.console import Console
-
-    class ReportConsole(Console):
-        def on_broken_pipe(self) -> None:   # rich's own exits 1; posecam ends as Unix tools do
-            raise BrokenPipeError(32, "Broken pipe")
-
-    return ReportConsole(highlight=False)
 
 
 @contextmanager
@@ -312,8 +291,14 @@ def stdout_report() -> Iterator:
     import errno
     import sys
 
+    from rich.console import Console
+
+    class ReportConsole(Console):   # summaries go to stdout (errors and warnings to stderr)
+        def on_broken_pipe(self) -> None:   # rich's own exits 1; posecam ends as Unix tools do
+            raise BrokenPipeError(32, "Broken pipe")
+
     try:
-        yield report_console()
+        yield ReportConsole(highlight=False)
         sys.stdout.flush()
     except OSError as exc:
         if isinstance(exc, BrokenPipeError) or exc.errno == errno.EPIPE:
@@ -327,6 +312,32 @@ def shown(text: object) -> str:
     from rich.markup import escape
 
     return escape(printable(text))
+
+
+def report_table(title: str, columns: tuple[str, ...], folded: int = 1):
+    """A report table whose first `folded` columns (names) fold rather than lose a letter when
+    the console is narrow (80 columns in a pipe or a log); the others never wrap."""
+    from rich.table import Table
+
+    table = Table(title=title)
+    for i, col in enumerate(columns):
+        if i < folded:
+            table.add_column(col, overflow="fold")
+        else:
+            table.add_column(col, justify="right", no_wrap=True)
+    return table
+
+
+def with_spinner(what: str, work: Callable[[Callable[[str], None]], object]):
+    """`work(progress)` under a spinner on stderr saying `what`, then what each `progress(msg)`
+    says; the warnings of its result (`result.warnings`) warned once it is done."""
+    from rich.console import Console
+
+    with Console(stderr=True, highlight=False).status(what) as status:
+        result = work(lambda msg: status.update(msg))
+    for line in result.warnings:
+        warn(line)
+    return result
 
 
 def report_written(paths: list[str | None], console) -> None:

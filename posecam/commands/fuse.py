@@ -9,11 +9,11 @@ from typing import TYPE_CHECKING
 
 import click
 
-from posecam.commands.common import (ESTIMATOR_FLAGS, angle_options, check_angles, check_output, estimator_options,
+from posecam.commands.common import (ESTIMATOR_FLAGS, angle_options, check_output, check_pose_outputs, estimator_options,
                                      frame_options, frame_progress, intrinsics_options, make_estimator_options,
                                      make_frame_selection, make_intrinsics_options, many_options, progress_bar,
-                                     height_option, refuse_alone, refuse_typed, report_written, smooth_option,
-                                     stdout_report, shown, warn)
+                                     height_option, refuse_alone, report_table, report_written, smooth_option,
+                                     stdout_report, shown, warn, with_spinner)
 from posecam.errors import InputError
 from posecam.multiview.options import METHODS, FuseOptions
 
@@ -26,7 +26,7 @@ def _spread(rep) -> tuple[str, str, str]:
     focal = "fixed" if rep.intrinsics_fixed else "" if s is None else f"{s.focal_pct:.1f}"
     if s is None:
         return "", focal, ""
-    mark = "*" if getattr(rep, "unpinned", None) else ""          # not pinned by the people: a warning says why
+    mark = "*" if rep.unpinned else ""          # not pinned by the people: a warning says why
     return f"{s.rotation_deg:.2f}{mark}", focal + (mark if focal != "fixed" else ""), f"{s.position_mm:.0f}"
 
 
@@ -39,47 +39,40 @@ def _offset(rep, confidence: bool = True) -> str:
     return f"{rep.offset:g}{spread}" + (f" ({rep.offset_confidence:.2f})" if confidence else "")
 
 
-def _px(value: float) -> str:
+def px_text(value: float) -> str:
     """A reprojection error in px, "-" where the camera sees no joint another camera sees."""
     return f"{value:.1f}" if math.isfinite(value) else "-"
+
+
+def spreads_comment(rep) -> str:
+    """"; one standard deviation: rotation 0.12 deg, focal 1.3 %, position 25 mm", an estimated
+    camera's spreads for its TOML comment ("" for a given camera)."""
+    s = rep.spread
+    if s is None:
+        return ""
+    focal = "held (given)" if rep.intrinsics_fixed else f"{s.focal_pct:.1f} %"
+    return f"; one standard deviation: rotation {s.rotation_deg:.2f} deg, focal {focal}, position {s.position_mm:.0f} mm"
 
 
 def camera_comments(result: FusionResult) -> dict[str, str]:
     """One line per camera for the TOML: its offset and, when estimated, its spreads."""
     out = {}
     for rep in result.cameras:
-        line = f"offset {_offset(rep)} frames; reprojection {_px(rep.reprojection_px)} px"
-        if rep.spread is not None:
-            rot, focal, pos = (cell.rstrip("*") for cell in _spread(rep))
-            focal = "held (given)" if rep.intrinsics_fixed else f"{focal} %"
-            line += f"; one standard deviation: rotation {rot} deg, focal {focal}, position {pos} mm"
-            if getattr(rep, "unpinned", None):
-                line += "; not pinned by the people"
-        out[rep.name] = line
+        pinned = "; not pinned by the people" if rep.spread is not None and rep.unpinned else ""
+        out[rep.name] = (f"offset {_offset(rep)} frames; reprojection {px_text(rep.reprojection_px)} px"
+                         f"{spreads_comment(rep)}{pinned}")
     return out
-
-
-def _table(title: str, columns: tuple[str, ...]):
-    """A report table whose first column (the camera names) folds rather than lose a letter
-    when the console is narrow (80 columns in a pipe or a log); the others never wrap."""
-    from rich.table import Table
-
-    table = Table(title=title)
-    table.add_column(columns[0], overflow="fold")
-    for col in columns[1:]:
-        table.add_column(col, justify="right", no_wrap=True)
-    return table
 
 
 def camera_table(reports: list, title: str, offsets: bool = True):
     """The cameras at a glance, 80 columns wide: offset (`offsets`), reprojection error, focal
     length and, for an estimated rig, the spreads (posecam.multiview.report.CameraReport each)."""
     estimated = any(rep.spread is not None for rep in reports)
-    table = _table(title, ("camera", *(("offset\nframes",) if offsets else ()), "reproj.\npx", "focal\npx",
-                           *(("±rot\ndeg", "±focal\n%", "±pos\nmm") if estimated else ())))
+    table = report_table(title, ("camera", *(("offset\nframes",) if offsets else ()), "reproj.\npx", "focal\npx",
+                                 *(("±rot\ndeg", "±focal\n%", "±pos\nmm") if estimated else ())))
     for rep in reports:
         fx, fy = rep.intrinsics[:2]
-        table.add_row(shown(rep.name), *((_offset(rep, confidence=False),) if offsets else ()), _px(rep.reprojection_px),
+        table.add_row(shown(rep.name), *((_offset(rep, confidence=False),) if offsets else ()), px_text(rep.reprojection_px),
                       f"{fx:.0f}" if abs(fx - fy) < 0.5 else f"{fx:.0f}/{fy:.0f}", *(_spread(rep) if estimated else ()))
     return table
 
@@ -90,8 +83,8 @@ def print_report(result: FusionResult, console, verbose: bool = False) -> None:
     estimated = any(rep.spread is not None for rep in result.cameras)
     console.print(camera_table(result.cameras, f"posecam fuse: cameras ({result.recording.frame_of_reference})"))
     if verbose:
-        details = _table("cameras: details", ("camera", "offset\nconf.", "joints\nused", "L/R\nswaps", "cx, cy\npx",
-                                              "centre x, y, z\nm"))
+        details = report_table("cameras: details", ("camera", "offset\nconf.", "joints\nused", "L/R\nswaps",
+                                                    "cx, cy\npx", "centre x, y, z\nm"))
         for rep, cam in zip(result.cameras, result.rig.cameras):
             details.add_row(shown(rep.name), f"{rep.offset_confidence:.2f}", str(rep.joints_used), str(rep.swaps_fixed),
                             f"{rep.intrinsics[2]:.0f}, {rep.intrinsics[3]:.0f}",
@@ -105,7 +98,7 @@ def print_report(result: FusionResult, console, verbose: bool = False) -> None:
                      "length and position (at the rig's scale; the bootstrap's widened by the keypoints' bias)"
                      if estimated else "")
                   + ("; *: not pinned by the people (see the warning)"
-                     if any(getattr(rep, "unpinned", None) for rep in result.cameras) else "")
+                     if any(rep.unpinned for rep in result.cameras) else "")
                   + ("; offset conf.: --sync auto's confidence, 0 to 1; joints used: joint observations in it; L/R "
                      "swaps: frames with left and right swapped back" if verbose else
                      "; --verbose: each camera's joints used, left/right swaps, principal point and centre"),
@@ -180,28 +173,22 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     input: the videos are predicted with them, the pose files' poses lifted again through
     them (without, each camera's intrinsics come from its pose file, or posecam's default lens).
     """
-    from rich.console import Console
-
     from posecam.io.atomic import OutputSet
     from posecam.io.media import check_input
     from posecam.io.calibration import read_calibration, write_toml
-    from posecam.io.poses import POSE_SUFFIXES, write_poses
-    from posecam.io.markers import MARKER_SUFFIXES, check_markers_output, write_markers
+    from posecam.io.poses import write_poses
+    from posecam.io.markers import check_markers_output, write_markers
     from posecam.io.media import VIDEO_SUFFIXES
     from posecam.viz.sinks import PICTURE_SUFFIXES
     from posecam.scale.heights import Heights
     from posecam.multiview.fuse import fuse_recordings
     from posecam.multiview.options import finds_offsets
-    from posecam.viz.render3d import VIEW3D_SUFFIXES, write_3d_view
+    from posecam.viz.render3d import write_3d_view
     from posecam.analysis.angles import angle_names
     from posecam.options import PredictOptions
     from posecam.views import check_lenses, check_views, load_views
 
-    err = Console(stderr=True, highlight=False)
-    check_output(output, (*POSE_SUFFIXES, *MARKER_SUFFIXES), "output")
-    check_output(viz3d, VIEW3D_SUFFIXES, "--viz3d")
-    check_angles(angles, output, plot)
-    markers = output if output and Path(output).suffix.lower() in MARKER_SUFFIXES else None
+    markers = check_pose_outputs(output, viz3d, angles, plot)
     if markers:
         check_markers_output(markers, [*inputs, calibration])
     check_output(save_calibration, (".toml",), "--save-calibration")
@@ -224,7 +211,8 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
         raise InputError("--camera picks cameras inside --intrinsics FILE; --calibration matches its cameras to the "
                          "views by name (or, with as many cameras as views, in sorted order)")
     predicted = many or any(Path(p).suffix.lower() != ".json" for p in inputs)
-    refuse_typed(ESTIMATOR_FLAGS, "a video or image-folder input (pose files were predicted already)", predicted)
+    for flag in ESTIMATOR_FLAGS:
+        refuse_alone(flag, "a video or image-folder input (pose files were predicted already)", predicted)
     estimator, intrinsics = make_estimator_options(flags), make_intrinsics_options(flags)
     selection = make_frame_selection(flags)
     if selection and many:
@@ -250,10 +238,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
                                 on_frame=frame_progress(progress), chain=PredictOptions(smooth=smooth, frames=selection))
     if free_intrinsics and not any(r.intrinsics is not None and r.intrinsics.given for r in recordings):
         warn("--free-intrinsics changes nothing here: no view's lens was given, every focal length is estimated")
-    with err.status("fusing") as status:
-        result = fuse_recordings(recordings, opts, progress=lambda msg: status.update(msg))
-    for line in result.warnings:
-        warn(line)
+    result = with_spinner("fusing", lambda progress: fuse_recordings(recordings, opts, progress=progress))
     fused = result.recording
     with staged:  # every output or none
         written = write_markers(markers, fused, trc_y_up, staged) if markers else [output]

@@ -9,11 +9,11 @@ from pathlib import Path
 import click
 import numpy as np
 
-from posecam.commands.common import (angle_options, check_angles, check_output, estimator_options, floor_option,
-                                     frame_options, height_option, intrinsics_options, make_estimator_options,
-                                     make_frame_selection, make_intrinsics_options, make_predict_options, many_options,
-                                     progress_bar, refuse_alone, report_written, smooth_option, stdout_report, shown,
-                                     stop_on_interrupt, warn, warn_alone)
+from posecam.commands.common import (angle_options, check_output, check_pose_outputs, estimator_options, floor_option,
+                                     frame_options, frame_progress, height_option, intrinsics_options,
+                                     make_estimator_options, make_frame_selection, make_intrinsics_options,
+                                     make_predict_options, many_options, progress_bar, refuse_alone, report_table, report_written,
+                                     smooth_option, stdout_report, shown, stop_on_interrupt, warn, warn_alone)
 from posecam.errors import InputError, OutputError
 
 
@@ -50,18 +50,14 @@ class InputSummary:
 def print_summary(summaries: list[InputSummary], console, unreadable: int = 0) -> None:
     """Each person's mean root position, 80 columns wide: one input is named in the title,
     several in a first column (a long name folds rather than lose a letter)."""
-    from rich.table import Table
-
     from posecam.estimate import dropped_text
 
     root = summaries[0].rec.root_joint if summaries else "root"
     several = len(summaries) > 1
     name = "" if several or not summaries else f"{shown(Path(summaries[0].rec.source).name)}: "
-    table = Table(title=f"posecam: {name}{root} in camera coordinates (mm)")
-    if several:
-        table.add_column("input", overflow="fold")
-    for col in ("id", "frames", "x\nmm", "y\nmm", "z\nmm", "±z\nmm", "conf.", "height\nm"):
-        table.add_column(col, justify="right", no_wrap=True)
+    table = report_table(f"posecam: {name}{root} in camera coordinates (mm)",
+                         (*(("input",) if several else ()), "id", "frames", "x\nmm", "y\nmm", "z\nmm", "±z\nmm", "conf.",
+                          "height\nm"), folded=int(several))
     for sm in summaries:
         first = (shown(Path(sm.rec.source).name),) if several else ()
         for pid, (n, root_sum, conf_sum, height, sd_sum, sd_n) in sorted(sm.people.items()):
@@ -92,16 +88,12 @@ def print_summary(summaries: list[InputSummary], console, unreadable: int = 0) -
                           f"{dropped_text(sm.found.dropped)}")
         if sm.doubtful:
             console.print(f"{sm.doubtful} pose{'s' if sm.doubtful > 1 else ''} doubtful in {shown(Path(sm.rec.source).name)} "
-                          f"(kept, listed in the JSON's \"doubts\"): {doubts_text(sm.doubts)}")
+                          f"(kept, listed in the JSON's \"doubts\"): "
+                          + ", ".join(f"{n} {DOUBT_REASONS.get(d, d)}" for d, n in sorted(sm.doubts.items())))
 
 
 DOUBT_REASONS = {"off_body": "off the body (2D and 3D joints disagree)", "root_jump": "with a root jump",
                  "bones": "with limbs off the person's own"}
-
-
-def doubts_text(counts: dict[str, int]) -> str:
-    """"3 with a root jump, 1 with limbs off the person's own": how often each doubt was raised."""
-    return ", ".join(f"{n} {DOUBT_REASONS.get(d, d)}" for d, n in sorted(counts.items()))
 
 
 def predict_inputs(estimator, inputs: list[str], intrinsics, progress, options, writer=None, draw=None,
@@ -114,8 +106,6 @@ def predict_inputs(estimator, inputs: list[str], intrinsics, progress, options, 
     source ends when it is set, and its pose file is flushed frame by frame. The chain's
     warnings are posecam.errors.warn's, as an API caller gets them (an input without anyone
     kept among them: posecam.estimate.Found.nobody)."""
-    from posecam.commands.common import frame_progress
-
     taps = {"confirm": frame_progress(progress), "written": draw}
     recordings, summaries = [], []
     for path in inputs:
@@ -192,12 +182,12 @@ def predict_command(inputs, output, viz, out_dir, out_format, jobs, ray_address,
     """
     from posecam.estimate import shared_estimator
     from posecam.io.atomic import OutputSet
-    from posecam.io.poses import POSE_SUFFIXES, PoseWriter
-    from posecam.io.markers import MARKER_SUFFIXES, check_markers_output, write_markers
+    from posecam.io.poses import PoseWriter
+    from posecam.io.markers import check_markers_output, write_markers
     from posecam.io.media import VIDEO_SUFFIXES, expand_inputs, is_stream, open_media
     from posecam.viz.draw import draw_people
     from posecam.viz.sinks import PICTURE_SUFFIXES, VideoSink, WindowSink, check_window, write_image
-    from posecam.viz.render3d import VIEW3D_SUFFIXES, write_3d_view
+    from posecam.viz.render3d import write_3d_view
     from posecam.analysis.angles import add_angles, angle_names
     from posecam.viz.plot import AngleSeries, write_plot
 
@@ -209,10 +199,7 @@ def predict_command(inputs, output, viz, out_dir, out_format, jobs, ray_address,
         raise InputError(f"no readable input: the {len(unreadable)} photos given cannot be read")
     inputs = [str(p) for p in paths]
     viz_folder = bool(viz) and (len(inputs) > 1 or viz.endswith(("/", os.sep)) or os.path.isdir(viz))
-    check_output(output, (*POSE_SUFFIXES, *MARKER_SUFFIXES), "output")
-    check_output(viz3d, VIEW3D_SUFFIXES, "--viz3d")
-    check_angles(angles, output, plot)
-    markers = output if output and Path(output).suffix.lower() in MARKER_SUFFIXES else None
+    markers = check_pose_outputs(output, viz3d, angles, plot)
     refuse_alone("trc_y_up", "-o FILE.trc or FILE.c3d", bool(markers))
     refuse_alone("out_format", "--out-dir", bool(out_dir))
     for flag, value in (("-o FILE.trc/.c3d", markers), ("--viz3d", viz3d), ("--plot", plot)):
