@@ -481,11 +481,8 @@ def expand_inputs(paths: list[str | os.PathLike], strict: bool = True) -> tuple[
             expanded.append(str(p))
             continue
         p = check_input(p)
-        if not p.is_dir():
-            expanded.append(p)
-            continue
-        kind, files = folder_kind(p)
-        if kind == "sequence":
+        kind, files = folder_kind(p) if p.is_dir() else ("file", [])
+        if kind != "photos":
             expanded.append(p)
             continue
         for photo in files:
