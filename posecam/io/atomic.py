@@ -205,11 +205,10 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         _publish(tmp_path, target)
         if not any(_STALE.match(part) for part in Path(target).parts):   # a staged file is not an output yet
             _committed.append(target)
-    except OSError as exc:
+    except BaseException as exc:
         tmp_path.unlink(missing_ok=True)
-        raise OutputError(f"cannot write {target}: {_describe(exc)}") from None
-    except BaseException:
-        tmp_path.unlink(missing_ok=True)
+        if isinstance(exc, OSError):
+            raise OutputError(f"cannot write {target}: {_describe(exc)}") from None
         raise
 
 
