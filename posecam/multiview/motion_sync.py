@@ -15,13 +15,18 @@ from dataclasses import dataclass
 import numpy as np
 
 from posecam.geometry.triangulate import MIN_CONFIDENCE
-from posecam.multiview.observations import PersonTracks, Take, lowpass, shift
+from posecam.multiview.observations import PersonTracks, Take, ViewTrack, lowpass, shift
 from posecam.multiview.policy import SYNC
+
+
+def _seen(xyz: np.ndarray, conf: np.ndarray, min_conf: float) -> np.ndarray:
+    """(F, J) where a joint and the root (joint 0) are seen (conf >= min_conf)."""
+    return (conf >= min_conf) & (conf[:, :1] >= min_conf) & np.isfinite(xyz).all(axis=-1)
 
 
 def _smoothed(xyz: np.ndarray, conf: np.ndarray, fps: float, min_conf: float) -> tuple[np.ndarray, np.ndarray]:
     """(F, J, 3) joints about the root (joint 0), gaps bridged, low-passed; (F, J) where seen."""
-    seen = (conf >= min_conf) & (conf[:, :1] >= min_conf) & np.isfinite(xyz).all(axis=-1)
+    seen = _seen(xyz, conf, min_conf)
     out = lowpass(xyz - xyz[:, :1], seen, fps, SYNC.lowpass_hz)
     out[:, 0] = np.nan
     return out, seen & np.isfinite(out).all(axis=-1)
@@ -162,19 +167,24 @@ def _resamples(n: int, k: int, seed: int) -> Resamples:
     return Resamples(frames, columns)
 
 
+def shared_tracks(take: Take, people: list[PersonTracks], v: int) -> list[list[ViewTrack]] | None:
+    """The tracks of the people view v shares with the reference, the reference's and v's
+    (PersonTracks.in_view); None when they share nobody."""
+    shared = [p for p in people if take.reference in p.views and v in p.views]
+    return [[p.in_view(u, take.lengths[u]) for p in shared] for u in (take.reference, v)] if shared else None
+
+
 def shared_motion(take: Take, people: list[PersonTracks], v: int,
                    min_conf: float) -> tuple[np.ndarray, np.ndarray, float] | None:
     """Motion signals (`motion_signals`) of the people view v shares with the reference, the
     reference's and v's side by side, and the smaller of their excursions (mm); None when they
     share nobody."""
-    ref = take.reference
-    shared = [p for p in people if ref in p.views and v in p.views]
-    if not shared:
+    tracks = shared_tracks(take, people, v)
+    if tracks is None:
         return None
     signals, excursion = [], []
-    for u in (ref, v):
-        tracks = [p.in_view(u, take.lengths[u]) for p in shared]
-        parts = [motion_signals(t.xyz, t.conf, take.fps, min_conf) for t in tracks]
+    for view in tracks:
+        parts = [motion_signals(t.xyz, t.conf, take.fps, min_conf) for t in view]
         signals.append(np.concatenate([s for s, _ in parts], axis=1))
         excursion.append(max(e for _, e in parts))
     return signals[0], signals[1], min(excursion)
@@ -184,19 +194,5 @@ def holds_still(take: Take, min_conf: float) -> bool:
     """Whether nobody moves in any view (a static trial): every track's joints move less than
     SYNC.min_motion about its root (`_excursion` of the joints as observed: a take too short to
     low-pass is judged too). Nothing pins such a take's offsets, and nothing needs them."""
-    def excursion(xyz: np.ndarray, conf: np.ndarray) -> float:
-        seen = (conf >= min_conf) & (conf[:, :1] >= min_conf) & np.isfinite(xyz).all(axis=-1)
-        return _excursion(xyz - xyz[:, :1], seen)
-
-    return all(excursion(t.xyz, t.conf) < SYNC.min_motion for tracks in take.tracks for t in tracks)
-
-
-def shared_excursion(take: Take, people: list[PersonTracks], v: int, min_conf: float) -> float | None:
-    """`shared_motion`'s excursion alone (mm), without the signals; None when view v shares
-    nobody with the reference."""
-    shared = [p for p in people if take.reference in p.views and v in p.views]
-    if not shared:
-        return None
-    tracks = [[p.in_view(u, take.lengths[u]) for p in shared] for u in (take.reference, v)]
-    return min(max(_excursion(*_smoothed(t.xyz, t.conf, take.fps, min_conf)) for t in view) for view in tracks)
-
+    return all(_excursion(t.xyz - t.xyz[:, :1], _seen(t.xyz, t.conf, min_conf)) < SYNC.min_motion
+               for tracks in take.tracks for t in tracks)

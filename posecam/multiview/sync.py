@@ -27,7 +27,7 @@ import numpy as np
 
 from posecam.geometry.camera import Rig
 from posecam.multiview.coarse_sync import bone_correlations, bone_directions, sampling_step
-from posecam.multiview.motion_sync import keypoint_speed, motion_offset, shared_excursion
+from posecam.multiview.motion_sync import keypoint_speed, motion_offset, motion_signals, shared_tracks
 from posecam.multiview.observations import PersonTracks, Take, ViewTrack, lowpass
 from posecam.multiview.options import FuseOptions
 from posecam.multiview.policy import SYNC
@@ -64,18 +64,13 @@ def _rig_offsets(take: Take, people: list[PersonTracks], rig: Rig, start: list[f
     carry each frame's noise into the parabola that places the offset between frames (the lab
     calibration, single take: 0.91 frame off the bench's offsets and the pelvis 6 mm off unfiltered,
     0.69 and 4 mm filtered; two people: 2.5 frames, 20 mm either way)."""
-    views = list(range(len(rig.cameras)))
     uv, conf = [], []
-    for v in views:
+    for v in range(len(rig.cameras)):
         arrays = [_low_passed(p.in_view(v, take.lengths[v]), take.fps) for p in people if len(p.views) > 1]
         uv.append(np.concatenate([a[0] for a in arrays], axis=1))
         conf.append(np.concatenate([a[1] for a in arrays], axis=1))
-    result = estimate_offsets(rig.cameras, uv, conf, views.index(take.reference), max_offset,
-                              start=[start[v] for v in views])
-    full, confidence = list(start), [1.0] * len(take.names)
-    for i, v in enumerate(views):
-        full[v], confidence[v] = result.offsets[i], result.confidence[i]
-    return SyncResult(full, confidence, result.warnings)
+    result = estimate_offsets(rig.cameras, uv, conf, take.reference, max_offset, start=start)
+    return SyncResult(result.offsets, result.confidence, result.warnings)
 
 
 def _low_passed(track: ViewTrack, fps: float) -> tuple[np.ndarray, np.ndarray]:
@@ -84,18 +79,6 @@ def _low_passed(track: ViewTrack, fps: float) -> tuple[np.ndarray, np.ndarray]:
     seen = (track.conf > 0) & np.isfinite(track.uv).all(axis=-1)
     uv = np.where(seen[..., None], lowpass(track.uv, seen, fps, SYNC.rig_lowpass_hz), np.nan)
     return uv, np.where(np.isfinite(uv).all(axis=-1), track.conf, 0.0)
-
-
-def _shared_bones(take: Take, people: list[PersonTracks], v: int, min_conf: float) -> tuple[np.ndarray, np.ndarray]:
-    """The bone directions (`bone_directions`) of the people view v shares with the reference,
-    the reference's and v's, each (F_view, P * B, 3), people side by side."""
-    shared = [p for p in people if take.reference in p.views and v in p.views]
-    out = []
-    for u in (take.reference, v):
-        tracks = [p.in_view(u, take.lengths[u]) for p in shared]
-        out.append(np.concatenate([bone_directions(t.xyz, t.conf, take.joints, take.fps, min_conf) for t in tracks],
-                                  axis=1))
-    return out[0], out[1]
 
 
 def _motion_offsets(take: Take, people: list[PersonTracks], start: list[float], min_conf: float) -> SyncResult:
@@ -111,17 +94,18 @@ def _motion_offsets(take: Take, people: list[PersonTracks], start: list[float], 
     for v in range(n_views):
         if v == ref:
             continue
-        excursion = shared_excursion(take, people, v, min_conf)
-        if excursion is None:
+        tracks = shared_tracks(take, people, v)
+        if tracks is None:
             confidence[v], spread[v] = 0.0, np.inf
             continue
-        a, b = _shared_bones(take, people, v, min_conf)
+        excursion = min(max(motion_signals(t.xyz, t.conf, take.fps, min_conf)[1] for t in view) for view in tracks)
+        a, b = (np.concatenate([bone_directions(t.xyz, t.conf, take.joints, take.fps, min_conf) for t in view], axis=1)
+                for view in tracks)
         sampled = np.arange(0, len(a), sampling_step(take.fps, len(a)))     # a long take's
         m = motion_offset(lambda lag, resamples: bone_correlations(a, b, lag, resamples, sampled), len(sampled),
                           a.shape[1], start[v], SYNC.fine_window)
         confidence[v], spread[v] = max(float(np.nan_to_num(m.correlation)), 0.0), m.spread
-        speeds = np.array([keypoint_speed(t.uv, t.conf, take.fps, min_conf) for t in
-                           (p.in_view(v, take.lengths[v]) for p in people if ref in p.views and v in p.views)])
+        speeds = np.array([keypoint_speed(t.uv, t.conf, take.fps, min_conf) for t in tracks[1]])
         speed = float(np.nanmedian(speeds)) if np.isfinite(speeds).any() else np.nan
         why = None
         if excursion < SYNC.min_motion:
