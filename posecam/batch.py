@@ -169,16 +169,13 @@ def _start_worker() -> None:
 
 
 def _guarded(work: Callable[[Task], str], task: Task, tag: str) -> tuple[str, list[StagedOutputs]]:
-    """`work` on `task` in a worker process, its outputs verified and left staged (under the
-    run's tag) for the run's own process to commit."""
+    """`_staged_work` in a worker process: no task starts after a signal."""
     global _busy
     if _stopping:
         raise KeyboardInterrupt
     _busy = True
     try:
-        with tagged_staging(tag), deferred_commit() as staged:
-            output = work(task)
-        return output, staged
+        return _staged_work(work, task, tag)
     except KeyboardInterrupt:
         if _stopping:   # the task's `with` blocks have removed what it staged: nothing to report
             os._exit(130)
@@ -247,9 +244,10 @@ RAY_UNWIND = 1.0   # seconds cancelled Ray tasks have to stop (their `with` bloc
 RAY_KILL = 0.5     # seconds to wait for the tasks still running after that to be killed
 
 
-def _call_on_ray(work: Callable[[Task], str], task: Task, tag: str) -> tuple[str, list[StagedOutputs]]:
-    """`work` on `task`, its outputs verified and left staged for the driver to commit; what it
-    stages carries the run's tag, for the run to remove should the task be killed."""
+def _staged_work(work: Callable[[Task], str], task: Task, tag: str) -> tuple[str, list[StagedOutputs]]:
+    """`work` on `task` in a worker or Ray task, its outputs verified and left staged for the run's
+    own process to commit; what it stages carries the run's tag, for the run to remove should the
+    task be killed."""
     with tagged_staging(tag), deferred_commit() as staged:
         output = work(task)
     return output, staged
@@ -265,7 +263,7 @@ def _run_on_ray(tasks: list[Task], work: Callable[[Task], str], address: str) ->
         raise InputError(RAY_HINT) from None
     _start_ray(ray, address)
     tag = f"r{secrets.token_hex(4)}"
-    remote = ray.remote(num_cpus=1)(_call_on_ray)
+    remote = ray.remote(num_cpus=1)(_staged_work)
     pending = [remote.remote(work, t, tag) for t in tasks]
     finished = False
     try:

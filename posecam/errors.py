@@ -55,7 +55,7 @@ def on_signal(signum: int, frame: object = None) -> None:
     """The CLI's handler for Ctrl-C and SIGTERM: the signal is noted, so that no output is
     committed after it even where a library swallows the exception, then raised."""
     note_signal(signum)
-    raise Terminated if signum == signal.SIGTERM else KeyboardInterrupt
+    raise_if_signalled()
 
 
 def note_signal(signum: int) -> None:

@@ -94,7 +94,8 @@ def load_views(inputs: list[str], options: EstimatorOptions | None = None, intri
     if rig is not None and not calibration:     # a Rig without its file: each view's camera sized to its images
         sizes = [(media[path].width, media[path].height) if r is None else (r.width, r.height) for path, r in views]
         names = rig.match_names([Path(p).stem for p in sources])[0]
-        lenses = [_rig_lens(rig, name, w, h) for name, (w, h) in zip(names, sizes)]
+        lenses = [dataclasses.replace(rig.camera_for(name, w, h).intrinsics, source=f"calibration#{name}")
+                  for name, (w, h) in zip(names, sizes)]
     else:                                       # fuse's given cameras say how they matched, once
         lenses = view_intrinsics(sources, intrinsics, calibration, rig, say_match=False)
     ks = {path: k for (path, r), k in zip(views, lenses) if r is None}
@@ -121,12 +122,6 @@ def check_lenses(calibration: str | Rig | None, intrinsics: IntrinsicsOptions | 
     """Refuse a lens given twice: a calibration gives every view's, so no --intrinsics or --fx/--fy."""
     if calibration is not None and intrinsics is not None and _gives_lens(intrinsics):
         raise InputError("--calibration gives every camera's intrinsics; it does not go with --intrinsics or --fx/--fy")
-
-
-def _rig_lens(rig: Rig, camera: str, width: int, height: int) -> Intrinsics:
-    """The lens of `rig`'s camera `camera` for a view of this size (a Rig given without its file)."""
-    k = rig.camera_for(camera, width, height).intrinsics
-    return dataclasses.replace(k, source=f"calibration#{camera}")
 
 
 def _gives_lens(opts: IntrinsicsOptions | Intrinsics) -> bool:

@@ -105,15 +105,6 @@ floor_option = click.option("--floor/--no-floor", default=MetricOptions.floor, s
                             help="Fit the ground plane under everyone's feet (static camera) and put each person on it.")
 
 
-def make_predict_options(smooth: bool, frames: FrameSelection | None, heights: tuple[str, ...],
-                         floor: bool) -> PredictOptions:
-    """The PredictOptions of a command's flags (--smooth, --start/--end/--stride, --height, --floor)."""
-    from posecam.scale.heights import Heights
-
-    return PredictOptions(smooth=smooth, metric=MetricOptions(heights=Heights.parse(heights), floor=floor),
-                          frames=frames)
-
-
 def intrinsics_options(per_camera: bool = False) -> Callable:
     """The intrinsics flags shared by `predict` and `fuse` (`per_camera`: --camera names one camera per video)."""
     camera_help = ("Camera names inside the --intrinsics calibration, one per view in the order of the inputs "

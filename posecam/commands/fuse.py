@@ -163,7 +163,7 @@ def parse_offsets(text: str) -> list[float]:
 @intrinsics_options(per_camera=True)
 def fuse_command(inputs, output, calibration, save_calibration, method, sync, offsets, max_offset, viz,
                  free_intrinsics, viz3d, smooth, trc_y_up, out_dir, out_format, jobs, ray_address, heights, angles,
-                 plot, **flags) -> None:
+                 plot, verbose, **flags) -> None:
     """Fuse several cameras' views of one scene.
 
     INPUTS are 2 or more videos, image folders or `posecam predict` JSON files, one per
@@ -174,11 +174,10 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     them (without, each camera's intrinsics come from its pose file, or posecam's default lens).
     """
     from posecam.io.atomic import OutputSet
-    from posecam.io.media import check_input
     from posecam.io.calibration import read_calibration, write_toml
     from posecam.io.poses import write_poses
     from posecam.io.markers import check_markers_output, write_markers
-    from posecam.io.media import VIDEO_SUFFIXES
+    from posecam.io.media import VIDEO_SUFFIXES, check_input
     from posecam.viz.sinks import PICTURE_SUFFIXES
     from posecam.scale.heights import Heights
     from posecam.multiview.fuse import fuse_recordings
@@ -204,7 +203,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     many = out_dir is not None or jobs > 1 or ray_address is not None
     if not many:
         check_views(list(inputs))     # before any work: one video, a folder of videos
-    if many and (output or viz or viz3d or save_calibration or angles or plot or flags.get("verbose")):
+    if many and (output or viz or viz3d or save_calibration or angles or plot or verbose):
         raise InputError("--out-dir writes one file per take; it does not go with -o, --viz, --viz3d, --save-calibration, "
                          "--angles, --plot or --verbose (the camera table)")
     if calibration and flags.get("camera"):
@@ -268,5 +267,5 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
                 series.add(frame)
             write_plot(staged.path(plot), series, f"fused {len(result.views)} views")
         with stdout_report() as console:   # stdout is an output too: written before the files are
-            print_report(result, console, flags.pop("verbose", False))
+            print_report(result, console, verbose)
             report_written([*written, save_calibration, viz, viz3d, plot], console)

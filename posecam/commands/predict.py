@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from collections import Counter
 from contextlib import ExitStack
 from pathlib import Path
 
@@ -12,7 +13,7 @@ import numpy as np
 from posecam.commands.common import (angle_options, check_output, check_pose_outputs, estimator_options, floor_option,
                                      frame_options, frame_progress, height_option, intrinsics_options,
                                      make_estimator_options, make_frame_selection, make_intrinsics_options,
-                                     make_predict_options, many_options, progress_bar, refuse_alone, report_table, report_written,
+                                     many_options, progress_bar, refuse_alone, report_table, report_written,
                                      smooth_option, stdout_report, shown, stop_on_interrupt, warn, warn_alone)
 from posecam.errors import InputError, OutputError
 
@@ -28,14 +29,13 @@ class InputSummary:
         # id -> [frames, sum of root (3,), sum of mean confidence, height, sum and count of depth_sd]
         self.people: dict[int, list] = {}
         self.doubtful = 0                      # poses written with doubts (posecam.analysis.doubts) ...
-        self.doubts: dict[str, int] = {}       # ... and how often each doubt was raised
+        self.doubts: Counter[str] = Counter()  # ... and how often each doubt was raised
 
     def add(self, frame) -> None:
         self.frames += 1
         for p in frame.people:
             self.doubtful += bool(p.doubts)
-            for d in p.doubts:
-                self.doubts[d] = self.doubts.get(d, 0) + 1
+            self.doubts.update(p.doubts)
             totals = self.people.setdefault(p.id, [0, 0.0, 0.0, "", 0.0, 0])
             totals[0] += 1
             totals[1] = totals[1] + p.root
@@ -190,6 +190,9 @@ def predict_command(inputs, output, viz, out_dir, out_format, jobs, ray_address,
     from posecam.viz.render3d import write_3d_view
     from posecam.analysis.angles import add_angles, angle_names
     from posecam.viz.plot import AngleSeries, write_plot
+    from posecam.options import PredictOptions
+    from posecam.scale.heights import Heights
+    from posecam.scale.metric import MetricOptions
 
     refuse_alone("strict", "a folder of photos among the inputs", any(os.path.isdir(p) for p in inputs))
     paths, unreadable = expand_inputs(inputs, strict)   # a folder of photos: each photo an input
@@ -207,7 +210,8 @@ def predict_command(inputs, output, viz, out_dir, out_format, jobs, ray_address,
             raise InputError(f"{flag} holds one input; pass a single input (or write .json)")
     opts, intrinsics = make_estimator_options(flags), make_intrinsics_options(flags)
     selection = make_frame_selection(flags)
-    chain = make_predict_options(smooth, selection, heights, floor)
+    chain = PredictOptions(smooth=smooth, metric=MetricOptions(heights=Heights.parse(heights), floor=floor),
+                           frames=selection)
     if out_dir or jobs > 1 or ray_address is not None:
         if output or viz or viz3d or plot or angles or show:
             raise InputError("--out-dir writes one file per input; it does not go with -o, --viz, --viz3d, --angles, "
