@@ -43,7 +43,7 @@ from posecam.multiview.coarse_sync import coarse_offsets
 from posecam.multiview.sync import SyncResult, synchronise
 from posecam.multiview.take_check import check_take
 from posecam.multiview.motion_sync import holds_still
-from posecam.multiview.world import below_floor, floor_world
+from posecam.multiview.world import FLOOR, on_floor
 from posecam.analysis.angles import add_angles
 from posecam.analysis.filters import smooth_recording
 from posecam.results import Frame, Person, Recording
@@ -85,12 +85,6 @@ def _to_recording(fused: list[FusedPerson], rig: Rig, ref_index: int, ref: Recor
                      rig.frame_of_reference)
 
 
-def given_cameras(take: Take, calibration: Rig) -> KeptCameras:
-    """The calibration's cameras matched to the views (Rig.match), every view kept."""
-    cams, note = calibration.match(take.names, [c.size for c in take.assumed])
-    return KeptCameras(Rig(cams, None), list(range(len(cams))), [note] if note else [])
-
-
 def start_offsets(take: Take, opts: FuseOptions) -> list[float]:
     """Where the offsets start: the ones given; to be found without a calibration in step
     (Rig.synchronised), where the views' bones move alike
@@ -100,15 +94,6 @@ def start_offsets(take: Take, opts: FuseOptions) -> list[float]:
     if opts.sync and not opts.synchronised_rig:
         return coarse_offsets(take, opts)
     return [0.0] * len(take.names)
-
-
-def _offsets(take: Take, association: Association, rig: Rig | None, start: list[float], opts: FuseOptions,
-             say: Callable[[str], None]) -> SyncResult:
-    """The views' offsets: estimated with `sync`, else the ones given (zeros by default)."""
-    if not opts.sync:
-        return SyncResult(start, [1.0] * len(start), [])
-    say("synchronising")
-    return synchronise(take, association.people, rig, start, opts)
 
 
 def refined_offsets(sync: SyncResult, cameras: KeptCameras) -> SyncResult:
@@ -187,13 +172,19 @@ def _fuse(recordings: list[Recording], opts: FuseOptions, progress: Callable[[st
     if still:                                                   # through a rig: no offsets are needed
         opts = replace(opts, sync=False, offsets=[0.0] * len(take.names))
         take.warnings.append("nobody moves in this take: its views are fused at offset 0 (no sync is needed)")
-    given = given_cameras(take, opts.calibration) if opts.calibration is not None else None
+    given = None
+    if opts.calibration is not None:               # matched to the views (Rig.match), every view kept
+        cams, note = opts.calibration.match(take.names, [c.size for c in take.assumed])
+        given = KeptCameras(Rig(cams, None), list(range(len(cams))), [note] if note else [])
     rig = given.rig if given else None
     start = start_offsets(take, opts)
 
     say("associating people across views")
     association = associate_people(take, rig, start, opts)
-    sync = _offsets(take, association, rig, start, opts, say)
+    sync = SyncResult(start, [1.0] * len(start), [])            # the offsets given (zeros by default)
+    if opts.sync:
+        say("synchronising")
+        sync = synchronise(take, association.people, rig, start, opts)
     if given and opts.sync:                  # through a rig, who is who depends on the offsets
         association = associate_people(take, rig, sync.offsets, opts)
     if given:
@@ -247,11 +238,6 @@ def floor_rig(result: FusionResult) -> tuple[Rig, str, list[str]]:
         return rig, rig.frame_of_reference, []
     poses = np.stack([p.keypoints_3d for p in people])
     conf = np.stack([p.confidence for p in people])
-    world = floor_world(rig, poses, np.where(np.isfinite(poses).all(axis=-1), conf, 0.0), result.recording.joints)
-    if isinstance(world, str):
-        return rig, rig.frame_of_reference, [f"the calibration is written in camera {rig.reference}'s frame, not the "
-                                             f"floor's: {world}"]
-    moved = world.rig(rig)
-    low = below_floor(moved)
-    lines = [f"camera {', '.join(low)} lies under the floor the people stand on: check the rig"] if low else []
-    return moved, "the floor under the people (Z up, metres in the TOML)", lines
+    moved, no_floor, lines = on_floor(rig, poses, np.where(np.isfinite(poses).all(axis=-1), conf, 0.0),
+                                      result.recording.joints, "calibration")
+    return moved, rig.frame_of_reference if no_floor else FLOOR, lines

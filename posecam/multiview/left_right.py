@@ -59,27 +59,19 @@ def find_swaps(cams: list[CameraCalibration], uv: np.ndarray, conf: np.ndarray, 
     return swaps
 
 
-def fix_swaps(cams: list[CameraCalibration], uv: np.ndarray, xyz: np.ndarray, conf: np.ndarray,
-              flip: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """One person's (V, F, J, ...) arrays with each view's swapped frames exchanged back, and the
-    (V,) number of frames fixed per view."""
-    swaps = find_swaps(cams, uv, conf, flip)
-    uv, xyz, conf = uv.copy(), xyz.copy(), conf.copy()
-    v, f = np.nonzero(swaps)
-    uv[v, f], xyz[v, f], conf[v, f] = uv[v, f][:, flip], xyz[v, f][:, flip], conf[v, f][:, flip]
-    return uv, xyz, conf, swaps.sum(axis=1)
-
-
 def fix_people(rig: Rig, people: list[Observations], joints: tuple[str, ...]) -> tuple[list[Observations], np.ndarray]:
-    """The people (their views the rig's cameras) with the swaps `fix_swaps` finds undone, where
+    """The people (their views the rig's cameras) with the swaps `find_swaps` finds undone, where
     three views or more see them (with two a swap cannot show), and the (V,) frames fixed per view."""
     flip = skeleton_of(joints).flip_indices
     swaps = np.zeros(len(rig.cameras), int)
     out = []
     for obs in people:
         if ((obs.conf.max(axis=-1) > 0).sum(axis=0) >= 3).any():
-            uv, xyz, conf, fixed = fix_swaps(rig.cameras, obs.uv, obs.xyz, obs.conf, flip)
-            obs, swaps = Observations(uv, xyz, conf, obs.score), swaps + fixed
+            found = find_swaps(rig.cameras, obs.uv, obs.conf, flip)
+            uv, xyz, conf = obs.uv.copy(), obs.xyz.copy(), obs.conf.copy()
+            v, f = np.nonzero(found)
+            uv[v, f], xyz[v, f], conf[v, f] = uv[v, f][:, flip], xyz[v, f][:, flip], conf[v, f][:, flip]
+            obs, swaps = Observations(uv, xyz, conf, obs.score), swaps + found.sum(axis=1)
         out.append(obs)
     return out, swaps
 

@@ -32,6 +32,7 @@ each take is one camera; a take may lack one). The stages, one line each in `_ca
 
 from __future__ import annotations
 
+from collections import Counter
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
 
@@ -53,7 +54,7 @@ from posecam.multiview.policy import CALIBRATION
 from posecam.multiview.report import CameraReport
 from posecam.multiview.sync import SyncResult, synchronise
 from posecam.multiview.take_check import check_take, view_names
-from posecam.multiview.world import World, below_floor, floor_world
+from posecam.multiview.world import FLOOR, on_floor
 from posecam.results import Recording
 
 
@@ -139,14 +140,9 @@ def _calibrate(takes: dict[str, list[Recording]], opts: FuseOptions, say: Callab
     spreads = cameras.spreads and [replace(s, position_mm=s.position_mm * factor) for s in cameras.spreads]
     reports = _camera_reports(rig, fixed, cameras, spreads, opts)
     take_reports = _take_reports(rig, prepared, left_out, own, opts)
-    world, how = _world(rig, fixed, joints, opts)
-    if isinstance(world, str):
-        warnings.append(f"the rig is written in camera {rig.reference}'s frame, not the floor's: {world}")
-    else:
-        rig = world.rig(rig)
-        low = below_floor(rig)
-        if low:
-            warnings.append(f"camera {', '.join(low)} lies under the floor the people stand on: check the rig")
+    rig, no_floor, world_lines = _world(rig, fixed, joints, opts)      # the rig as it was where no floor
+    how = f"camera {rig.reference}'s frame (no floor: {no_floor})" if no_floor else FLOOR
+    warnings += world_lines
     for p in prepared:
         if p.still:
             warnings.append(f"take {p.name}: nobody moves, so its views need no offsets: taken at 0")
@@ -305,17 +301,8 @@ def disagreeing(a: Rig, b: Rig) -> dict[str, str]:
     return out
 
 
-def _observed(people: list[Observations], blocks: list[int], n_cameras: int, min_conf: float) -> dict:
-    """(take, camera) -> its confident joint observations."""
-    counts: dict[tuple[int, int], int] = {}
-    for p, t in zip(people, blocks):
-        for c in range(n_cameras):
-            counts[(t, c)] = counts.get((t, c), 0) + int((p.conf[c] >= min_conf).sum())
-    return counts
-
-
 def _placed_apart(prepared: list[_Prepared], own: list[Rig | None], names: list[str],
-                  counts: dict) -> list[tuple[int, int, str]]:
+                  counts: Counter) -> list[tuple[int, int, str]]:
     """The (take, camera) pairs the takes' own rigs place differently (`disagreeing`), how: the
     pair that disagrees with most other takes first (on a tie, the one with fewer observations
     of the camera: the session follows the most data), until no two takes disagree."""
@@ -326,11 +313,8 @@ def _placed_apart(prepared: list[_Prepared], own: list[Rig | None], names: list[
                 pairs += [(s, t, names.index(n), how) for n, how in disagreeing(own[s], own[t]).items()]
     out = []
     while pairs:
-        votes: dict[tuple[int, int], int] = {}
-        for s, t, c, _ in pairs:
-            votes[(s, c)] = votes.get((s, c), 0) + 1
-            votes[(t, c)] = votes.get((t, c), 0) + 1
-        t, c = max(votes, key=lambda k: (votes[k], -counts.get(k, 0)))
+        votes = Counter(k for s, t, c, _ in pairs for k in ((s, c), (t, c)))
+        t, c = max(votes, key=lambda k: (votes[k], -counts[k]))
         s, u, _, how = next(p for p in pairs if p[2] == c and t in p[:2])
         out.append((t, c, f"the takes' own cameras place it differently ({how} in take {prepared[u].name} "
                           f"against {prepared[s].name})"))
@@ -345,7 +329,10 @@ def _misfits(assumed, people, blocks, prepared, own, joints, ref, opts, say):
     view of it the session keeps it (the take with the fewest observations of it first). With
     the people so, the pairs left out and the warning lines."""
     names = [c.name for c in assumed]
-    counts = _observed(people, blocks, len(assumed), opts.min_conf)
+    counts = Counter()                          # (take, camera) -> its confident joint observations
+    for p, t in zip(people, blocks):
+        for c in range(len(assumed)):
+            counts[(t, c)] += int((p.conf[c] >= opts.min_conf).sum())
     apart = _placed_apart(prepared, own, names, counts)
     left_out = [(t, c) for t, c, _ in apart]
     lines = [_misfit_line(prepared[t].name, names[c], why) for t, c, why in apart]
@@ -355,7 +342,7 @@ def _misfits(assumed, people, blocks, prepared, own, joints, ref, opts, say):
         keepers = [t for t, r in enumerate(own) if r is not None and names[c] in r.names and (t, c) not in left_out]
         if c in cameras.views or len(keepers) < 2:
             continue
-        for t in sorted(keepers, key=lambda t: counts.get((t, c), 0)):
+        for t in sorted(keepers, key=lambda t: counts[(t, c)]):
             say(f"estimating the cameras without {names[c]} of take {prepared[t].name}")
             trial = [_without(p, [c]) if b == t else p for p, b in zip(people, blocks)]
             try:
@@ -409,33 +396,25 @@ def _scale(rig: Rig, people: list[Observations], blocks: list[int], joints: tupl
     return factor, f"the heights given ({len(ratios)} people over the takes)", lines
 
 
-def _world(rig: Rig, people: list[Observations], joints: tuple[str, ...], opts: FuseOptions) -> tuple[World | str, str]:
-    """The floor's world under every take's people triangulated through the rig."""
+def _world(rig: Rig, people: list[Observations], joints: tuple[str, ...], opts: FuseOptions) -> tuple[Rig, str | None, list[str]]:
+    """The rig in the floor's world under every take's people triangulated through it (`on_floor`)."""
     obs = Observations.side_by_side(people)
     points = rig.triangulate(obs.uv, obs.conf, opts.min_conf)
     conf = np.where(np.isfinite(points).all(axis=-1), obs.conf.max(axis=0), 0.0)
-    world = floor_world(rig, points, conf, joints)
-    if isinstance(world, str):
-        return world, f"camera {rig.reference}'s frame (no floor: {world})"
-    return world, "the floor under the people (Z up, metres in the TOML)"
+    return on_floor(rig, points, conf, joints, "rig")
 
 
 # ---- the reports --------------------------------------------------------------------------------
 
 def _camera_reports(rig: Rig, people: list[Observations], cameras: KeptCameras, spreads, opts) -> list[CameraReport]:
-    obs = Observations.side_by_side(people)
-    points = rig.triangulate(obs.uv, obs.conf, opts.min_conf)
-    errors = rig.reprojection_errors(points, obs.uv, obs.conf, opts.min_conf)
-    fixed = opts.bundle_options.fixed_intrinsics
+    errors = _errors(rig, people, opts.min_conf)
     out = []
-    for v, cam in enumerate(rig.cameras):
-        e = errors[v][np.isfinite(errors[v])]
+    for v, (cam, e) in enumerate(zip(rig.cameras, errors)):
         k = cam.intrinsics
-        rep = CameraReport(cam.name, 0.0, float(np.median(e)) if e.size else float("nan"), int(e.size),
-                           (k.fx, k.fy, k.cx, k.cy), spread=spreads[v] if spreads else None,
-                           intrinsics_fixed=cam.name in fixed)
-        rep.unpinned = cameras.unpinned[v] if cameras.unpinned else None
-        out.append(rep)
+        out.append(CameraReport(cam.name, 0.0, float(np.median(e)) if e.size else float("nan"), int(e.size),
+                                (k.fx, k.fy, k.cx, k.cy), spread=spreads[v] if spreads else None,
+                                intrinsics_fixed=cam.name in opts.bundle_options.fixed_intrinsics,
+                                unpinned=cameras.unpinned[v] if cameras.unpinned else None))
     return out
 
 
@@ -452,17 +431,18 @@ def _take_reports(rig: Rig, prepared: list[_Prepared], left_out: list[tuple[int,
             kept = [v for v, n in enumerate(p.take.names) if cams is not None and n in cams.names]
             sized = Rig([cams.camera(p.take.names[v]).for_image(p.take.names[v], *p.take.assumed[v].size)
                          for v in kept], None) if kept else None
-            errors = _reprojection(sized, [q.take(kept) for q in people], opts.min_conf) if sized else []
-            rows.append([errors[kept.index(v)] if v in kept else np.nan for v in range(len(p.take.names))])
+            errors = _errors(sized, [q.take(kept) for q in people], opts.min_conf) if sized else []
+            rows.append([float(np.median(errors[kept.index(v)])) if v in kept and errors[kept.index(v)].size
+                         else np.nan for v in range(len(p.take.names))])
         out.append(TakeReport(p.name, list(p.take.names), list(p.sync.offsets), rows[0], rows[1], p.still,
                               [p.take.names[p.cameras.index(c)] for tt, c in left_out if tt == t]))
     return out
 
 
-def _reprojection(rig: Rig, people: list[Observations], min_conf: float) -> list[float]:
-    """Each camera's median reprojection error (px) of the people triangulated through the rig."""
+def _errors(rig: Rig, people: list[Observations], min_conf: float) -> list[np.ndarray]:
+    """Each camera's reprojection errors (px, the finite ones) of the people triangulated through the rig."""
     if not people or len(rig.cameras) < 2:
-        return [np.nan] * len(rig.cameras)
+        return [np.empty(0)] * len(rig.cameras)
     obs = Observations.side_by_side(people)
     errors = rig.reprojection_errors(rig.triangulate(obs.uv, obs.conf, min_conf), obs.uv, obs.conf, min_conf)
-    return [float(np.median(e[np.isfinite(e)])) if np.isfinite(e).any() else np.nan for e in errors]
+    return [e[np.isfinite(e)] for e in errors]

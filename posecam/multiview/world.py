@@ -68,6 +68,17 @@ def floor_world(rig: Rig, poses: np.ndarray, conf: np.ndarray, joints: tuple[str
     return World(np.stack([x, np.cross(up, x), up]), origin)
 
 
-def below_floor(rig: Rig) -> list[str]:
-    """The names of the cameras of a world rig whose centre lies under its floor (Z < 0)."""
-    return [c.name for c in rig.cameras if c.centre[2] < 0]
+FLOOR = "the floor under the people (Z up, metres in the TOML)"     # the frame of a rig `on_floor` moved
+
+
+def on_floor(rig: Rig, poses: np.ndarray, conf: np.ndarray, joints: tuple[str, ...],
+             what: str) -> tuple[Rig, str | None, list[str]]:
+    """The rig moved into the floor's world under the people (`floor_world`'s arguments), why it
+    was not (no floor; None: it was) and the warning lines: no floor (the `what` kept in the
+    reference camera's frame), or cameras whose centre lies under the floor (Z < 0)."""
+    world = floor_world(rig, poses, conf, joints)
+    if isinstance(world, str):
+        return rig, world, [f"the {what} is written in camera {rig.reference}'s frame, not the floor's: {world}"]
+    moved = world.rig(rig)
+    low = [c.name for c in moved.cameras if c.centre[2] < 0]
+    return moved, None, [f"camera {', '.join(low)} lies under the floor the people stand on: check the rig"] if low else []
