@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import itertools
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -36,7 +36,6 @@ from posecam.multiview.policy import ASSOCIATION
 @dataclass
 class Association:
     people: list[PersonTracks]
-    links: list[tuple[float, ViewTrack, ViewTrack]] = field(default_factory=list)   # kept pair costs
 
 
 def associate_people(take: Take, rig: Rig | None, offsets: list[float], opts: FuseOptions) -> Association:
@@ -60,12 +59,7 @@ def unmatched_views(take: Take, association: Association) -> list[str]:
             for v, name in enumerate(take.names) if v not in shared]
 
 
-@dataclass
-class PairFit:
-    cost: float                 # np.inf: not the same person
-
-
-PairCost = Callable[[ViewTrack, ViewTrack], PairFit]
+PairCost = Callable[[ViewTrack, ViewTrack], float]      # np.inf: not the same person
 
 
 def _common(a: ViewTrack, b: ViewTrack, offsets: list[float], n: int, min_conf: float):
@@ -83,10 +77,10 @@ def pair_cost_calibrated(cams: list[CameraCalibration], offsets: list[float], n:
                          min_conf: float = MIN_CONFIDENCE) -> PairCost:
     """Cost of two tracks with a calibration: median reprojection angle of their triangulation."""
 
-    def cost(a: ViewTrack, b: ViewTrack) -> PairFit:
+    def cost(a: ViewTrack, b: ViewTrack) -> float:
         (pa, pb), common = _common(a, b, offsets, n, min_conf)
         if common < ASSOCIATION.min_common_frames:
-            return PairFit(np.inf)
+            return np.inf
         rig = Rig([cams[a.view], cams[b.view]])
         step = -(-common // ASSOCIATION.pair_frames)                          # a median needs no more frames
         uv, conf = np.stack([pa[0][::step], pb[0][::step]]), np.stack([pa[2][::step], pb[2][::step]])
@@ -96,8 +90,8 @@ def pair_cost_calibrated(cams: list[CameraCalibration], offsets: list[float], n:
         rows = np.where(np.isfinite(err), err / focal, np.nan).reshape(2 * common, -1)
         seen = np.isfinite(rows).any(axis=1)     # frames whose confident joints the two views share
         if not seen.any():
-            return PairFit(np.inf)
-        return PairFit(float(np.median(np.nanmedian(rows[seen], axis=1))))
+            return np.inf
+        return float(np.median(np.nanmedian(rows[seen], axis=1)))
 
     return cost
 
@@ -111,32 +105,29 @@ def associate(tracks: list[list[ViewTrack]], pair_cost: PairCost, max_cost: floa
     linked from the cheapest up while the link keeps each person's tracks of one view apart in
     time; every track ends in exactly one person, unlinked tracks alone."""
     flat = [t for view in tracks for t in view]
-    pairs = sorted(((pair_cost(a, b).cost, a, b) for i, a in enumerate(flat) for b in flat[i + 1:]
+    pairs = sorted(((pair_cost(a, b), a, b) for i, a in enumerate(flat) for b in flat[i + 1:]
                     if a.view != b.view), key=lambda p: p[0])
     groups = {id(t): [t] for t in flat}
-    links = []
     for c, a, b in pairs:
         if c > max_cost:
             break
-        merged = _merged(groups, [(a, b)])
-        if merged is not None and groups[id(a)] is not groups[id(b)]:
+        merged = _merged(groups, a, b)
+        if merged is not None:
             groups = merged
-            links.append((c, a, b))
-    return Association(_people(flat, groups), links)
+    return Association(_people(flat, groups))
 
-def _merged(groups: dict[int, list[ViewTrack]], pairs: list[tuple[ViewTrack, ViewTrack]]) -> dict[int, list[ViewTrack]] | None:
-    """The groups after linking `pairs`, or None when a person would hold two tracks of one
+def _merged(groups: dict[int, list[ViewTrack]], s: ViewTrack, t: ViewTrack) -> dict[int, list[ViewTrack]] | None:
+    """The groups after linking s and t, or None when a person would hold two tracks of one
     view that overlap in time."""
+    ga, gb = groups[id(s)], groups[id(t)]
+    if ga is gb:
+        return groups
+    if any(x.view == y.view and _overlap(x, y) > ASSOCIATION.max_shared for x in ga for y in gb):
+        return None
     groups = dict(groups)
-    for s, t in pairs:
-        ga, gb = groups[id(s)], groups[id(t)]
-        if ga is gb:
-            continue
-        if any(x.view == y.view and _overlap(x, y) > ASSOCIATION.max_shared for x in ga for y in gb):
-            return None
-        merged = ga + gb
-        for x in merged:
-            groups[id(x)] = merged
+    merged = ga + gb
+    for x in merged:
+        groups[id(x)] = merged
     return groups
 
 
@@ -278,7 +269,6 @@ def associate_by_consensus(take: Take, offsets: list[float], min_conf: float = M
     core = [reference]
     rig = Rig([assumed[reference]], assumed[reference].name)
     pending = [v for v in range(len(tracks)) if v != reference and tracks[v]]
-    links = []
     while pending:
         people = _people([t for v in core for t in tracks[v]], groups)
         fused = _fused(take, people, core, rig, offsets, min_conf)
@@ -293,14 +283,13 @@ def associate_by_consensus(take: Take, offsets: list[float], min_conf: float = M
         pending.remove(best_v)
         trial = groups
         for p, t in best_pairs:
-            trial = _merged(trial, [(people[p].tracks[0], t)])
+            trial = _merged(trial, people[p].tracks[0], t)
         placed = _place(take, core + [best_v], _people([t for v in core + [best_v] for t in tracks[v]], trial),
                         offsets, min_conf)
         if placed is None:
             continue
         groups, core, rig = trial, core + [best_v], placed
-        links += [(best, people[p].tracks[0], t) for p, t in best_pairs]
-    return Association(_people(flat, groups), links)
+    return Association(_people(flat, groups))
 
 
 def _place(take: Take, core: list[int], people: list[PersonTracks], offsets: list[float], min_conf: float) -> Rig | None:

@@ -79,10 +79,7 @@ SLOTS = 10
 class BundleResult:
     rig: Rig
     points: np.ndarray                # (F, J, 3) refined joints of the frames used, NaN if unused
-    frames: np.ndarray                # (F,) indices of those frames
     median_error_px: np.ndarray       # (V,) median reprojection error per camera
-    joints_used: np.ndarray           # (V,) observations per camera
-    scale: float                      # factor applied to make bones metric
     converged: bool
     spreads: list["CameraSpread"]     # (V,) one standard deviation of each camera
     offsets: np.ndarray | None = None         # (V,) refined offsets (frames), when they were unknowns
@@ -416,8 +413,7 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
                           f"{np.nanmedian(median):.0f} px (views that do not show the same scene?)")
     all_points = np.full((len(frames), n_j, 3), np.nan)
     all_points[used] = pts
-    return BundleResult(Rig(out, rig.reference), all_points, frames, median,
-                        np.bincount(obs_v, minlength=n_v), scale, converged,
+    return BundleResult(Rig(out, rig.reference), all_points, median, converged,
                         [CameraSpread.of(c, k) for c, k in zip(out, cov)],
                         np.round(shifts, 2) if refine else None, offset_spreads)
 

@@ -52,10 +52,6 @@ class ConsensusOptions:
 class ConsensusResult:
     rig: Rig
     focal_scale: np.ndarray        # (V,) g = f / f0, the factor applied to each view's root depth
-    residual_mm: np.ndarray        # (V,) median distance of each view's joints to the others' consensus
-    joints_used: np.ndarray        # (V,) joint observations with a weight (conf >= min_conf)
-    iterations: int
-    converged: bool
 
 
 def focal_scale(k: np.ndarray, k0: np.ndarray) -> np.ndarray:
@@ -189,7 +185,7 @@ def _points(assumed: list[CameraCalibration], obs: Observations, s: _State) -> t
 
 
 def _run_stage(assumed: list[CameraCalibration], obs: Observations, s: _State, w0: np.ndarray,
-               opts: ConsensusOptions, joint: bool) -> tuple[int, bool]:
+               opts: ConsensusOptions, joint: bool) -> None:
     """Alternate extrinsics (Procrustes, eq. 8) and intrinsics until nothing moves.
 
     joint=False: every camera against the reference view (stage 1; the reference is fixed);
@@ -220,8 +216,7 @@ def _run_stage(assumed: list[CameraCalibration], obs: Observations, s: _State, w
                 s.k[i] = fit_focal(assumed[i], obs.xyz[i], root[i], s.k[i],
                                    target[i] @ s.rotation[i].T + s.translation[i], w[i])
         if it > 0 and s.change(old) < CONSENSUS.tol:
-            return it + 1, True
-    return opts.max_iter, False
+            return
 
 
 def estimate_rig(assumed: list[CameraCalibration], obs: Observations,
@@ -248,24 +243,14 @@ def estimate_rig(assumed: list[CameraCalibration], obs: Observations,
             raise FusionError(f"cameras {assumed[i].name} and {assumed[ref].name} see the person together "
                               f"in fewer than {CONSENSUS.min_shared_joints} confident joints")
         s.translation[i] = (p[i][both] - p[ref][both]).mean(axis=0)
-    it1, _ = _run_stage(assumed, obs, s, w0, opts, joint=False)
-    it2, converged = _run_stage(assumed, obs, s, w0, opts, joint=True) if opts.joint else (0, True)
-
-    _, x = _points(assumed, obs, s)
-    target = fuse_points(x, s.rotation, w0, leave_one_out=True)
-    dist = np.where(w0 > 0, np.linalg.norm(x - target, axis=-1), np.nan)
+    _run_stage(assumed, obs, s, w0, opts, joint=False)
+    if opts.joint:
+        _run_stage(assumed, obs, s, w0, opts, joint=True)
     cameras = [CameraCalibration(c.name, c.size, c.intrinsics if c.name in opts.fixed else
                                  Intrinsics(*map(float, s.k[i]), source="consensus"),
                                  s.rotation[i].copy(), s.translation[i].copy(), c.distortion)
                for i, c in enumerate(assumed)]
-    return ConsensusResult(
-        rig=Rig(cameras, reference=assumed[ref].name),
-        focal_scale=focal_scale(s.k, k0),
-        residual_mm=_row_medians(dist.reshape(n, -1)),
-        joints_used=(w0 > 0).reshape(n, -1).sum(axis=1),
-        iterations=it1 + it2,
-        converged=converged,
-    )
+    return ConsensusResult(Rig(cameras, reference=assumed[ref].name), focal_scale(s.k, k0))
 
 
 def stretch_residuals(rig: Rig, assumed: list[CameraCalibration], obs: Observations, bounds: np.ndarray,
@@ -279,12 +264,7 @@ def stretch_residuals(rig: Rig, assumed: list[CameraCalibration], obs: Observati
     w = obs.weights(min_conf)
     n = len(rig.cameras)
     dist = np.where(w > 0, np.linalg.norm(pts - fuse_points(pts, rot, w, leave_one_out=True), axis=-1), np.nan)
-    out = np.full((n, len(bounds) - 1), np.nan)
-    for k in range(len(bounds) - 1):
-        d = dist[:, bounds[k]:bounds[k + 1]].reshape(n, -1)
-        seen = np.isfinite(d).any(axis=1)
-        out[seen, k] = np.nanmedian(d[seen], axis=1)
-    return out
+    return np.stack([_row_medians(dist[:, lo:hi].reshape(n, -1)) for lo, hi in zip(bounds[:-1], bounds[1:])], axis=1)
 
 
 def _row_medians(a: np.ndarray) -> np.ndarray:
