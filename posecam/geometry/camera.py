@@ -35,9 +35,8 @@ FOV_RANGE = (5.0, 170.0)
 FOCAL_WIDTHS = (0.2, 10.0)
 FOCAL_RATIOS = (0.25, 4.0)
 # Intrinsics.source values of a lens nobody measured: posecam's guess (the default lens, the
-# photo's EXIF) or its own estimate; any other source (flags, a file, a calibration) is given
-# sources of intrinsics posecam guessed or estimated; "people" is the metric stage's focal length
-# from upright people (posecam.scale.metric: "people (+-N px)")
+# photo's EXIF) or its own estimate ("people": the metric stage's focal length from upright
+# people, posecam.scale.metric's "people (+-N px)"); any other source (flags, a file, a calibration) is given
 ESTIMATED_SOURCES = ("default", "exif", "consensus", "bundle", "people")
 # OpenCV's distortion coefficients posecam models: k1, k2, p1, p2[, k3]
 DISTORTION_LENGTHS = (4, 5)
@@ -65,11 +64,6 @@ class Intrinsics:
         if self.fx <= 0 or self.fy <= 0:
             raise InputError(f"focal lengths must be positive, got fx={float(self.fx):g}, fy={float(self.fy):g}")
         object.__setattr__(self, "distortion", distortion_tuple(self.distortion))
-
-    @property
-    def distorted(self) -> bool:
-        """Whether the lens has distortion to undo (posecam.geometry.camera.undistort_pixels)."""
-        return bool(self.distortion)
 
     @property
     def given(self) -> bool:
@@ -117,16 +111,13 @@ class Intrinsics:
 
     def scaled(self, factor: float) -> "Intrinsics":
         """The same camera for an image resized by `factor`."""
-        return Intrinsics(self.fx * factor, self.fy * factor, self.cx * factor, self.cy * factor, self.source,
-                          self.distortion)
+        return replace(self, fx=self.fx * factor, fy=self.fy * factor, cx=self.cx * factor, cy=self.cy * factor)
 
     def to_dict(self) -> dict:
         """fx, fy, cx, cy, source, and "distortion" when the lens has one."""
-        out = asdict(self)
+        out = asdict(self) | {"distortion": list(self.distortion)}
         if not self.distortion:
             del out["distortion"]
-        else:
-            out["distortion"] = list(self.distortion)
         return out
 
 
@@ -223,10 +214,7 @@ class CameraCalibration:
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """(..., 3) world points -> (..., 2) distorted pixels."""
-        p = self.to_camera(points)
-        xd, yd = distort(p[..., 0] / p[..., 2], p[..., 1] / p[..., 2], self.distortion)
-        k = self.intrinsics
-        return np.stack([k.fx * xd + k.cx, k.fy * yd + k.cy], axis=-1)
+        return project(self.to_camera(points), self.intrinsics)
 
     def normalise(self, uv: np.ndarray) -> np.ndarray:
         """(..., 2) pixels -> (..., 2) undistorted normalised image coordinates (x/z, y/z)."""
@@ -346,10 +334,6 @@ class Rig:
         (`CameraCalibration.for_image`), and the warning line of `match_names`."""
         cams, note = self.match_names(names)
         return [self.camera(c).for_image(n, w, h) for c, n, (w, h) in zip(cams, names, sizes)], note
-
-    def project(self, points: np.ndarray) -> np.ndarray:
-        """(..., 3) points in the rig's frame -> (V, ..., 2) pixels in every camera."""
-        return np.stack([c.project(points) for c in self.cameras])
 
     def triangulate(self, uv: np.ndarray, conf: np.ndarray, min_conf: float = MIN_CONFIDENCE) -> np.ndarray:
         """(V, F, J, 2) keypoints and (V, F, J) confidences -> (F, J, 3) points (NaN: < 2 views)."""
