@@ -86,6 +86,8 @@ direction and a bent elbow; it is not given.
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 
 from posecam.io.trc import to_y_up
@@ -102,7 +104,7 @@ FORESHORTENED = 0.5 ** 0.5   # a segment shorter than this share of its length i
 NARROW = 0.2     # hips or shoulders nearer than this share of the trunk's length: no body axes, no line
 POLE = 20.0      # degrees: a limb nearer the trunk's axis has no plane of elevation
 _CENTRE = {"ankle_dorsiflexion": 0.0, "pelvis_frontal": 0.0, "shoulders_frontal": 0.0,
-           "shoulder_plane": 45.0, "hip_plane": 45.0}   # else 90: see the doc
+           "shoulder_plane": 45.0, "hip_plane": 45.0}   # each range's middle (no side), else 90: see the doc
 
 
 def _roles(joints: tuple[str, ...]) -> dict[str, tuple[int, ...]]:
@@ -158,12 +160,6 @@ def _elevation_and_plane(limb: np.ndarray, axis: np.ndarray, lateral: np.ndarray
     return _between(limb, -axis), plane
 
 
-def _flexion_3d(a: np.ndarray, joint: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """180 - the angle at `joint` between its segments to `a` and to `b` (0 when straight)."""
-    u, v = a - joint, b - joint
-    return 180.0 - _between(u, v)
-
-
 def angles_of(xyz: np.ndarray, joints: tuple[str, ...], frame_of_reference: str = "camera",
               up: np.ndarray | None = None) -> np.ndarray:
     """(..., J, 3) joints in mm (posecam's axes for `frame_of_reference`) -> (..., A) angles in
@@ -185,24 +181,22 @@ def angles_of(xyz: np.ndarray, joints: tuple[str, ...], frame_of_reference: str 
     thorax = _unit(shoulders - np.sum(shoulders * axis, -1, keepdims=True) * axis)
     pelvis = _unit(hips - np.sum(hips * axis, -1, keepdims=True) * axis)
 
-    def sagittal(v):
-        return _direction(v, forward, up)
-
-    def frontal(v):
-        return _direction(v, lateral, up)
-
+    sagittal = partial(_direction, horizontal=forward, up=up)
+    frontal = partial(_direction, horizontal=lateral, up=up)
     trunk = sagittal(trunk_line)
     trunk_frontal = frontal(trunk_line)
-    out = {}
+    out = {"trunk_sagittal": trunk, "trunk_frontal": trunk_frontal,
+           "pelvis_frontal": _wrap(frontal(hips), half_turn=90.0),
+           "shoulders_frontal": _wrap(frontal(shoulders), half_turn=90.0)}
     for s in SIDES:
         j = {name: at[f"{s}_{name}"] for name in ("hip", "knee", "ankle", "shoulder", "elbow", "wrist")}
         if "r_heel" in roles:
             foot_back = at[f"{s}_heel"] - at[f"{s}_foot_index"]
             out[f"{s}_ankle_dorsiflexion"] = sagittal(foot_back) - sagittal(j["ankle"] - j["knee"]) + 90.0
-        out[f"{s}_knee_flexion"] = _flexion_3d(j["hip"], j["knee"], j["ankle"])
+        out[f"{s}_knee_flexion"] = 180.0 - _between(j["hip"] - j["knee"], j["ankle"] - j["knee"])   # 0 when straight
         out[f"{s}_hip_flexion"] = sagittal(j["hip"] - j["knee"]) - trunk
         out[f"{s}_shoulder_flexion"] = sagittal(j["shoulder"] - j["elbow"]) - trunk
-        out[f"{s}_elbow_flexion"] = _flexion_3d(j["shoulder"], j["elbow"], j["wrist"])
+        out[f"{s}_elbow_flexion"] = 180.0 - _between(j["shoulder"] - j["elbow"], j["wrist"] - j["elbow"])
         outward = -1.0 if s == "r" else 1.0          # the right side mirrored, as Sports2D's front view
         out[f"{s}_hip_abduction"] = outward * (frontal(j["hip"] - j["knee"]) - trunk_frontal)
         out[f"{s}_shoulder_abduction"] = outward * (frontal(j["shoulder"] - j["elbow"]) - trunk_frontal)
@@ -210,16 +204,8 @@ def angles_of(xyz: np.ndarray, joints: tuple[str, ...], frame_of_reference: str 
             j["elbow"] - j["shoulder"], axis, thorax, outward)
         out[f"{s}_hip_elevation"], out[f"{s}_hip_plane"] = _elevation_and_plane(
             j["knee"] - j["hip"], axis, pelvis, outward)
-    out["trunk_sagittal"] = trunk
-    out["trunk_frontal"] = trunk_frontal
-    out["pelvis_frontal"] = _wrap(frontal(hips), half_turn=90.0)
-    out["shoulders_frontal"] = _wrap(frontal(shoulders), half_turn=90.0)
-    return np.stack([_wrap(out[name], _centre(name)) for name in angle_names(joints)], axis=-1)
-
-
-def _centre(name: str) -> float:
-    """The middle of the angle's range (see the module doc): 0 or 90 degrees."""
-    return _CENTRE.get(name.removeprefix("r_").removeprefix("l_"), 90.0)
+    return np.stack([_wrap(out[name], _CENTRE.get(name.removeprefix("r_").removeprefix("l_"), 90.0))
+                     for name in angle_names(joints)], axis=-1)
 
 
 def add_angles(frame: Frame, rec: Recording) -> Frame:

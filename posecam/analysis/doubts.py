@@ -130,15 +130,12 @@ class DoubtStage(Generic[Item]):
         while self._held and (final or self._held[0][0].time + self.window <= self._last + 1e-6):
             frame, item = self._held.popleft()
             for p in frame.people:
-                found = p.doubts + self._track_doubts(p, frame.time)
-                p.doubts = tuple(d for d in DOUBTS if d in found)
+                root, bones = self.track_measures(p, frame.time)
+                found = {"off_body": "off_body" in p.doubts, "root_jump": root > ROOT_JUMP, "bones": abs(bones) > BONES}
+                p.doubts = tuple(d for d in DOUBTS if found[d])
             self._forget(frame.time)
             out.append(item)
         return out
-
-    def _track_doubts(self, p: Person, time: float) -> tuple[str, ...]:
-        root, bones = self.track_measures(p, time)
-        return (("root_jump",) if root > ROOT_JUMP else ()) + (("bones",) if abs(bones) > BONES else ())
 
     def track_measures(self, p: Person, time: float) -> tuple[float, float]:
         """What the track checks compare with ROOT_JUMP and BONES, for a person of a frame still
