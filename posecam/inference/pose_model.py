@@ -3,13 +3,14 @@ turns crops into 2D joints and the model's 3D output, which does not depend on t
 kind's lifter places that output in camera space through a lens (`make_lifter`).
 
 - `LandmarkPoseModel` (kind "landmarks", BlazePose GHUM 3D): 2D landmarks in the crop plus a
-  metric root-relative pose; `LandmarkLifter` solves the root translation from the pinhole model.
+  metric root-relative pose; its lifter solves the root translation from the pinhole model.
 - `RootDepthPoseModel` (kind "root_depth", the paper's ResNet-U): (u, v), relative depth d_i
-  and absolute root depth z_a; `RootDepthLifter`: z_i = d_i + z_a, then back-projection (paper eq. 3).
+  and absolute root depth z_a; its lifter: z_i = d_i + z_a, then back-projection (paper eq. 3).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -110,27 +111,18 @@ def make_pose_model(model: Model) -> LandmarkPoseModel | RootDepthPoseModel:
     return RootDepthPoseModel(model)
 
 
-class LandmarkLifter:
-    """Kind "landmarks": the metric root-relative pose placed on its 2D keypoints through the
-    lens (the root translation in weighted least squares, the joints' confidences the weights)."""
+def make_lifter(contract: ModelContract) -> Callable[[PoseCandidate, Intrinsics, int], np.ndarray]:
+    """The lifter of a pose model's kind (its contract says which): (candidate, lens, image width)
+    -> (J, 3) camera points. Kind "landmarks": the metric root-relative pose placed on its 2D
+    keypoints through the lens (the root translation in weighted least squares, the joints'
+    confidences the weights). Kind "root_depth": z_i = d_i + z_a, z_a rescaled from the training
+    camera's lens to this one by the focal length in image widths (z_a was learned for one
+    camera), then each joint back-projected (paper eq. 3)."""
+    if contract.kind == "landmarks":
+        return lambda c, k, width: place_on_keypoints(c.relative, c.keypoints_2d, c.confidence, k)
+    train_focal_widths = contract.train_focal / contract.train_image_width
 
-    def __call__(self, c: PoseCandidate, k: Intrinsics, width: int) -> np.ndarray:
-        return place_on_keypoints(c.relative, c.keypoints_2d, c.confidence, k)
-
-
-class RootDepthLifter:
-    """Kind "root_depth": z_i = d_i + z_a, z_a rescaled from the training camera's lens to this
-    one by the focal length in image widths (z_a was learned for one camera), then each joint
-    back-projected (paper eq. 3)."""
-
-    def __init__(self, contract: ModelContract):
-        self.train_focal_widths = contract.train_focal / contract.train_image_width
-
-    def __call__(self, c: PoseCandidate, k: Intrinsics, width: int) -> np.ndarray:
-        f_ratio = ((k.fx + k.fy) / 2 / width) / self.train_focal_widths
+    def lift(c: PoseCandidate, k: Intrinsics, width: int) -> np.ndarray:
+        f_ratio = ((k.fx + k.fy) / 2 / width) / train_focal_widths
         return back_project(c.keypoints_2d, c.relative + c.root_depth * f_ratio, k)
-
-
-def make_lifter(contract: ModelContract) -> LandmarkLifter | RootDepthLifter:
-    """The lifter of a pose model's kind (its contract says which)."""
-    return LandmarkLifter() if contract.kind == "landmarks" else RootDepthLifter(contract)
+    return lift
