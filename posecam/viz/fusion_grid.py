@@ -120,17 +120,13 @@ def write_grid(path: str | os.PathLike, result: FusionResult, recordings: list[R
         warn(f"--viz: the video{'s' if len(unread) > 1 else ''} of {', '.join(unread)} cannot be read (the pose "
              f"file{'s' if len(unread) > 1 else ''}' source): drawn on black")
 
-    def pictures() -> Iterator[np.ndarray]:
-        for f in frames:
-            yield _grid([_tile(cam, recordings[v], f, reader.at(f.index + o))
-                         for (cam, v), o, reader in zip(kept, offsets, readers)], f)
-
-    pictures_left = pictures()
-    first = next(pictures_left)
+    pictures = (_grid([_tile(cam, recordings[v], f, reader.at(f.index + o))
+                       for (cam, v), o, reader in zip(kept, offsets, readers)], f) for f in frames)
+    first = next(pictures)
     if suffix in PICTURE_SUFFIXES:
         write_image(path, first)
         return
     with VideoSink(path, (fused or result.recording).fps or DEFAULT_FPS, first.shape[1], first.shape[0]) as sink:
         sink.write(first)
-        for picture in pictures_left:
+        for picture in pictures:
             sink.write(picture)

@@ -1,8 +1,8 @@
 """The 3D view as pictures, drawn in Python (no browser): `--viz3d FILE.mp4`, one frame of video
 per frame of the recording, for a report.
 
-    from posecam.viz.render3d import render_frames, write_view3d_video
-    write_view3d_video("view.mp4", fused.recording, fused.rig)
+    from posecam.viz.render3d import render_frames, write_3d_view
+    write_3d_view("view.mp4", fused.recording, fused.rig)
 
 It draws the data of the HTML page (`posecam.viz.view3d.scene`: display axes, Y up, metres)
 as the page first shows it: the same orbit camera (the people's centre, yaw 0.5 rad or 0.6 in a
@@ -23,9 +23,8 @@ import cv2
 import numpy as np
 
 from posecam.geometry.camera import Rig
-from posecam.io.media import DEFAULT_FPS
+from posecam.io.media import DEFAULT_FPS, VIDEO_SUFFIXES
 from posecam.results import Recording
-from posecam.io.media import VIDEO_SUFFIXES
 from posecam.viz.draw import place_labels
 from posecam.viz.sinks import VideoSink
 from posecam.viz.view3d import scene, write_view3d
@@ -67,60 +66,40 @@ def _line(image: np.ndarray, view: _OrbitCamera, a, b, colour, thick: int = 1) -
         cv2.line(image, p, q, colour, thick, cv2.LINE_AA)
 
 
-def _text(image: np.ndarray, at, label: str, colour, scale: float = 0.5) -> None:
+def _text(image: np.ndarray, at, label: str, colour) -> None:
     """`label` with its baseline's left end at `at`, outlined in the background colour."""
     for c, thick in ((BACKGROUND, 4), (colour, 1)):
-        cv2.putText(image, label, at, cv2.FONT_HERSHEY_SIMPLEX, scale, c, thick, cv2.LINE_AA)
-
-
-def label_boxes(labels: list[tuple[str, tuple[float, float], tuple]], size: tuple[int, int]) -> list[tuple]:
-    """(text, wanted bottom-left corner, colour) labels -> (text, (x, y, w, h) box, colour), the
-    boxes inside the picture and clear of each other."""
-    sizes = []
-    for text, _, _ in labels:
-        (w, h), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.5, 1)
-        sizes.append((w + 4, h + base + 4))
-    corners = place_labels(sizes, [at for _, at, _ in labels], *size)
-    return [(text, (x, y, w, h), colour) for (text, _, colour), (x, y), (w, h) in zip(labels, corners, sizes)]
+        cv2.putText(image, label, at, cv2.FONT_HERSHEY_SIMPLEX, 0.5, c, thick, cv2.LINE_AA)
 
 
 def frame_labels(data: dict, view: _OrbitCamera, frame: dict) -> list[tuple]:
-    """The frame's labels as `label_boxes` gives them: each person's id above the head, then
-    each camera's name right of its frustum."""
-    labels = []
-    for person in frame["people"]:
-        drawn = [p for p in map(view.project, [q for q in person["p"] if q]) if p]
+    """The frame's labels as (text, (x, y, w, h) box, colour), the boxes inside the picture and
+    clear of each other: each person's id above the head, then each camera's name just right of
+    its frustum's picture, level with its middle."""
+    wanted = [(f"id {p['id']}", [q for q in p["p"] if q], tuple(int(v) for v in p["rgb"])) for p in frame["people"]]
+    wanted += [(c["name"], [c["c"], *c["corners"], c["up"]], CAMERA) for c in data["cameras"]]
+    labels = []     # (text, wanted bottom-left corner, colour, (w, h))
+    for i, (text, points, colour) in enumerate(wanted):
+        drawn = [p for p in map(view.project, points) if p]
         if drawn:
             xs, ys = zip(*drawn)
-            colour = tuple(int(v) for v in person["rgb"])
-            labels.append((f"id {person['id']}", ((min(xs) + max(xs)) / 2 - 16, min(ys) - 10), colour))
-    return label_boxes(labels + _camera_labels(data, view), view.size)
-
-
-def _camera_labels(data: dict, view: _OrbitCamera) -> list[tuple[str, tuple[float, float], tuple]]:
-    """Each camera's name, wanted just right of its frustum's picture, level with its middle."""
-    out = []
-    for c in data["cameras"]:
-        pts = [p for p in map(view.project, [c["c"], *c["corners"], c["up"]]) if p]
-        if pts:
-            xs, ys = zip(*pts)
-            out.append((c["name"], (max(xs) + 6, (min(ys) + max(ys)) / 2 + 8), CAMERA))
-    return out
+            person = i < len(frame["people"])
+            at = ((min(xs) + max(xs)) / 2 - 16, min(ys) - 10) if person else (max(xs) + 6, (min(ys) + max(ys)) / 2 + 8)
+            (w, h), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, 0.5, 1)
+            labels.append((text, at, colour, (w + 4, h + base + 4)))
+    corners = place_labels([size for *_, size in labels], [at for _, at, _, _ in labels], *view.size)
+    return [(text, (x, y, w, h), colour) for (text, _, colour, (w, h)), (x, y) in zip(labels, corners)]
 
 
 def _background(data: dict, view: _OrbitCamera) -> np.ndarray:
     """What stays from frame to frame: the floor grid (or ground plane) and the cameras."""
     w, h = view.size
     image = np.full((h, w, 3), BACKGROUND, np.uint8)
-    floor = data["floor"]
-    if data["plane"]:
-        for a, b in data["plane"]:
-            _line(image, view, a, b, GRID)
-    else:
-        for x in np.arange(floor["x"][0], floor["x"][1] + 1e-9, floor["step"]):
-            _line(image, view, [x, floor["y"], floor["z"][0]], [x, floor["y"], floor["z"][1]], GRID)
-        for z in np.arange(floor["z"][0], floor["z"][1] + 1e-9, floor["step"]):
-            _line(image, view, [floor["x"][0], floor["y"], z], [floor["x"][1], floor["y"], z], GRID)
+    (x0, x1), (z0, z1), y, step = (data["floor"][k] for k in ("x", "z", "y", "step"))
+    grid = data["plane"] or ([([x, y, z0], [x, y, z1]) for x in np.arange(x0, x1 + 1e-9, step)]
+                             + [([x0, y, z], [x1, y, z]) for z in np.arange(z0, z1 + 1e-9, step)])
+    for a, b in grid:
+        _line(image, view, a, b, GRID)
     for c in data["cameras"]:
         for i in range(4):
             _line(image, view, c["c"], c["corners"][i], CAMERA)
@@ -153,19 +132,14 @@ def render_frames(rec: Recording, rig: Rig | None = None, size: tuple[int, int] 
         yield image
 
 
-def write_view3d_video(path: str | os.PathLike, rec: Recording, rig: Rig | None = None) -> None:
-    """Write `render_frames` to FILE.mp4 at the recording's frame rate."""
-    with VideoSink(path, rec.fps or DEFAULT_FPS, *SIZE) as sink:
-        for image in render_frames(rec, rig):
-            sink.write(image)
-
-
 VIEW3D_SUFFIXES = (".html", *VIDEO_SUFFIXES)   # --viz3d: the page, or its pictures as a video
 
 
 def write_3d_view(path: str | os.PathLike, rec: Recording, rig: Rig | None = None) -> None:
-    """`--viz3d`: the self-contained page for FILE.html, the rendered frames for FILE.mp4."""
+    """`--viz3d`: the self-contained page for FILE.html, `render_frames` for FILE.mp4 (at the
+    recording's frame rate)."""
     if Path(path).suffix.lower() == ".html":
-        write_view3d(path, rec, rig)
-    else:
-        write_view3d_video(path, rec, rig)
+        return write_view3d(path, rec, rig)
+    with VideoSink(path, rec.fps or DEFAULT_FPS, *SIZE) as sink:
+        for image in render_frames(rec, rig):
+            sink.write(image)

@@ -32,9 +32,9 @@ PALETTE = ((255, 140, 0), (0, 190, 255), (230, 60, 200), (120, 220, 40), (255, 2
 FRUSTUM_DEPTH_MM = 400.0
 
 
-def _frustum(cam: CameraCalibration, size: tuple[int, int], frame: str) -> dict:
+def _frustum(cam: CameraCalibration, frame: str) -> dict:
     """A camera's centre and the 4 corners of its image plane at FRUSTUM_DEPTH_MM, display axes, m."""
-    k, (w, h) = cam.intrinsics, size
+    k, (w, h) = cam.intrinsics, cam.size
     d = FRUSTUM_DEPTH_MM
     corners = np.array([[(u - k.cx) / k.fx * d, (v - k.cy) / k.fy * d, d] for u, v in ((0, 0), (w, 0), (w, h), (0, h))])
     up = np.array([[(w / 2 - k.cx) / k.fx * d, (-0.15 * h - k.cy) / k.fy * d, d]])   # marks the image's top
@@ -63,13 +63,8 @@ def scene(rec: Recording, rig: Rig | None = None) -> dict:
             people.append({"id": int(p.id), "rgb": colour[p.id],
                            "p": [_r(q) if good else None for q, good in zip(xyz, ok)]})
         frames.append({"t": round(float(f.time), 4), "i": int(f.index), "people": people})
-    if rig is not None:
-        cameras = [_frustum(c, c.size, frame) for c in rig.cameras]
-    elif rec.intrinsics is not None:
-        cameras = [_frustum(CameraCalibration("camera", (rec.width, rec.height), rec.intrinsics),
-                            (rec.width, rec.height), frame)]
-    else:
-        cameras = []
+    own = [CameraCalibration("camera", (rec.width, rec.height), rec.intrinsics)] if rec.intrinsics is not None else []
+    cameras = [_frustum(c, frame) for c in (rig.cameras if rig is not None else own)]
     bones = skeleton_of(rec.joints).bone_indices.tolist()
     return {"title": os.path.basename(str(rec.source)), "frame": frame, "fps": rec.fps or DEFAULT_FPS,
             "frames": frames, "bones": bones, "cameras": cameras, "floor": _floor(frames, points, cameras),
