@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from posecam.errors import InputError, warn
+from posecam.errors import InputError
 from posecam.estimate import OnFrame, PoseEstimator, shared_estimator
 from posecam.geometry.camera import Intrinsics, Rig
 from posecam.geometry.lift import solve_root_translation
@@ -38,18 +38,11 @@ TRIAL_VIEWS = "videos"                       # Pose2Sim's trial folder keeps its
 LANDMARK_MODELS = ("blazepose-",)
 
 
-def view_intrinsics(videos: list[str], intrinsics: IntrinsicsOptions | None = None, calibration: str | None = None,
-                    rig: Rig | None = None, say_match: bool = True) -> list[IntrinsicsOptions]:
-    """Each video's intrinsics: its camera in `rig` (read from `calibration`); else `intrinsics`,
-    whose calibration file of several cameras gives each video its own camera, named in
-    `intrinsics.camera` (one name, or one per view separated by commas) or matched by name.
-    `videos`: the views' paths (a video's, or the source a pose file's recording names).
-    `say_match`: warn when the rig's cameras go to the views in sorted order (fusing them says it)."""
-    if rig is not None:
-        names, note = rig.match_names([Path(p).stem for p in videos])
-        if note and say_match:
-            warn(note)
-        return [IntrinsicsOptions(file=calibration, camera=name) for name in names]
+def view_intrinsics(videos: list[str], intrinsics: IntrinsicsOptions | None = None) -> list[IntrinsicsOptions]:
+    """Each video's intrinsics: `intrinsics`, whose calibration file of several cameras gives
+    each video its own camera, named in `intrinsics.camera` (one name, or one per view separated
+    by commas) or matched by name. `videos`: the views' paths (a video's, or the source a pose
+    file's recording names)."""
     opts = intrinsics or IntrinsicsOptions()
     if not opts.file or not is_calibration(opts.file):
         return [opts] * len(videos)
@@ -91,13 +84,16 @@ def load_views(inputs: list[str], options: EstimatorOptions | None = None, intri
     # (a calibration's camera re-lifts the poses it can; the flags and --intrinsics refuse the others)
     views = [v for path in inputs for v in ([(path, None)] if path in media else [(path, r) for r in poses[path]])]
     sources = [path if r is None else r.source for path, r in views]
-    if rig is not None and not calibration:     # a Rig without its file: each view's camera sized to its images
-        sizes = [(media[path].width, media[path].height) if r is None else (r.width, r.height) for path, r in views]
+    if rig is None:
+        lenses = view_intrinsics(sources, intrinsics)
+    else:       # each view's camera of the rig (fusing the views says how they matched, once)
         names = rig.match_names([Path(p).stem for p in sources])[0]
-        lenses = [dataclasses.replace(rig.camera_for(name, w, h).intrinsics, source=f"calibration#{name}")
-                  for name, (w, h) in zip(names, sizes)]
-    else:                                       # fuse's given cameras say how they matched, once
-        lenses = view_intrinsics(sources, intrinsics, calibration, rig, say_match=False)
+        if calibration:
+            lenses = [IntrinsicsOptions(file=calibration, camera=name) for name in names]
+        else:   # a Rig without its file: each view's camera sized to its images
+            sizes = [(media[path].width, media[path].height) if r is None else (r.width, r.height) for path, r in views]
+            lenses = [dataclasses.replace(rig.camera_for(name, w, h).intrinsics, source=f"calibration#{name}")
+                      for name, (w, h) in zip(names, sizes)]
     ks = {path: k for (path, r), k in zip(views, lenses) if r is None}
     relift = [r is not None and _gives_lens(k) and (rig is None or not unliftable(r)) for (_, r), k in zip(views, lenses)]
     if any(relift):

@@ -6,9 +6,8 @@ from typing import TYPE_CHECKING
 
 import click
 
-from posecam.commands.common import (estimator_options, height_option, intrinsics_options, make_estimator_options,
-                                     make_intrinsics_options, progress_bar, frame_progress, report_table,
-                                     report_written, stdout_report, shown, with_spinner)
+from posecam.commands.common import (estimator_options, flag_options, height_option, intrinsics_options, progress_bar,
+                                     frame_progress, report_table, report_written, stdout_report, shown, with_spinner)
 from posecam.commands.fuse import camera_table, px_text, spreads_comment
 
 if TYPE_CHECKING:
@@ -76,7 +75,7 @@ def calibrate_command(takes, output, free_intrinsics, heights, **flags) -> None:
     from posecam.views import load_session, session_takes
 
     check_output(output, (".toml",), "-o")
-    estimator, intrinsics = make_estimator_options(flags), make_intrinsics_options(flags)
+    estimator, intrinsics, _ = flag_options(flags)
     found = session_takes(list(takes))        # every take found before any work
     files = [f for views in found.values() for f in views]
     staged = OutputSet([output], [*files, intrinsics.file, estimator.model])

@@ -65,7 +65,7 @@ def options(*opts: Callable) -> Callable:
 
 
 # the model and detection flags of `predict` and `fuse` (its video inputs), read by
-# `make_estimator_options`; their defaults are EstimatorOptions'
+# `flag_options`; their defaults are EstimatorOptions'
 estimator_options = options(
     click.option("--device", type=click.Choice(["cpu", "cuda"]), default=EstimatorOptions.device, show_default=True,
                  help="Run the pose model on the CPU or on an NVIDIA GPU (needs onnxruntime-gpu)."),
@@ -88,11 +88,6 @@ estimator_options = options(
     click.option("--threads", type=click.IntRange(1, 256), show_default="CPU cores, at most 8",
                  help="CPU threads for onnxruntime."),
 )
-
-
-def make_estimator_options(kwargs: dict) -> EstimatorOptions:
-    """The EstimatorOptions of the `estimator_options` flags, taken out of a command's kwargs."""
-    return EstimatorOptions(**{n: kwargs.pop(n) for n in ESTIMATOR_FLAGS})
 
 
 def smooth_option(what: str) -> Callable:
@@ -126,13 +121,6 @@ def intrinsics_options(per_camera: bool = False) -> Callable:
     )
 
 
-def make_intrinsics_options(kwargs: dict) -> IntrinsicsOptions:
-    """The IntrinsicsOptions of the `intrinsics_options` flags, taken out of a command's kwargs."""
-    from posecam.io.intrinsics import IntrinsicsOptions
-
-    return IntrinsicsOptions(*(kwargs.pop(n) for n in ("fx", "fy", "cx", "cy", "intrinsics_file", "camera")))
-
-
 # --height, shared by `predict` and `fuse` (parsed by posecam.scale.heights.Heights.parse)
 height_option = click.option("--height", "heights", multiple=True, metavar="M[,M...]|ID=M",
                              help="People's heights in metres, which fix their metric scale: one value for everyone, "
@@ -162,7 +150,7 @@ def stop_on_interrupt() -> Iterator[threading.Event]:
         signal.signal(signal.SIGINT, previous)
 
 
-# --start, --end and --stride, shared by `predict` and `fuse`, read by `make_frame_selection`
+# --start, --end and --stride, shared by `predict` and `fuse`, read by `flag_options`
 frame_options = options(
     click.option("--start", metavar="N|Ts", help="First frame to read: a frame number (120) or a time (2s, 1.5s); default: 0."),
     click.option("--end", metavar="N|Ts", help="Stop before this frame (a frame number or a time, e.g. 4s); default: the end."),
@@ -170,12 +158,16 @@ frame_options = options(
 )
 
 
-def make_frame_selection(kwargs: dict) -> FrameSelection | None:
-    """The FrameSelection of the `frame_options` flags, taken out of a command's kwargs (None: all frames)."""
+def flag_options(kwargs: dict) -> tuple[EstimatorOptions, IntrinsicsOptions, FrameSelection | None]:
+    """The options of the `estimator_options`, `intrinsics_options` and `frame_options` flags,
+    taken out of a command's kwargs (the frames None, every frame, without --start/--end/--stride)."""
+    from posecam.io.intrinsics import IntrinsicsOptions
     from posecam.io.media import FrameSelection
 
-    start, end, stride = (kwargs.pop(n) for n in ("start", "end", "stride"))
-    return FrameSelection(start, end, stride) if (start, end, stride) != (None, None, None) else None
+    estimator = EstimatorOptions(**{n: kwargs.pop(n) for n in ESTIMATOR_FLAGS})
+    intrinsics = IntrinsicsOptions(*(kwargs.pop(n) for n in ("fx", "fy", "cx", "cy", "intrinsics_file", "camera")))
+    frames = tuple(kwargs.pop(n, None) for n in ("start", "end", "stride"))
+    return estimator, intrinsics, FrameSelection(*frames) if frames != (None, None, None) else None
 
 
 # --angles and --plot, shared by `predict` and `fuse` (posecam.analysis.angles, posecam.viz.plot)

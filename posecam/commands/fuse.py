@@ -10,10 +10,9 @@ from typing import TYPE_CHECKING
 import click
 
 from posecam.commands.common import (ESTIMATOR_FLAGS, angle_options, check_output, check_pose_outputs, estimator_options,
-                                     frame_options, frame_progress, intrinsics_options, make_estimator_options,
-                                     make_frame_selection, make_intrinsics_options, many_options, progress_bar,
-                                     height_option, refuse_alone, report_table, report_written, smooth_option,
-                                     stdout_report, shown, warn, with_spinner)
+                                     flag_options, frame_options, frame_progress, height_option, intrinsics_options,
+                                     many_options, progress_bar, refuse_alone, report_table, report_written,
+                                     smooth_option, stdout_report, shown, warn, with_spinner)
 from posecam.errors import InputError
 from posecam.multiview.options import METHODS, FuseOptions
 
@@ -212,8 +211,7 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     predicted = many or any(Path(p).suffix.lower() != ".json" for p in inputs)
     for flag in ESTIMATOR_FLAGS:
         refuse_alone(flag, "a video or image-folder input (pose files were predicted already)", predicted)
-    estimator, intrinsics = make_estimator_options(flags), make_intrinsics_options(flags)
-    selection = make_frame_selection(flags)
+    estimator, intrinsics, selection = flag_options(flags)
     if selection and many:
         raise InputError("--start, --end and --stride pick frames of one take; they do not go with --out-dir")
     check_lenses(calibration, intrinsics)

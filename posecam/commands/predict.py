@@ -10,9 +10,8 @@ from pathlib import Path
 import click
 import numpy as np
 
-from posecam.commands.common import (angle_options, check_output, check_pose_outputs, estimator_options, floor_option,
-                                     frame_options, frame_progress, height_option, intrinsics_options,
-                                     make_estimator_options, make_frame_selection, make_intrinsics_options,
+from posecam.commands.common import (angle_options, check_output, check_pose_outputs, estimator_options, flag_options,
+                                     floor_option, frame_options, frame_progress, height_option, intrinsics_options,
                                      many_options, progress_bar, refuse_alone, report_table, report_written,
                                      smooth_option, stdout_report, shown, stop_on_interrupt, warn, warn_alone)
 from posecam.errors import InputError, OutputError
@@ -208,8 +207,7 @@ def predict_command(inputs, output, viz, out_dir, out_format, jobs, ray_address,
     for flag, value in (("-o FILE.trc/.c3d", markers), ("--viz3d", viz3d), ("--plot", plot)):
         if value and len(inputs) > 1:
             raise InputError(f"{flag} holds one input; pass a single input (or write .json)")
-    opts, intrinsics = make_estimator_options(flags), make_intrinsics_options(flags)
-    selection = make_frame_selection(flags)
+    opts, intrinsics, selection = flag_options(flags)
     chain = PredictOptions(smooth=smooth, metric=MetricOptions(heights=Heights.parse(heights), floor=floor),
                            frames=selection)
     if out_dir or jobs > 1 or ray_address is not None:
