@@ -62,28 +62,21 @@ def unmatched_views(take: Take, association: Association) -> list[str]:
 PairCost = Callable[[ViewTrack, ViewTrack], float]      # np.inf: not the same person
 
 
-def _common(a: ViewTrack, b: ViewTrack, offsets: list[float], n: int, min_conf: float):
-    """Both tracks in the reference's frames, restricted to frames where both are seen."""
-    arrays = []
-    for t in (a, b):
-        o = offsets[t.view]
-        arrays.append((shift(t.uv, o, n), shift(t.xyz, o, n), shift(t.conf, o, n, 0.0)))
-    both = (observation_weights(arrays[0][0], arrays[0][2], min_conf).sum(axis=1) > 0) & \
-           (observation_weights(arrays[1][0], arrays[1][2], min_conf).sum(axis=1) > 0)
-    return [tuple(x[both] for x in arr) for arr in arrays], int(both.sum())
-
-
 def pair_cost_calibrated(cams: list[CameraCalibration], offsets: list[float], n: int,
                          min_conf: float = MIN_CONFIDENCE) -> PairCost:
     """Cost of two tracks with a calibration: median reprojection angle of their triangulation."""
 
     def cost(a: ViewTrack, b: ViewTrack) -> float:
-        (pa, pb), common = _common(a, b, offsets, n, min_conf)
+        # both tracks in the reference's frames, where both are seen
+        (ua, ca), (ub, cb) = [(shift(t.uv, offsets[t.view], n), shift(t.conf, offsets[t.view], n, 0.0)) for t in (a, b)]
+        both = (observation_weights(ua, ca, min_conf).sum(axis=1) > 0) & \
+               (observation_weights(ub, cb, min_conf).sum(axis=1) > 0)
+        common = int(both.sum())
         if common < ASSOCIATION.min_common_frames:
             return np.inf
         rig = Rig([cams[a.view], cams[b.view]])
         step = -(-common // ASSOCIATION.pair_frames)                          # a median needs no more frames
-        uv, conf = np.stack([pa[0][::step], pb[0][::step]]), np.stack([pa[2][::step], pb[2][::step]])
+        uv, conf = np.stack([ua[both][::step], ub[both][::step]]), np.stack([ca[both][::step], cb[both][::step]])
         common = uv.shape[1]
         err = rig.reprojection_errors(rig.triangulate(uv, conf, min_conf), uv, conf, min_conf)
         focal = np.array([cams[a.view].intrinsics.fx, cams[b.view].intrinsics.fx])[:, None, None]

@@ -10,13 +10,10 @@ The quality gate drops, with one warning line each, a camera that the data canno
 too few frames shared with the others, a reprojection error too high, geometry that tells
 nothing (its rays meet the others' at a tiny angle) or fused points behind it, a focal
 length out of any lens's range, or a spread of its rotation or focal length (from the bundle
-adjustment's Jacobian) too wide to trust. What is left is estimated again without it. Once
-the bootstrap has measured the spreads that fusion reports (`bootstrap_spreads`), a camera whose
-rotation it moves by more than CALIBRATION.max_boot_rotation_deg is dropped too (`without_loose_cameras`):
-the Jacobian's spreads are a fifth to an eighth of the real error, and a rig bent to fit
-unrelated people can pass them. The bootstrap's spreads are widened by the keypoints' bias,
-which all its replicates share (`widened`); a camera they leave loose (CALIBRATION.max_pinned_rotation_deg,
-CALIBRATION.max_pinned_focal_pct) is kept, marked and warned about (`pinned`).
+adjustment's Jacobian) too wide to trust. What is left is estimated again without it. The
+Jacobian's spreads are a fifth to an eighth of the real error, and a rig bent to fit unrelated
+people can pass them: the bootstrap's spreads (`bootstrap_spreads`, widened by the keypoints'
+bias: `widened`) drop a camera they leave loose (`without_loose_cameras`), or mark it (`pinned`).
 """
 
 from __future__ import annotations

@@ -7,7 +7,6 @@ bones onto the reference's and their motions correlate.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -99,9 +98,8 @@ def _resampled_products(a: np.ndarray, b: np.ndarray, resamples: Resamples) -> n
 def bone_correlations(ref: np.ndarray, other: np.ndarray, lag: float, resamples: Resamples,
                       frames: np.ndarray | None = None) -> np.ndarray:
     """(R,) `_motion_match`'s correlation of two views' bones (F, K, 3) (`bone_directions`, the
-    same people's side by side) at a sub-frame lag, each side moved by half of it (interpolated
-    alike, as `motion_correlation` does), on `frames` (all by default), in each resample of
-    those frames and of the bones."""
+    same people's side by side) at a sub-frame lag (`shifted_pair`), on `frames` (all by
+    default), in each resample of those frames and of the bones."""
     a, b = shifted_pair(ref, other, lag)
     if frames is not None:
         a, b = a[frames], b[frames]
@@ -111,13 +109,6 @@ def bone_correlations(ref: np.ndarray, other: np.ndarray, lag: float, resamples:
 def bone_correlation(ref: np.ndarray, other: np.ndarray, lag: float) -> float:
     """`bone_correlations` of the bones as they are."""
     return float(bone_correlations(ref, other, lag, Resamples.whole(*ref.shape[:2]))[0])
-
-
-@dataclass
-class CoarseOffset:
-    offset: int                 # whole frames, module convention
-    score: float                # `_motion_match` there
-    epipolar_px: float          # median epipolar distance of the paired people's keypoints there
 
 
 def epipolar_px(ref: list[ViewTrack], other: list[ViewTrack], pairing: tuple[tuple[int, int], ...], lag: int,
@@ -148,7 +139,7 @@ def epipolar_px(ref: list[ViewTrack], other: list[ViewTrack], pairing: tuple[tup
 
 
 def coarse_offset(ref: list[ViewTrack], other: list[ViewTrack], joints: tuple[str, ...], fps: float,
-                  min_conf: float, min_overlap: int) -> CoarseOffset | None:
+                  min_conf: float, min_overlap: int) -> int | None:
     """The whole-frame lag of a view against the reference from their people (tracks), over
     every lag that leaves the two views min_overlap frames (a long take's on every
     `sampling_step`-th frame, the best then refined frame by frame): each camera sees every bone
@@ -168,7 +159,7 @@ def coarse_offset(ref: list[ViewTrack], other: list[ViewTrack], joints: tuple[st
     pairings = ([tuple(zip(range(len(ref)), p)) for p in itertools.permutations(range(len(other)), k)]
                 if len(ref) <= len(other) else
                 [tuple(zip(p, range(len(other)))) for p in itertools.permutations(range(len(ref)), k)])
-    found = []
+    found = []                                 # each pairing's best lag (whole frames, module convention)
     for pairing in pairings:
         score = _motion_match(sum(products[pair] for pair in pairing))
         if np.isfinite(score).any():
@@ -176,12 +167,10 @@ def coarse_offset(ref: list[ViewTrack], other: list[ViewTrack], joints: tuple[st
             if step > 1:                     # refined frame by frame about the sampled best
                 near = np.arange(at - step + 1, at + step)
                 fine = _motion_match(sum(_bone_products(bones[0][i], bones[1][j], near) for i, j in pairing))
-                at, score = int(near[np.nanargmax(fine)]), fine
-            found.append(CoarseOffset(at, float(np.nanmax(score)), np.nan))
+                at = int(near[np.nanargmax(fine)])
+            found.append(at)
     if len(found) > 1:
-        found = [CoarseOffset(c.offset, c.score, epipolar_px(ref, other, pairing, c.offset, min_conf))
-                 for c, pairing in zip(found, pairings)]
-        return min(found, key=lambda c: c.epipolar_px)
+        return min(zip(found, pairings), key=lambda c: epipolar_px(ref, other, c[1], c[0], min_conf))[0]
     return found[0] if found else None
 
 
@@ -199,6 +188,6 @@ def coarse_offsets(take: Take, opts: FuseOptions) -> list[float]:
         tracks = [take.tracks[u][:SYNC.coarse_tracks] for u in (ref, v)]
         found = coarse_offset(*tracks, take.joints, fps, opts.min_conf,
                               int(SYNC.coarse_share * min(take.lengths[ref], take.lengths[v])))
-        if found is not None and (max_offset is None or abs(found.offset) <= max_offset):
-            out[v] = float(found.offset)
+        if found is not None and (max_offset is None or abs(found) <= max_offset):
+            out[v] = float(found)
     return out

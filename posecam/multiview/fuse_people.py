@@ -28,8 +28,7 @@ class FusedPerson:
     conf: np.ndarray            # (F, J)
     score: np.ndarray           # (F,)
     used: np.ndarray            # (V, F) views fused in each frame
-    # (F, J) views fused in each frame that see the joint (confidence >= min_conf); None: not counted
-    joint_views: np.ndarray | None = None
+    joint_views: np.ndarray     # (F, J) views fused in each frame that see the joint (confidence >= min_conf)
 
     @property
     def frames(self) -> np.ndarray:

@@ -87,11 +87,9 @@ class Resamples:
 
 
 def motion_correlations(ref: np.ndarray, other: np.ndarray, lag: float, resamples: Resamples) -> np.ndarray:
-    """(R,) Pearson correlation of ref (F, K) with other at `lag` (module convention), over every
+    """(R,) Pearson correlation of ref (F, K) with other at `lag` (`shifted_pair`), over every
     signal and frame where both have a value, in each resample (its frames and columns
-    weighted by how often they were drawn); NaN where fewer than SYNC.min_values values are shared. Each side
-    moves by half the lag, so both are interpolated alike (interpolating one side only smooths
-    it, and biases the peak towards whole frames)."""
+    weighted by how often they were drawn); NaN where fewer than SYNC.min_values values are shared."""
     a, b = shifted_pair(ref, other, lag)
     ok = np.isfinite(a) & np.isfinite(b)
     a, b = np.where(ok, a, 0.0), np.where(ok, b, 0.0)

@@ -58,8 +58,7 @@ def shared_joints(f: FusedPerson) -> np.ndarray:
     (or a joint) one camera alone sees is that camera's pose placed through the rig: it
     reprojects onto its own keypoints (0 px, whatever the rig) and tells nothing of the camera,
     so it stays out of the reprojection error and the joints used."""
-    views = f.joint_views if f.joint_views is not None else np.broadcast_to(f.views[:, None], f.conf.shape)
-    return (views >= FUSION.min_views) & np.isfinite(f.points).all(axis=-1)
+    return (f.joint_views >= FUSION.min_views) & np.isfinite(f.points).all(axis=-1)
 
 
 def camera_reports(rig: Rig, offsets: list[float], confidence: list[float], offset_spread: list[float],

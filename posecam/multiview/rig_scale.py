@@ -1,6 +1,5 @@
-"""An estimated rig at the people's given heights: the factor (`metric_scale`) and the rig and
-spreads it scales (`to_metric`). Without heights the bundle adjustment's scale stays, the one
-the monocular bone lengths set."""
+"""An estimated rig at the people's given heights (`to_metric`). Without heights the bundle
+adjustment's scale stays, the one the monocular bone lengths set."""
 
 from __future__ import annotations
 
@@ -13,23 +12,23 @@ from posecam.multiview.calibrate import KeptCameras, measured_statures
 from posecam.multiview.observations import Observations, Take
 from posecam.multiview.options import FuseOptions
 from posecam.multiview.policy import CALIBRATION
-from posecam.scale.heights import Heights
 
 
-def metric_scale(rig: Rig, people: list[Observations], joints: tuple[str, ...], heights: Heights,
-                 min_conf: float) -> tuple[float, str, list[str]]:
-    """The factor that brings an estimated rig to the people's given heights, what the table
-    says of it, and a warning where the heights given disagree with the relative heights the rig
-    measures (given / measured spread by more than CALIBRATION.heights_agree: no one scale fits them all).
+def to_metric(cameras: KeptCameras, people: list[Observations], take: Take,
+              opts: FuseOptions) -> tuple[KeptCameras, str, list[str]]:
+    """Estimated cameras at the people's given heights (one similarity about the reference
+    camera, reprojection unchanged), what fixes the scale and a warning where the heights given
+    disagree with the relative heights the rig measures (given / measured spread by more than
+    CALIBRATION.heights_agree: no one scale fits them all).
     The rig gives the people's relative heights exactly (one scale for all): each person's
     height is the median over frames of posecam.scale.stature.stature of the triangulation of its 2D
     keypoints (the rig's geometry alone, not the monocular skeletons' adult size); a list is
     matched tallest first (posecam.scale.heights) and the factor is the median of given / measured.
-    Without heights: 1 (the bundle adjustment's scale, from the monocular bone lengths)."""
-    estimated = measured_statures(rig, people, joints, min_conf)
-    given = heights.assign(estimated) if heights else {}
+    Without heights the cameras stay (the bundle adjustment's scale, from the monocular bone lengths)."""
+    estimated = measured_statures(cameras.rig, people, take.joints, opts.min_conf)
+    given = opts.heights.assign(estimated) if opts.heights else {}
     if not given:
-        return 1.0, "the tallest person's bone lengths from the pose model (an adult's; --height gives it)", []
+        return cameras, "the tallest person's bone lengths from the pose model (an adult's; --height gives it)", []
     ratios = [m / estimated[pid] for pid, (m, _) in given.items()]
     factor = float(np.median(ratios))
     people_text = ", ".join(f"person {pid} {m:.2f} m ({how})" for pid, (m, how) in sorted(given.items()))
@@ -39,17 +38,9 @@ def metric_scale(rig: Rig, people: list[Observations], joints: tuple[str, ...], 
                              for pid, (m, _) in sorted(given.items()))
         warnings.append(f"the heights given disagree with the people's relative heights, which the cameras "
                         f"measure: at the scale used, {measured}; check --height")
-    return factor, f"the heights given: {people_text}", warnings
-
-
-def to_metric(cameras: KeptCameras, people: list[Observations], take: Take,
-              opts: FuseOptions) -> tuple[KeptCameras, str, list[str]]:
-    """Estimated cameras at the people's given heights (`metric_scale`: one similarity about the
-    reference camera, reprojection unchanged), what fixes the scale and its warnings."""
-    factor, source, warnings = metric_scale(cameras.rig, people, take.joints, opts.heights, opts.min_conf)
+    source = f"the heights given: {people_text}"
     if factor == 1.0:
         return cameras, source, warnings
     rig = Rig([replace(c, translation=c.translation * factor) for c in cameras.rig.cameras], cameras.rig.reference)
     spreads = cameras.spreads and [replace(c, position_mm=c.position_mm * factor) for c in cameras.spreads]
     return replace(cameras, rig=rig, spreads=spreads), source, warnings
-

@@ -48,10 +48,8 @@ class SyncResult:
 def synchronise(take: Take, people: list[PersonTracks], rig: Rig | None, start: list[float],
                 opts: FuseOptions) -> SyncResult:
     """Every view's offset (module convention) from the people the association found: with a
-    rig (its cameras the take's views, in order), `estimate_offsets` on every person seen twice
-    (within FuseOptions.max_offset, SYNC.rig_max_offset if None); without, each view's motion against the
-    reference's (`motion_offset`) within SYNC.fine_window frames of its start (`coarse_offsets`), the
-    view left out (SyncResult.unpinned) with a warning where the motion does not pin it."""
+    rig (its cameras the take's views, in order) `_rig_offsets` (within FuseOptions.max_offset,
+    SYNC.rig_max_offset if None), without one `_motion_offsets`."""
     if rig is not None:
         reach = SYNC.rig_max_offset if opts.max_offset is None else opts.max_offset
         return _rig_offsets(take, people, rig, start, reach)
