@@ -30,7 +30,7 @@ import numpy as np
 from posecam.geometry.camera import Intrinsics, project
 from posecam.geometry.triangulate import MIN_CONFIDENCE
 from posecam.results import Frame, Person, Recording
-from posecam.skeleton import SIDES, Skeleton, skeleton_of
+from posecam.skeleton import SIDES, skeleton_of
 
 OFF_BODY = 0.11         # 75th percentile of the 2D/3D disagreement, over the person's 2D extent
 ROOT_JUMP = 0.12        # the root's distance from its running median, over its distance from the camera
@@ -41,17 +41,9 @@ BONE_HISTORY = 10.0     # s of a track's past its limbs are compared with
 MIN_SAMPLES = 3         # a track's frames in the window (root) or confident limbs (bones) a check needs
 DOUBTS = ("off_body", "root_jump", "bones")   # every doubt, in the order they are listed
 
-Item = TypeVar("Item")
-
-
 LIMBS = (("shoulder", "elbow"), ("elbow", "wrist"), ("hip", "knee"), ("knee", "ankle"))   # each side's
 
-
-def limb_indices(skeleton: Skeleton) -> np.ndarray:
-    """(L, 2) joint indices of the limbs, LIMBS on each side, by the joints' roles
-    (posecam.skeleton.Skeleton.roles): the same limbs whatever the skeleton's names."""
-    return np.array([(skeleton.role(f"{side}_{a}")[0], skeleton.role(f"{side}_{b}")[0])
-                     for side in SIDES for a, b in LIMBS], dtype=int)
+Item = TypeVar("Item")
 
 
 def off_body(p: Person, k: Intrinsics) -> float:
@@ -99,7 +91,10 @@ class DoubtStage(Generic[Item]):
         self.k = rec.intrinsics
         self.tracked = tracked
         self.skeleton = skeleton_of(rec.joints)
-        self.limbs = limb_indices(self.skeleton)
+        # (L, 2) joint indices of LIMBS on each side, by the joints' roles (posecam.skeleton.Skeleton.roles):
+        # the same limbs whatever the skeleton's names
+        self.limbs = np.array([(self.skeleton.role(f"{side}_{a}")[0], self.skeleton.role(f"{side}_{b}")[0])
+                               for side in SIDES for a, b in LIMBS], dtype=int)
         self.window = max(JUMP_WINDOW, 2.0 / rec.fps) if rec.fps else JUMP_WINDOW
         self._held: deque[tuple[Frame, Item]] = deque()
         # track id -> its recent frames: (time, root (3,), limb lengths (L,), NaN where not confident)

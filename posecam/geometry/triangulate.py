@@ -33,12 +33,9 @@ def triangulate(cameras: list[CameraCalibration], uv: np.ndarray, conf: np.ndarr
     """
     w = observation_weights(uv, conf, min_conf)
     xy = np.stack([c.normalise(np.nan_to_num(u)) for c, u in zip(cameras, uv)])   # (V, F, J, 2)
-    rows = []
-    for c, p in zip(cameras, xy):
-        r, t = c.rotation, c.translation
-        a = p[..., :, None] * r[2] - r[:2]                      # (F, J, 2, 3)
-        b = t[:2] - p * t[2]                                    # (F, J, 2)
-        rows.append((a, b))
+    # each view's equations a X = b: a (F, J, 2, 3), b (F, J, 2)
+    rows = [(p[..., :, None] * c.rotation[2] - c.rotation[:2], c.translation[:2] - p * c.translation[2])
+            for c, p in zip(cameras, xy)]
     points = _solve(rows, w)
     depth = np.stack([points @ c.rotation[2] + c.translation[2] for c in cameras])
     depth = np.where(np.isfinite(depth) & (depth > 1e-6), depth, np.inf)

@@ -8,9 +8,7 @@ It draws the data of the HTML page (`posecam.viz.view3d.scene`: display axes, Y 
 as the page first shows it: the same orbit camera (the people's centre, yaw 0.5 rad or 0.6 in a
 world frame, pitch 0.35, a distance that frames people and cameras), the floor grid (or the
 fitted ground plane), the cameras as frustums with their names, each person's skeleton in the
-page's colour with its id, and the frame's index and time. The names sit beside what they name
-(a camera's right of its frustum, a person's above the head), clear of each other
-(`posecam.viz.draw.place_labels`), outlined in the background colour where a line runs under.
+page's colour with its id (the names placed by `frame_labels`), and the frame's index and time.
 """
 
 from __future__ import annotations
