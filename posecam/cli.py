@@ -234,12 +234,9 @@ class _Group(click.Group):
             _fail("input nested too deeply to read", 2)
         except MemoryError:
             _fail("out of memory (an input too large for this machine?)", 1)
-        except (BrokenPipeError, ReaderLeft):  # `posecam ... | head`: the reader left, nothing to report
-            _quiet_stdout()
-            sys.exit(141)
-        except OSError as exc:
-            if exc.errno == errno.EPIPE:
-                _quiet_stdout()
+        except (OSError, ReaderLeft) as exc:
+            if isinstance(exc, (BrokenPipeError, ReaderLeft)) or exc.errno == errno.EPIPE:
+                _quiet_stdout()   # `posecam ... | head`: the reader left, nothing to report
                 sys.exit(141)
             if exc.errno in WRITE_ERRNOS:   # outside an OutputSet: stdout (help text, a report)
                 _quiet_stdout()
