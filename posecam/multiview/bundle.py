@@ -51,7 +51,6 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass, replace
-from functools import cached_property
 
 import cv2
 import numpy as np
@@ -186,28 +185,18 @@ class _Problem:
         slot[self.free] = np.arange(self.n_cam)
         return slot
 
-    @cached_property
-    def _pattern(self) -> tuple[np.ndarray, np.ndarray, csr_matrix]:
-        """The Jacobian's sparsity, the same at every x: which camera slots of each observation
-        are free (N, 2, SLOTS), and where each entry (free camera slots, then points) goes in
-        the CSR matrix (its data's order, the matrix of entry numbers)."""
-        n = len(self.obs_v)
-        cols = np.broadcast_to(self.slots()[self.obs_v][:, None, :], (n, 2, self.free.shape[1]))
-        keep = cols >= 0
-        rows = np.broadcast_to(np.arange(2 * n).reshape(-1, 2, 1), cols.shape)
-        pcols = np.broadcast_to((self.n_cam + 3 * self.obs_m[:, None] + np.arange(3))[:, None, :], (n, 2, 3))
-        r = np.concatenate([rows[keep], rows[..., :3].ravel()])
-        c = np.concatenate([cols[keep], pcols.ravel()])
-        entries = csr_matrix((np.arange(1.0, len(r) + 1), (r, c)), shape=(2 * n, self.n_cam + 3 * self.n_points))
-        return keep, entries.data.astype(int) - 1, entries
-
     def jacobian(self, x: np.ndarray) -> csr_matrix:
         """The residuals' sparse Jacobian: per observation 2 rows, against its camera's free
-        slots and its point's 3 coordinates (the pattern built once)."""
+        slots and its point's 3 coordinates."""
         cam, point = self.blocks(x)
-        keep, order, entries = self._pattern
-        data = np.concatenate([cam[keep], point.ravel()])[order]
-        return csr_matrix((data, entries.indices, entries.indptr), shape=entries.shape)
+        n = len(self.obs_v)
+        cols = np.broadcast_to(self.slots()[self.obs_v][:, None, :], cam.shape)
+        keep = cols >= 0
+        rows = np.broadcast_to(np.arange(2 * n).reshape(-1, 2, 1), cam.shape)
+        pcols = np.broadcast_to((self.n_cam + 3 * self.obs_m[:, None] + np.arange(3))[:, None, :], point.shape)
+        return csr_matrix((np.concatenate([cam[keep], point.ravel()]),
+                           (np.concatenate([rows[keep], rows[..., :3].ravel()]), np.concatenate([cols[keep], pcols.ravel()]))),
+                          shape=(2 * n, self.n_cam + 3 * self.n_points))
 
 
 def _axes(rig: Rig) -> np.ndarray:
