@@ -74,14 +74,6 @@ class Roi:
         centre, top = to_image(np.array([[self.cx, self.cy], [self.cx + up[0], self.cy + up[1]]]))
         return Roi.from_alignment_points(centre, top)
 
-    @property
-    def box(self) -> np.ndarray:
-        """Axis-aligned bounds (x0, y0, x1, y1) of the rotated square."""
-        h = self.size / 2
-        corners = self.rotate_to_image(np.array([[-h, -h, 0], [h, -h, 0], [h, h, 0], [-h, h, 0]]))[:, :2]
-        corners += [self.cx, self.cy]
-        return np.concatenate([corners.min(axis=0), corners.max(axis=0)])
-
 
 def body_roi(points: np.ndarray, conf: np.ndarray, box: np.ndarray, hips: tuple[int, int],
              shoulders: tuple[int, int]) -> Roi:
