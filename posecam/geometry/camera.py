@@ -161,21 +161,17 @@ def undistort_pixels(uv: np.ndarray, k: Intrinsics, normalised: bool = False) ->
 
 
 def project(points: np.ndarray, k: Intrinsics) -> np.ndarray:
-    """(..., 3) camera-space points -> (..., 2) pixels of the image, through k's distortion."""
+    """(..., 3) camera-space points -> (..., 2) pixels of the image, through k's distortion
+    (OpenCV's k1, k2, p1, p2[, k3] lens model on the normalised image coordinates)."""
     z = points[..., 2]
-    x, y = distort(points[..., 0] / z, points[..., 1] / z, k.distortion)
+    x, y = points[..., 0] / z, points[..., 1] / z
+    if k.distortion:
+        k1, k2, p1, p2, k3 = np.pad(np.asarray(k.distortion, dtype=float), (0, 5 - len(k.distortion)))
+        r2 = x * x + y * y
+        radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        x, y = (x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x),
+                y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y)
     return np.stack([k.fx * x + k.cx, k.fy * y + k.cy], axis=-1)
-
-
-def distort(x: np.ndarray, y: np.ndarray, distortion) -> tuple[np.ndarray, np.ndarray]:
-    """Normalised image coordinates through OpenCV's k1, k2, p1, p2[, k3] lens model."""
-    if not np.any(distortion):
-        return x, y
-    k1, k2, p1, p2, k3 = np.pad(np.asarray(distortion, dtype=float), (0, 5 - len(distortion)))
-    r2 = x * x + y * y
-    radial = 1 + r2 * (k1 + r2 * (k2 + r2 * k3))
-    return (x * radial + 2 * p1 * x * y + p2 * (r2 + 2 * x * x),
-            y * radial + p1 * (r2 + 2 * y * y) + 2 * p2 * x * y)
 
 
 @dataclass
