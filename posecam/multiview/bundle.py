@@ -294,9 +294,8 @@ def bundle_adjust(rig: Rig, uv: np.ndarray, conf: np.ndarray, bones_mm: np.ndarr
     `scale_frames` (F,) marks (None: all; one person's bones). At most `max_frames` frames take
     part, chosen for coverage (`coverage_frames`). With `timed` keypoints of the same views and
     frames and the views' `offsets` (V,) (uv, conf: `timed.at(offsets)`), each camera's offset
-    but the reference's is one more unknown, started there (`BundleOptions.refine_offsets`):
-    its keypoints are interpolated at it (Catmull-Rom between the timed samples, with the
-    exact derivative: a keypoint's speed), within the samples' span."""
+    but the reference's is one more unknown, started there, within the samples' span
+    (`BundleOptions.refine_offsets`; the module docstring says how)."""
     opts = options or BundleOptions()
     cams = rig.cameras
     n_v, n_f, n_j = conf.shape

@@ -264,13 +264,9 @@ def stretch_residuals(rig: Rig, assumed: list[CameraCalibration], obs: Observati
     w = obs.weights(min_conf)
     n = len(rig.cameras)
     dist = np.where(w > 0, np.linalg.norm(pts - fuse_points(pts, rot, w, leave_one_out=True), axis=-1), np.nan)
-    return np.stack([_row_medians(dist[:, lo:hi].reshape(n, -1)) for lo, hi in zip(bounds[:-1], bounds[1:])], axis=1)
-
-
-def _row_medians(a: np.ndarray) -> np.ndarray:
-    """(N,) each row's median of its finite values; NaN for a row with none (and no numpy
-    warning: "All-NaN slice encountered")."""
-    out = np.full(len(a), np.nan)
-    seen = np.isfinite(a).any(axis=1)
-    out[seen] = np.nanmedian(a[seen], axis=1)
+    out = np.full((n, len(bounds) - 1), np.nan)
+    for k in range(len(bounds) - 1):
+        d = dist[:, bounds[k]:bounds[k + 1]].reshape(n, -1)
+        seen = np.isfinite(d).any(axis=1)
+        out[seen, k] = np.nanmedian(d[seen], axis=1)
     return out

@@ -20,10 +20,9 @@ def to_metric(cameras: KeptCameras, people: list[Observations], take: Take,
     camera, reprojection unchanged), what fixes the scale and a warning where the heights given
     disagree with the relative heights the rig measures (given / measured spread by more than
     CALIBRATION.heights_agree: no one scale fits them all).
-    The rig gives the people's relative heights exactly (one scale for all): each person's
-    height is the median over frames of posecam.scale.stature.stature of the triangulation of its 2D
-    keypoints (the rig's geometry alone, not the monocular skeletons' adult size); a list is
-    matched tallest first (posecam.scale.heights) and the factor is the median of given / measured.
+    The rig gives the people's relative heights exactly (`measured_statures`: its geometry alone,
+    not the monocular skeletons' adult size); a list is matched tallest first
+    (posecam.scale.heights) and the factor is the median of given / measured.
     Without heights the cameras stay (the bundle adjustment's scale, from the monocular bone lengths)."""
     estimated = measured_statures(cameras.rig, people, take.joints, opts.min_conf)
     given = opts.heights.assign(estimated) if opts.heights else {}

@@ -159,8 +159,7 @@ def _session_cameras(takes: dict[str, list[Recording]]) -> tuple[list[str], list
     for take, recs in takes.items():
         for name, rec in zip(view_names(recs), recs):
             if name in names:
-                cam = assumed[names.index(name)]
-                w, h = cam.size
+                w, h = assumed[names.index(name)].size
                 off = CALIBRATION.size_tolerance
                 if abs(rec.width - w) > off * w or abs(rec.height - h) > off * h:
                     raise InputError(f"camera {name} films {w}x{h} in one take and {rec.width}x{rec.height} in take "
