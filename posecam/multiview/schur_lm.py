@@ -14,24 +14,10 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Protocol
 
 import numpy as np
 
 from posecam.multiview.policy import BUNDLE
-
-
-class Adjustment(Protocol):
-    """What the solver needs of the problem (posecam.multiview.bundle._Problem)."""
-
-    free: np.ndarray        # (V, K) camera slots that are unknowns; x = [their values (row-major), points]
-    obs_v: np.ndarray       # (N,) camera of each observation
-    obs_m: np.ndarray       # (N,) point of each observation; a (point, camera) pair at most once
-    n_points: int
-
-    def residuals(self, x: np.ndarray) -> np.ndarray: ...                 # (2N,)
-
-    def blocks(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]: ...  # (N, 2, K), (N, 2, 3)
 
 
 @dataclass
@@ -54,11 +40,13 @@ def _cost(r: np.ndarray, f_scale: float, prior_r: np.ndarray | None) -> float:
     return c + (0.5 * float(prior_r @ prior_r) if prior_r is not None else 0.0)
 
 
-def solve(problem: Adjustment, x0: np.ndarray, f_scale: float, lower: np.ndarray, upper: np.ndarray,
+def solve(problem, x0: np.ndarray, f_scale: float, lower: np.ndarray, upper: np.ndarray,
           max_nfev: int, ftol: float, prior: Prior | None = None) -> Solution:
-    """Minimise the problem's soft-L1 cost from x0; the free camera slots kept within
-    [lower, upper] (n_cam,) (a step is clipped there; a slot at a bound that the gradient pushes
-    past it is held for the iteration), the points unbounded."""
+    """Minimise the soft-L1 cost of `problem` (posecam.multiview.bundle._Problem: its `free` camera
+    slots (V, K), x = [their values (row-major), points]; each observation's camera `obs_v` and
+    point `obs_m`, a (point, camera) pair at most once; `residuals` and `blocks`) from x0; the
+    free camera slots kept within [lower, upper] (n_cam,) (a step is clipped there; a slot at a
+    bound that the gradient pushes past it is held for the iteration), the points unbounded."""
     n_v, k = problem.free.shape
     n_cam, n_m, v, m = int(problem.free.sum()), problem.n_points, problem.obs_v, problem.obs_m
     cols = np.flatnonzero(problem.free.ravel())                        # free slots among the V K

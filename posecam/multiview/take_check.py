@@ -84,10 +84,8 @@ def check_take(recordings: list[Recording], opts: FuseOptions) -> Take:
 
 def _twins(recordings: list[Recording], max_px: float = TAKE.twin_px) -> list[tuple[int, int]]:
     """Pairs of views whose people sit at the same pixels in most frames they both have."""
-    def first(r: Recording) -> dict[int, np.ndarray]:
-        return {i: np.stack([p.keypoints_2d for p in f.people]) for i, f in enumerate(r.frames) if f.people}
-
-    people = [first(r) for r in recordings]
+    people = [{i: np.stack([p.keypoints_2d for p in f.people]) for i, f in enumerate(r.frames) if f.people}
+              for r in recordings]
     out = []
     for a in range(len(recordings)):
         for b in range(a + 1, len(recordings)):
