@@ -16,14 +16,6 @@ UNSEEN = (200, 200, 200)
 DASH = 3                    # an unseen bone's dashes and the gaps between them, in a seen bone's widths
 
 
-def _side_colour(name: str) -> tuple[int, int, int]:
-    if name.startswith(("l_", "left_")):
-        return LEFT
-    if name.startswith(("r_", "right_")):
-        return RIGHT
-    return CENTRE
-
-
 def _apart(a: tuple[int, int, int, int], b: tuple[int, int, int, int], gap: int) -> bool:
     """Whether boxes (x, y, w, h) a and b are at least `gap` px apart."""
     (x, y, w, h), (x0, y0, w0, h0) = a, b
@@ -88,6 +80,8 @@ def draw_people(image_rgb: np.ndarray, people: list[Person], joints: tuple[str, 
     UNSEEN, those under `min_confidence` not at all."""
     out = image_rgb.copy()
     skeleton = skeleton_of(joints)
+    side_colour = [LEFT if j.startswith(("l_", "left_")) else RIGHT if j.startswith(("r_", "right_")) else CENTRE
+                   for j in joints]
     scale = max(out.shape[:2]) / 1000
     thick = max(1, round(3 * scale))
     font = 0.5 * scale + 0.15
@@ -100,7 +94,7 @@ def draw_people(image_rgb: np.ndarray, people: list[Person], joints: tuple[str, 
             if not (drawn[a] and drawn[b]):
                 continue
             if seen[a] and seen[b]:
-                cv2.line(out, _pixel(uv[a]), _pixel(uv[b]), DOUBTED if p.doubts else _side_colour(joints[b]), line,
+                cv2.line(out, _pixel(uv[a]), _pixel(uv[b]), DOUBTED if p.doubts else side_colour[b], line,
                          cv2.LINE_AA)
             else:
                 _dashed_line(out, uv[a], uv[b], UNSEEN, max(1, line // 2), DASH * line)
