@@ -41,7 +41,7 @@ class FusedPerson:
         return self.used.sum(axis=0)
 
 
-def camera_space(rig: Rig, assumed: list[Intrinsics], obs: Observations, anchor: np.ndarray | None = None,
+def camera_space(rig: Rig, assumed: list[Intrinsics], obs: Observations, anchor: np.ndarray,
                  min_conf: float = MIN_CONFIDENCE) -> np.ndarray:
     """(V, F, J, 3) each view's monocular poses rebuilt under its camera's intrinsics, in the
     rig's frame. The depth of a monocular pose is its least certain part: where `anchor`
@@ -52,12 +52,11 @@ def camera_space(rig: Rig, assumed: list[Intrinsics], obs: Observations, anchor:
                            np.array([[k0.fx, k0.fy] for k0 in assumed]))
     out = []
     for cam, uv, z, conf in zip(rig.cameras, obs.uv, depths, obs.conf):
-        if anchor is not None:
-            target = cam.to_camera(anchor)[..., 2]                                   # (F, J)
-            wa = np.where(np.isfinite(target) & np.isfinite(z) & (conf >= min_conf), conf, 0.0)
-            shift = np.sum(wa * np.nan_to_num(target - z), axis=-1, keepdims=True) / np.maximum(
-                np.sum(wa, axis=-1, keepdims=True), 1e-9)
-            z = z + np.where((wa > 0).sum(axis=-1, keepdims=True) >= FUSION.anchor_joints, shift, 0.0)
+        target = cam.to_camera(anchor)[..., 2]                                       # (F, J)
+        wa = np.where(np.isfinite(target) & np.isfinite(z) & (conf >= min_conf), conf, 0.0)
+        shift = np.sum(wa * np.nan_to_num(target - z), axis=-1, keepdims=True) / np.maximum(
+            np.sum(wa, axis=-1, keepdims=True), 1e-9)
+        z = z + np.where((wa > 0).sum(axis=-1, keepdims=True) >= FUSION.anchor_joints, shift, 0.0)
         xy = cam.normalise(np.nan_to_num(uv)) * z[..., None]
         out.append(cam.to_world(np.concatenate([xy, z[..., None]], axis=-1)))
     return np.stack(out)

@@ -8,7 +8,7 @@ wrong offset cost pixels.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -30,10 +30,12 @@ def rig_error(cams: list[CameraCalibration], uv: list[np.ndarray], conf: list[np
 
 
 @dataclass
-class RigOffsets:
+class SyncResult:
     offsets: list[float]
-    confidence: list[float]     # per view, 0..1 (reference: 1): `_confidence`
+    confidence: list[float]     # per view, 0..1 (reference: 1); see the functions that make it
     warnings: list[str]
+    spread: list[float] | None = None   # per view, frames (one standard deviation), where known
+    unpinned: list[int] = field(default_factory=list)   # views whose offset the motion does not pin: left out
 
 
 def _confidence(errors: dict[int, float], best: int) -> float:
@@ -59,7 +61,7 @@ def _subframe(cams, uv, conf, offsets: list[float], i: int) -> float:
 
 def estimate_offsets(cams: list[CameraCalibration], uv: list[np.ndarray], conf: list[np.ndarray],
                      reference: int = 0, max_offset: int = SYNC.rig_max_offset, sweeps: int = SYNC.rig_sweeps,
-                     start: list[int] | None = None) -> RigOffsets:
+                     start: list[int] | None = None) -> SyncResult:
     """Each view's offset against the reference (module convention); uv[c] (F_c, K, 2) where the
     K points may be several people's joints side by side (each person's columns the same
     person in every view: posecam.multiview.associate).
@@ -101,4 +103,4 @@ def estimate_offsets(cams: list[CameraCalibration], uv: list[np.ndarray], conf: 
     for i in range(len(cams)):
         if i != reference and i not in at_edge:
             offsets[i] = _subframe(cams, uv, conf, offsets, i)
-    return RigOffsets(offsets, confidence, warnings)
+    return SyncResult(offsets, confidence, warnings)

@@ -21,8 +21,6 @@ rotation-invariant 3D joint speeds was tried first: on the Pose2Sim demo, a pers
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 
 from posecam.geometry.camera import Rig
@@ -31,16 +29,7 @@ from posecam.multiview.motion_sync import keypoint_speed, motion_offset, motion_
 from posecam.multiview.observations import PersonTracks, Take, ViewTrack, lowpass
 from posecam.multiview.options import FuseOptions
 from posecam.multiview.policy import SYNC
-from posecam.multiview.rig_sync import estimate_offsets
-
-
-@dataclass
-class SyncResult:
-    offsets: list[float]
-    confidence: list[float]     # per view, 0..1 (reference: 1); see the functions that make it
-    warnings: list[str]
-    spread: list[float] | None = None   # per view, frames (one standard deviation), where known
-    unpinned: list[int] = field(default_factory=list)   # views whose offset the motion does not pin: left out
+from posecam.multiview.rig_sync import SyncResult, estimate_offsets
 
 
 # ---- the stage: the views' offsets from the associated people ---------------------------------
@@ -67,8 +56,7 @@ def _rig_offsets(take: Take, people: list[PersonTracks], rig: Rig, start: list[f
         arrays = [_low_passed(p.in_view(v, take.lengths[v]), take.fps) for p in people if len(p.views) > 1]
         uv.append(np.concatenate([a[0] for a in arrays], axis=1))
         conf.append(np.concatenate([a[1] for a in arrays], axis=1))
-    result = estimate_offsets(rig.cameras, uv, conf, take.reference, max_offset, start=start)
-    return SyncResult(result.offsets, result.confidence, result.warnings)
+    return estimate_offsets(rig.cameras, uv, conf, take.reference, max_offset, start=start)
 
 
 def _low_passed(track: ViewTrack, fps: float) -> tuple[np.ndarray, np.ndarray]:
