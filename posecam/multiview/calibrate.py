@@ -381,8 +381,6 @@ def without_loose_cameras(cameras: KeptCameras, people: list[Observations], swap
         if why is not None:
             lines.append(f"camera {names[cameras.views[i]]} is kept but not pinned by the people: {why}"
                          + (f"; {helps}" if helps else ""))
-    if len(keep) == len(cameras.views):
-        return replace(cameras, warnings=lines, unpinned=unpinned), people, swaps
     rig = Rig([cameras.rig.cameras[i] for i in keep], cameras.rig.reference)
     kept = replace(cameras, rig=rig, views=[cameras.views[i] for i in keep], warnings=lines, spreads=spreads,
                    offsets=cameras.offsets and [cameras.offsets[i] for i in keep],

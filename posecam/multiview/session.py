@@ -143,9 +143,7 @@ def _calibrate(takes: dict[str, list[Recording]], opts: FuseOptions, say: Callab
     rig, no_floor, world_lines = _world(rig, fixed, joints, opts)      # the rig as it was where no floor
     how = f"camera {rig.reference}'s frame (no floor: {no_floor})" if no_floor else FLOOR
     warnings += world_lines
-    for p in prepared:
-        if p.still:
-            warnings.append(f"take {p.name}: nobody moves, so its views need no offsets: taken at 0")
+    warnings += [f"take {p.name}: nobody moves, so its views need no offsets: taken at 0" for p in prepared if p.still]
     return SessionResult(rig, reports, take_reports, list(dict.fromkeys(warnings)), scale_source, how)
 
 
