@@ -16,8 +16,7 @@ import click
 from posecam.errors import InputError, OutputError, ReaderLeft, on_signal, printable
 from posecam.inference.contract import DETECTORS, POSE_MODELS
 from posecam.io.validate import MAX_PEOPLE, MAX_PIXEL
-from posecam.options import EstimatorOptions, PredictOptions
-from posecam.scale.metric import MetricOptions
+from posecam.options import EstimatorOptions
 
 if TYPE_CHECKING:
     from rich.progress import Progress
@@ -88,16 +87,6 @@ estimator_options = options(
     click.option("--threads", type=click.IntRange(1, 256), show_default="CPU cores, at most 8",
                  help="CPU threads for onnxruntime."),
 )
-
-
-def smooth_option(what: str) -> Callable:
-    """--smooth/--no-smooth (PredictOptions.smooth's default), `what` saying what it smooths."""
-    return click.option("--smooth/--no-smooth", default=PredictOptions.smooth, show_default=True, help=what)
-
-
-# --floor/--no-floor (MetricOptions.floor's default)
-floor_option = click.option("--floor/--no-floor", default=MetricOptions.floor, show_default=True,
-                            help="Fit the ground plane under everyone's feet (static camera) and put each person on it.")
 
 
 def intrinsics_options(per_camera: bool = False) -> Callable:

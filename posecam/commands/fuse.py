@@ -12,9 +12,10 @@ import click
 from posecam.commands.common import (ESTIMATOR_FLAGS, angle_options, check_output, check_pose_outputs, estimator_options,
                                      flag_options, frame_options, frame_progress, height_option, intrinsics_options,
                                      many_options, progress_bar, refuse_alone, report_table, report_written,
-                                     smooth_option, stdout_report, shown, warn, with_spinner)
+                                     stdout_report, shown, warn, with_spinner)
 from posecam.errors import InputError
 from posecam.multiview.options import METHODS, FuseOptions
+from posecam.options import PredictOptions
 
 if TYPE_CHECKING:
     from posecam.multiview.fuse import FusionResult
@@ -129,8 +130,9 @@ def parse_offsets(text: str) -> list[float]:
                    "FILE.c3d (needs posecam[c3d]): one file per person (FILE_id<ID>.trc when several).")
 @click.option("--viz3d", type=click.Path(), help="FILE.html: a self-contained 3D view of the fused poses and the cameras; "
                                                  "FILE.mp4: that view drawn frame by frame.")
-@smooth_option("Smooth each fused person's joints over time (zero-phase 6 Hz Butterworth), and the videos' "
-               "poses before they are fused.")
+@click.option("--smooth/--no-smooth", default=PredictOptions.smooth, show_default=True,
+              help="Smooth each fused person's joints over time (zero-phase 6 Hz Butterworth), and the videos' "
+                   "poses before they are fused.")
 @click.option("--trc-y-up", is_flag=True, help="TRC/C3D: Y-up axes as OpenSim expects (a calibration's Z-up world "
                                                "as Pose2Sim turns it; a camera frame turned 180 degrees about x).")
 @click.option("--calibration", type=click.Path(),
@@ -183,7 +185,6 @@ def fuse_command(inputs, output, calibration, save_calibration, method, sync, of
     from posecam.multiview.options import finds_offsets
     from posecam.viz.render3d import write_3d_view
     from posecam.analysis.angles import angle_names
-    from posecam.options import PredictOptions
     from posecam.views import check_lenses, check_views, load_views
 
     markers = check_pose_outputs(output, viz3d, angles, plot)

@@ -11,10 +11,12 @@ import click
 import numpy as np
 
 from posecam.commands.common import (angle_options, check_output, check_pose_outputs, estimator_options, flag_options,
-                                     floor_option, frame_options, frame_progress, height_option, intrinsics_options,
-                                     many_options, progress_bar, refuse_alone, report_table, report_written,
-                                     smooth_option, stdout_report, shown, stop_on_interrupt, warn, warn_alone)
+                                     frame_options, frame_progress, height_option, intrinsics_options, many_options,
+                                     progress_bar, refuse_alone, report_table, report_written, stdout_report, shown,
+                                     stop_on_interrupt, warn, warn_alone)
 from posecam.errors import InputError, OutputError
+from posecam.options import PredictOptions
+from posecam.scale.metric import MetricOptions
 
 
 class InputSummary:
@@ -160,12 +162,14 @@ def _picture_paths(inputs: list[str], folder: str) -> dict[str, str]:
                                            "OpenCV with a GUI); q or Esc in the window stops a live source.")
 @angle_options
 @frame_options
-@smooth_option("Smooth each person's joints over time (zero-phase 6 Hz Butterworth) in videos and frame "
-               "sequences; --viz draws the unsmoothed poses.")
+@click.option("--smooth/--no-smooth", default=PredictOptions.smooth, show_default=True,
+              help="Smooth each person's joints over time (zero-phase 6 Hz Butterworth) in videos and frame "
+                   "sequences; --viz draws the unsmoothed poses.")
 @click.option("--trc-y-up", is_flag=True, help="TRC/C3D: Y-up axes as OpenSim expects (camera turned 180 degrees about x).")
 @click.option("--strict", is_flag=True, help="Stop at a folder's first unreadable photo (exit 2) instead of leaving it out "
                                              "with a warning and counting it in the summary.")
-@floor_option
+@click.option("--floor/--no-floor", default=MetricOptions.floor, show_default=True,
+              help="Fit the ground plane under everyone's feet (static camera) and put each person on it.")
 @height_option
 @estimator_options
 @many_options("input")
@@ -189,9 +193,7 @@ def predict_command(inputs, output, viz, out_dir, out_format, jobs, ray_address,
     from posecam.viz.render3d import write_3d_view
     from posecam.analysis.angles import add_angles, angle_names
     from posecam.viz.plot import AngleSeries, write_plot
-    from posecam.options import PredictOptions
     from posecam.scale.heights import Heights
-    from posecam.scale.metric import MetricOptions
 
     refuse_alone("strict", "a folder of photos among the inputs", any(os.path.isdir(p) for p in inputs))
     paths, unreadable = expand_inputs(inputs, strict)   # a folder of photos: each photo an input
