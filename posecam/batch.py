@@ -104,13 +104,11 @@ def fuse_task(task: Task, options: FuseOptions, estimator: EstimatorOptions | No
               chain: PredictOptions | None = None) -> str:
     """Fuse one take's views into its output, as `posecam fuse` does (`chain`: what the
     videos' chain does)."""
-    chain = chain or PredictOptions()
     from posecam.multiview.fuse import fuse_recordings   # scipy: only where fusion runs
     from posecam.views import load_views
     views = [p for p in task.inputs if Path(p).suffix.lower() != ".json"]
     recordings = load_views(list(task.inputs), intrinsics=intrinsics, calibration=calibration, rig=options.calibration,
-                            fuse=options, estimator=shared_estimator(estimator or EstimatorOptions()) if views else None,
-                            chain=chain)
+                            fuse=options, estimator=shared_estimator(estimator) if views else None, chain=chain)
     fused = fuse_recordings(recordings, options).recording
     with OutputSet([task.output], task.inputs) as staged:
         write_poses(staged.path(task.output), [fused])
