@@ -279,7 +279,7 @@ MUTANTS = (
            ("tests/test_sync.py::test_motion_agreement_is_read_at_each_views_offset",)),
     # ---- association across views -------------------------------------------------------------
     Mutant("association: the calibrated pair gate opened", "posecam/multiview/associate.py",
-           "        if c > max_cost:\n            break", "        if False:\n            break",
+           "        if c > ASSOCIATION.max_pair_angle:\n            break", "        if False:\n            break",
            ("tests/test_association.py::test_people_each_camera_alone_sees_are_not_one_person_through_a_calibration",)),
     Mutant("association: the consensus counts frames, not how well they fit", "posecam/multiview/associate.py",
            "return float(np.sum(np.diff(bounds) * (residual / ASSOCIATION.max_pair_angle - 1.0)))",

@@ -9,7 +9,7 @@ never do.
   posecam.multiview.consensus, run on all its pairs' common frames together) explain every pair.
   Scoring all pairs under one transform is what tells two people apart: a single pair is
   explained by some transform even when it is two different people standing alike.
-- With a calibration (`associate` with `pair_cost_calibrated`): a pair of tracks is scored by
+- With a calibration (`associate`, `_pair_cost`): a pair of tracks is scored by
   the median reprojection error of their triangulation through the rig over their common
   frames, as an angle (px / focal length), and pairs are linked from the cheapest up.
 """
@@ -17,7 +17,6 @@ never do.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -40,13 +39,10 @@ class Association:
 
 def associate_people(take: Take, rig: Rig | None, offsets: list[float], opts: FuseOptions) -> Association:
     """Who is who across the take's views at these offsets: through `rig` (its cameras the
-    take's views, in order) by `associate` with `pair_cost_calibrated`; without one by
-    `associate_by_consensus`."""
-    min_conf = opts.min_conf
+    take's views, in order) by `associate`; without one by `associate_by_consensus`."""
     if rig is None:
-        return associate_by_consensus(take, offsets, min_conf)
-    n = take.lengths[take.reference]
-    return associate(take.tracks, pair_cost_calibrated(rig.cameras, offsets, n, min_conf), ASSOCIATION.max_pair_angle)
+        return associate_by_consensus(take, offsets, opts.min_conf)
+    return associate(take, rig.cameras, offsets, opts.min_conf)
 
 
 def unmatched_views(take: Take, association: Association) -> list[str]:
@@ -59,50 +55,44 @@ def unmatched_views(take: Take, association: Association) -> list[str]:
             for v, name in enumerate(take.names) if v not in shared]
 
 
-PairCost = Callable[[ViewTrack, ViewTrack], float]      # np.inf: not the same person
-
-
-def pair_cost_calibrated(cams: list[CameraCalibration], offsets: list[float], n: int,
-                         min_conf: float = MIN_CONFIDENCE) -> PairCost:
-    """Cost of two tracks with a calibration: median reprojection angle of their triangulation."""
-
-    def cost(a: ViewTrack, b: ViewTrack) -> float:
-        # both tracks in the reference's frames, where both are seen
-        (ua, ca), (ub, cb) = [(shift(t.uv, offsets[t.view], n), shift(t.conf, offsets[t.view], n, 0.0)) for t in (a, b)]
-        both = (observation_weights(ua, ca, min_conf).sum(axis=1) > 0) & \
-               (observation_weights(ub, cb, min_conf).sum(axis=1) > 0)
-        common = int(both.sum())
-        if common < ASSOCIATION.min_common_frames:
-            return np.inf
-        rig = Rig([cams[a.view], cams[b.view]])
-        step = -(-common // ASSOCIATION.pair_frames)                          # a median needs no more frames
-        uv, conf = np.stack([ua[both][::step], ub[both][::step]]), np.stack([ca[both][::step], cb[both][::step]])
-        common = uv.shape[1]
-        err = rig.reprojection_errors(rig.triangulate(uv, conf, min_conf), uv, conf, min_conf)
-        focal = np.array([cams[a.view].intrinsics.fx, cams[b.view].intrinsics.fx])[:, None, None]
-        rows = np.where(np.isfinite(err), err / focal, np.nan).reshape(2 * common, -1)
-        seen = np.isfinite(rows).any(axis=1)     # frames whose confident joints the two views share
-        if not seen.any():
-            return np.inf
-        return float(np.median(np.nanmedian(rows[seen], axis=1)))
-
-    return cost
+def _pair_cost(a: ViewTrack, b: ViewTrack, cams: list[CameraCalibration], offsets: list[float], n: int,
+               min_conf: float) -> float:
+    """Cost of two tracks with a calibration: median reprojection angle of their triangulation
+    over the reference's n frames where both are seen (np.inf: not the same person)."""
+    (ua, ca), (ub, cb) = [(shift(t.uv, offsets[t.view], n), shift(t.conf, offsets[t.view], n, 0.0)) for t in (a, b)]
+    both = (observation_weights(ua, ca, min_conf).sum(axis=1) > 0) & \
+           (observation_weights(ub, cb, min_conf).sum(axis=1) > 0)
+    common = int(both.sum())
+    if common < ASSOCIATION.min_common_frames:
+        return np.inf
+    rig = Rig([cams[a.view], cams[b.view]])
+    step = -(-common // ASSOCIATION.pair_frames)                          # a median needs no more frames
+    uv, conf = np.stack([ua[both][::step], ub[both][::step]]), np.stack([ca[both][::step], cb[both][::step]])
+    common = uv.shape[1]
+    err = rig.reprojection_errors(rig.triangulate(uv, conf, min_conf), uv, conf, min_conf)
+    focal = np.array([cams[a.view].intrinsics.fx, cams[b.view].intrinsics.fx])[:, None, None]
+    rows = np.where(np.isfinite(err), err / focal, np.nan).reshape(2 * common, -1)
+    seen = np.isfinite(rows).any(axis=1)     # frames whose confident joints the two views share
+    if not seen.any():
+        return np.inf
+    return float(np.median(np.nanmedian(rows[seen], axis=1)))
 
 
 def _overlap(a: ViewTrack, b: ViewTrack) -> int:
     return int((a.seen & b.seen).sum())
 
 
-def associate(tracks: list[list[ViewTrack]], pair_cost: PairCost, max_cost: float) -> Association:
-    """Association with a calibration: every cross-view pair of tracks scored by `pair_cost`,
+def associate(take: Take, cams: list[CameraCalibration], offsets: list[float], min_conf: float) -> Association:
+    """Association with a calibration: every cross-view pair of tracks scored by `_pair_cost`,
     linked from the cheapest up while the link keeps each person's tracks of one view apart in
     time; every track ends in exactly one person, unlinked tracks alone."""
-    flat = [t for view in tracks for t in view]
-    pairs = sorted(((pair_cost(a, b), a, b) for i, a in enumerate(flat) for b in flat[i + 1:]
-                    if a.view != b.view), key=lambda p: p[0])
+    flat = [t for view in take.tracks for t in view]
+    n = take.lengths[take.reference]
+    pairs = sorted(((_pair_cost(a, b, cams, offsets, n, min_conf), a, b) for i, a in enumerate(flat)
+                    for b in flat[i + 1:] if a.view != b.view), key=lambda p: p[0])
     groups = {id(t): [t] for t in flat}
     for c, a, b in pairs:
-        if c > max_cost:
+        if c > ASSOCIATION.max_pair_angle:
             break
         merged = _merged(groups, a, b)
         if merged is not None:
