@@ -10,7 +10,7 @@ from posecam.multiview.associate import associate_people
 from posecam.multiview.fuse import fuse_recordings
 from posecam.multiview.take_check import check_take
 from posecam.multiview.options import FuseOptions
-from posecam.multiview.coarse_sync import _bone_products, _resampled_products, bone_correlation, bone_directions, coarse_offsets
+from posecam.multiview.coarse_sync import _bone_products, _resampled_products, bone_correlations, bone_directions, coarse_offsets
 from posecam.multiview.motion_sync import Resamples, motion_correlations, motion_signals, shifted_pair
 from posecam.multiview.observations import tracks_of
 from posecam.multiview.same_scene import motion_agreement
@@ -40,7 +40,7 @@ def test_bones_seen_by_two_turned_cameras_correlate_at_their_lag_only():
     recs = monocular_views(cams[:2], skeleton_motion(150), offsets=[0, 7], seed=4)
     a, b = _bones(recs[0]), _bones(recs[1])
     lags = np.arange(-5.0, 20.0)
-    corr = np.array([bone_correlation(a, b, lag) for lag in lags])
+    corr = np.array([bone_correlations(a, b, lag, Resamples.whole(*a.shape[:2]))[0] for lag in lags])
     assert lags[np.argmax(corr)] == 7.0 and 0.9 < corr.max() <= 1.0, dict(zip(lags, corr.round(3)))
     assert corr[0] < corr.max() - 0.15 and corr[-1] < corr.max() - 0.15, corr.round(3)
 

@@ -106,11 +106,6 @@ def bone_correlations(ref: np.ndarray, other: np.ndarray, lag: float, resamples:
     return _motion_match(_resampled_products(a, b, resamples), significance=False)
 
 
-def bone_correlation(ref: np.ndarray, other: np.ndarray, lag: float) -> float:
-    """`bone_correlations` of the bones as they are."""
-    return float(bone_correlations(ref, other, lag, Resamples.whole(*ref.shape[:2]))[0])
-
-
 def epipolar_px(ref: list[ViewTrack], other: list[ViewTrack], pairing: tuple[tuple[int, int], ...], lag: int,
                 min_conf: float) -> float:
     """Median distance (px) of the paired tracks' keypoints, the view's frame i + lag against the
