@@ -5,6 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
+from conftest import DATA
 from posecam.io.poses import read_poses
 from posecam.multiview.associate import associate_people
 from posecam.multiview.fuse import fuse_recordings
@@ -55,6 +56,24 @@ def test_coarse_offsets_of_views_cut_at_different_frames():
     take = check_take(recs, FuseOptions(sync=True))
     assert coarse_offsets(take, FuseOptions(min_conf=0.3)) == [0.0, -12.0, -9.0]
 
+
+
+def test_a_track_that_shares_no_bones_leaves_the_other_pairings_lags_alone():
+    """The coarse search on the two-person take's first 50 frames, each of cam01's tracks against
+    another view's tracks: a track there with no joint confident scores no pairing, and the lag
+    found is the one found without it (each pairing's lag is scored with its own pairing)."""
+    from dataclasses import replace
+
+    from posecam.multiview.coarse_sync import coarse_offset
+
+    recs = [read_poses(DATA / "two_people_50f" / f"cam0{i}.json")[0] for i in (1, 2, 3, 4)]
+    take = check_take(recs, FuseOptions(sync=True))
+    for v in (1, 2, 3):
+        blind = replace(take.tracks[v][0], conf=np.zeros_like(take.tracks[v][0].conf), ids=(99,))
+        for ref in take.tracks[0]:
+            alone, beside = (coarse_offset([ref], others, take.joints, take.fps, 0.3, 25)
+                             for others in (take.tracks[v], [blind] + take.tracks[v]))
+            assert alone == beside, (v, ref.ids, alone, beside)
 
 def test_motion_agreement_is_read_at_each_views_offset():
     """One person seen by two cameras, the second started 5 frames earlier: at its offset (+5)

@@ -154,7 +154,7 @@ def coarse_offset(ref: list[ViewTrack], other: list[ViewTrack], joints: tuple[st
     pairings = ([tuple(zip(range(len(ref)), p)) for p in itertools.permutations(range(len(other)), k)]
                 if len(ref) <= len(other) else
                 [tuple(zip(p, range(len(other)))) for p in itertools.permutations(range(len(ref)), k)])
-    found = []                                 # each pairing's best lag (whole frames, module convention)
+    found = []                                 # (best lag in whole frames, module convention; its pairing)
     for pairing in pairings:
         score = _motion_match(sum(products[pair] for pair in pairing))
         if np.isfinite(score).any():
@@ -163,10 +163,10 @@ def coarse_offset(ref: list[ViewTrack], other: list[ViewTrack], joints: tuple[st
                 near = np.arange(at - step + 1, at + step)
                 fine = _motion_match(sum(_bone_products(bones[0][i], bones[1][j], near) for i, j in pairing))
                 at = int(near[np.nanargmax(fine)])
-            found.append(at)
+            found.append((at, pairing))
     if len(found) > 1:
-        return min(zip(found, pairings), key=lambda c: epipolar_px(ref, other, c[1], c[0], min_conf))[0]
-    return found[0] if found else None
+        return min(found, key=lambda c: epipolar_px(ref, other, c[1], c[0], min_conf))[0]
+    return found[0][0] if found else None
 
 
 def coarse_offsets(take: Take, opts: FuseOptions) -> list[float]:
