@@ -62,15 +62,6 @@ class Tracker:
         """The height (px) of the smallest person confirmed so far in this video (None: nobody yet)."""
         return self._smallest
 
-    @property
-    def next_frame(self) -> int:
-        """The index of the frame `begin_frame` takes next."""
-        return self._frame + 1
-
-    def missing_people(self) -> bool:
-        """Whether someone confirmed is lost and still remembered (looked for)."""
-        return any(t.lost > 0 and t.number is not None for t in self.tracks)
-
     def active(self) -> list[Track]:
         return [t for t in self.tracks if t.lost == 0]
 
